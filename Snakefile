@@ -1,0 +1,29 @@
+# wsnloc workflow: raw logs -> Parquet -> (estimates -> metrics) -> report.
+# Edit config/config.yaml, then run `snakemake --cores 2`.
+from snakemake.utils import min_version
+
+from wsnloc.config import validate_config
+
+min_version("8.20")
+
+
+configfile: "config/config.yaml"
+
+
+# Validated (and defaults filled in) before any job is planned; errors name the key.
+validate_config(config, "config/schema.yaml")
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/simulate.smk"
+include: "workflow/rules/ingest.smk"
+include: "workflow/rules/resample.smk"
+include: "workflow/rules/evaluate.smk"
+include: "workflow/rules/report.smk"
+
+
+rule all:
+    input:
+        "reports/index.html",
+        "reports/results.csv",
+    default_target: True

@@ -1,0 +1,83 @@
+"""A measurement campaign: floor plan, anchors, path, scenarios and the physical models.
+
+Loaded from ``config/campaigns/<name>.yaml``. Both the simulator and the ingest read the
+campaign; the raw run directories hold only what a logger would write.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path as FsPath
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from wsnloc.config import read_yaml, validate
+from wsnloc.errors import ConfigError
+from wsnloc.geometry.path import Path
+from wsnloc.geometry.walls import count_crossings, wall_pieces
+
+
+def _campaign_schema() -> dict:
+    text = resources.files("wsnloc.schemas").joinpath("campaign.schema.yaml").read_text()
+    return yaml.safe_load(text)
+
+
+@dataclass
+class Campaign:
+    """Parsed, validated campaign file. ``spec`` keeps the full mapping for model sections."""
+
+    name: str
+    format: str
+    spec: dict
+    source: str = ""
+    walls: np.ndarray = field(init=False)
+    anchors: pd.DataFrame = field(init=False)
+    path: Path = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.walls = wall_pieces(self.spec.get("walls", []))
+        self.anchors = pd.DataFrame(self.spec["anchors"]).rename(columns={"id": "anchor_id"})
+        duplicated = self.anchors["anchor_id"][self.anchors["anchor_id"].duplicated()]
+        if len(duplicated):
+            raise ConfigError(f"{self.source}: key 'anchors': duplicate anchor id {duplicated.iloc[0]!r}")
+        known = set(self.anchors["anchor_id"])
+        for subset, members in self.spec.get("subsets", {}).items():
+            unknown = [m for m in members if m not in known]
+            if unknown:
+                raise ConfigError(f"{self.source}: key 'subsets.{subset}': unknown anchor {unknown[0]!r}")
+        path = self.spec["path"]
+        try:
+            self.path = Path(path["points"], path.get("corner_radius_m", 0.0))
+        except ValueError as exc:
+            raise ConfigError(f"{self.source}: key 'path': {exc}") from exc
+
+    @classmethod
+    def load(cls, path: str | FsPath) -> "Campaign":
+        spec = read_yaml(path)
+        validate(spec, _campaign_schema(), source=f"campaign file {path}")
+        return cls(name=spec["name"], format=spec["format"], spec=spec, source=str(path))
+
+    def section(self, *keys: str):
+        """Nested model parameters, e.g. ``section('radio', 'uwb')``; names the missing key."""
+        node = self.spec
+        for depth, key in enumerate(keys):
+            if not isinstance(node, dict) or key not in node:
+                dotted = ".".join(keys[: depth + 1])
+                raise ConfigError(f"{self.source}: key '{dotted}' is required by this campaign's models")
+            node = node[key]
+        return node
+
+    def anchors_of(self, tech: str) -> pd.DataFrame:
+        """Anchors of one technology (e.g. 'uwb', 'zigbee'), in file order."""
+        return self.anchors[self.anchors["tech"] == tech].reset_index(drop=True)
+
+    def anchor_position(self, anchor_id: str) -> np.ndarray:
+        row = self.anchors.loc[self.anchors["anchor_id"] == anchor_id]
+        return row[["x", "y"]].to_numpy(dtype=float)[0]
+
+    def walls_between(self, points: np.ndarray, anchor_xy: np.ndarray) -> np.ndarray:
+        """Walls crossed by the straight link from each point to the anchor."""
+        return count_crossings(points, anchor_xy, self.walls)

@@ -1,0 +1,1 @@
+"""Plane geometry of a campaign: walls, paths, and (later) position solvers."""

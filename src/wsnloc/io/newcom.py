@@ -1,0 +1,236 @@
+"""Parsers for the Newcom++-style raw logs (uwb.log, zigbee.log, imu.log, truth.log).
+
+Formats: shared/spec/raw-formats.md. Each parser returns a DataFrame in SI units
+(seconds, metres, dBm, m/s^2, rad/s) and sends every unusable line to the quarantine
+with a reason. UWB records with a non-zero status are kept, with their status, so that
+estimators can apply the preliminary filter.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from wsnloc.campaign import Campaign
+from wsnloc.errors import IngestError
+from wsnloc.io import tables
+from wsnloc.io.rawlines import Quarantine, RawFile, check_magic, header_value, iter_fields, read_raw
+
+FILES = ("uwb.log", "zigbee.log", "imu.log", "truth.log")
+TRUTH_TOLERANCE_M = 0.05
+
+
+class _LineError(ValueError):
+    """A reason why one line is unusable."""
+
+
+def _finite(text: str, what: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise _LineError(f"{what} is not a number: {text!r}") from None
+    if not math.isfinite(value):
+        raise _LineError(f"{what} is not finite: {text!r}")
+    return value
+
+
+def _integer(text: str, what: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise _LineError(f"{what} is not an integer: {text!r}") from None
+
+
+class _Clock:
+    """Rejects lines whose time goes backwards (or repeats, when strict)."""
+
+    def __init__(self, strict: bool):
+        self.last = -math.inf
+        self.strict = strict
+
+    def check(self, t: float) -> None:
+        if t < self.last or (self.strict and t == self.last):
+            word = "repeats" if t == self.last else "goes backwards"
+            raise _LineError(f"time {word}: {t:g} ms after {self.last:g} ms")
+
+    def accept(self, t: float) -> None:
+        self.last = t
+
+
+def _anchor(anchor_id: str, techs: dict[str, str], tech: str) -> str:
+    known = techs.get(anchor_id)
+    if known is None:
+        raise _LineError(f"unknown anchor {anchor_id!r} (not in the campaign file)")
+    if known != tech:
+        raise _LineError(f"anchor {anchor_id!r} is a {known} anchor, not {tech}")
+    return anchor_id
+
+
+def parse_uwb(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.DataFrame:
+    """uwb.log: `t_ms anchor tw_toa_ps status`; range = c * tw_toa / 2 (m)."""
+    check_magic(raw, "newcom-uwb v1")
+    c = campaign.spec["speed_of_light_mps"]
+    techs = dict(zip(campaign.anchors["anchor_id"], campaign.anchors["tech"]))
+    clock = _Clock(strict=False)
+    rows = []
+    for number, text, fields in iter_fields(raw):
+        try:
+            if len(fields) != 4:
+                raise _LineError(f"expected 4 fields 't_ms anchor tw_toa_ps status', found {len(fields)}")
+            t_ms = _finite(fields[0], "t_ms")
+            anchor = _anchor(fields[1], techs, "uwb")
+            tw_toa_ps = _integer(fields[2], "tw_toa_ps")
+            status = _integer(fields[3], "status")
+            clock.check(t_ms)
+        except _LineError as reason:
+            quarantine.add(raw.name, number, text, str(reason))
+            continue
+        clock.accept(t_ms)
+        rows.append((t_ms / 1000.0, anchor, c * tw_toa_ps * 1e-12 / 2.0, status, number))
+    return pd.DataFrame(rows, columns=["t", "anchor_id", "range_m", "status", "line"]) if rows else tables.empty("ranges")
+
+
+def parse_zigbee(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.DataFrame:
+    """zigbee.log: `t_ms seq n anchor:rssi_dbm ...` with n matching the number of pairs."""
+    check_magic(raw, "newcom-zigbee v1")
+    techs = dict(zip(campaign.anchors["anchor_id"], campaign.anchors["tech"]))
+    clock = _Clock(strict=False)
+    rows = []
+    for number, text, fields in iter_fields(raw):
+        try:
+            if len(fields) < 3:
+                raise _LineError(f"expected 't_ms seq n anchor:rssi ...', found {len(fields)} fields")
+            t_ms = _finite(fields[0], "t_ms")
+            seq = _integer(fields[1], "seq")
+            n = _integer(fields[2], "n")
+            pairs = fields[3:]
+            if n != len(pairs):
+                raise _LineError(f"n = {n} but {len(pairs)} anchor:rssi pairs follow")
+            line_rows, seen = [], set()
+            for pair in pairs:
+                anchor, sep, value = pair.partition(":")
+                if not sep:
+                    raise _LineError(f"pair {pair!r} is not anchor:rssi_dbm")
+                _anchor(anchor, techs, "zigbee")
+                if anchor in seen:
+                    raise _LineError(f"anchor {anchor!r} appears twice")
+                seen.add(anchor)
+                rssi = _integer(value, f"rssi of {anchor}")
+                line_rows.append((t_ms / 1000.0, seq, anchor, float(rssi), number))
+            clock.check(t_ms)
+        except _LineError as reason:
+            quarantine.add(raw.name, number, text, str(reason))
+            continue
+        clock.accept(t_ms)
+        rows.extend(line_rows)
+    return pd.DataFrame(rows, columns=["t", "seq", "anchor_id", "rss_dbm", "line"]) if rows else tables.empty("rss")
+
+
+def imu_scales(raw: RawFile) -> tuple[float, float]:
+    """accel_lsb_per_g and gyro_lsb_per_dps from the header; required to read the counts."""
+    scales = []
+    for key in ("accel_lsb_per_g", "gyro_lsb_per_dps"):
+        value = header_value(raw, key)
+        try:
+            number = float(value) if value is not None else float("nan")
+        except ValueError:
+            number = float("nan")
+        if not (math.isfinite(number) and number > 0):
+            raise IngestError(f"{raw.path}: header must give '{key}=<positive number>' "
+                              f"(found {value!r}); raw counts cannot be converted without it")
+        scales.append(number)
+    return scales[0], scales[1]
+
+
+def parse_imu(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.DataFrame:
+    """imu.log: `t_ms ax ay az gz` raw counts; a = counts / lsb_per_g * g, w = counts / lsb_per_dps (deg/s -> rad/s)."""
+    check_magic(raw, "newcom-imu v1")
+    accel_lsb, gyro_lsb = imu_scales(raw)
+    clock = _Clock(strict=True)
+    times, counts, numbers = [], [], []
+    for number, text, fields in iter_fields(raw):
+        try:
+            if len(fields) != 5:
+                raise _LineError(f"expected 5 fields 't_ms ax ay az gz', found {len(fields)}")
+            t_ms = _finite(fields[0], "t_ms")
+            values = [_integer(f, name) for f, name in zip(fields[1:], ("ax", "ay", "az", "gz"))]
+            clock.check(t_ms)
+        except _LineError as reason:
+            quarantine.add(raw.name, number, text, str(reason))
+            continue
+        clock.accept(t_ms)
+        times.append(t_ms)
+        counts.append(values)
+        numbers.append(number)
+    if not times:
+        return tables.empty("imu")
+    g = campaign.spec["gravity_mps2"]
+    c = np.asarray(counts, dtype=float)
+    return pd.DataFrame({
+        "t": np.asarray(times) / 1000.0,
+        "ax": c[:, 0] / accel_lsb * g,
+        "ay": c[:, 1] / accel_lsb * g,
+        "az": c[:, 2] / accel_lsb * g,
+        "gz": np.deg2rad(c[:, 3] / gyro_lsb),
+        "line": np.asarray(numbers, dtype=np.int32),
+    })
+
+
+def parse_truth(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.DataFrame:
+    """truth.log: `t_ms rail_m`; (x, y) from the campaign's rail polyline at rail_m."""
+    check_magic(raw, "newcom-truth v1")
+    length = campaign.path.length
+    clock = _Clock(strict=True)
+    rows = []
+    for number, text, fields in iter_fields(raw):
+        try:
+            if len(fields) != 2:
+                raise _LineError(f"expected 2 fields 't_ms rail_m', found {len(fields)}")
+            t_ms = _finite(fields[0], "t_ms")
+            s = _finite(fields[1], "rail_m")
+            if not -TRUTH_TOLERANCE_M <= s <= length + TRUTH_TOLERANCE_M:
+                raise _LineError(f"rail_m = {s:g} is outside the rail [0, {length:.2f}] m")
+            clock.check(t_ms)
+        except _LineError as reason:
+            quarantine.add(raw.name, number, text, str(reason))
+            continue
+        clock.accept(t_ms)
+        rows.append((t_ms / 1000.0, s, number))
+    if not rows:
+        return tables.empty("truth")
+    frame = pd.DataFrame(rows, columns=["t", "s", "line"])
+    pose = campaign.path.evaluate(frame["s"].to_numpy())
+    frame["x"], frame["y"] = pose["x"], pose["y"]
+    return frame
+
+
+def ingest_run(run_dir: str | Path, campaign: Campaign) -> tuple[dict[str, pd.DataFrame], dict]:
+    """Parse the four logs of one run directory.
+
+    Returns the tables (ranges, rss, imu, truth, anchors, quarantine) and an inventory:
+    per file its SHA-256, line count and quarantined count. A missing file raises
+    IngestError naming it.
+    """
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise IngestError(f"{run_dir}: not a directory")
+    quarantine = Quarantine()
+    raws = {name: read_raw(run_dir / name, quarantine) for name in FILES}
+    result = {
+        "ranges": parse_uwb(raws["uwb.log"], campaign, quarantine),
+        "rss": parse_zigbee(raws["zigbee.log"], campaign, quarantine),
+        "imu": parse_imu(raws["imu.log"], campaign, quarantine),
+        "truth": parse_truth(raws["truth.log"], campaign, quarantine),
+        "anchors": campaign.anchors[["anchor_id", "tech", "x", "y"]].copy(),
+        "quarantine": quarantine.frame(),
+    }
+    q = result["quarantine"]
+    inventory = {
+        name: {"sha256": raw.sha256, "lines": raw.n_lines, "data_lines": raw.n_records,
+               "quarantined": int((q["file"] == name).sum())}
+        for name, raw in raws.items()
+    }
+    return result, inventory

@@ -1,0 +1,100 @@
+"""Canonical processed tables: explicit pyarrow schemas with SI units in the metadata.
+
+Every stage after ingest reads only these tables, whatever the raw format was.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+
+def _field(name: str, kind: pa.DataType, unit: str, description: str) -> pa.Field:
+    return pa.field(name, kind, nullable=False, metadata={"unit": unit, "description": description})
+
+
+_LINE = _field("line", pa.int32(), "1", "line number in the raw file (1-based), for traceability")
+
+SCHEMAS: dict[str, pa.Schema] = {
+    "ranges": pa.schema([
+        _field("t", pa.float64(), "s", "receive time on the logger clock"),
+        _field("anchor_id", pa.string(), "", "anchor identifier from the campaign file"),
+        _field("range_m", pa.float64(), "m", "measured distance (c * two-way ToF / 2, or ultrasound)"),
+        _field("status", pa.int32(), "1", "device status, 0 = valid; other values flag a meaningless range"),
+        _LINE,
+    ]),
+    "rss": pa.schema([
+        _field("t", pa.float64(), "s", "receive time on the logger clock"),
+        _field("seq", pa.int32(), "1", "broadcast sequence counter (-1 when the format has none)"),
+        _field("anchor_id", pa.string(), "", "anchor identifier from the campaign file"),
+        _field("rss_dbm", pa.float64(), "dBm", "received signal strength"),
+        _LINE,
+    ]),
+    "imu": pa.schema([
+        _field("t", pa.float64(), "s", "sample time on the sensor clock"),
+        _field("ax", pa.float64(), "m/s^2", "specific force, body x (forward)"),
+        _field("ay", pa.float64(), "m/s^2", "specific force, body y (left)"),
+        _field("az", pa.float64(), "m/s^2", "specific force, body z (up)"),
+        _field("gz", pa.float64(), "rad/s", "angular rate about body z"),
+        _LINE,
+    ]),
+    "imu_5hz": pa.schema([
+        _field("t", pa.float64(), "s", "sample time of the resampled uniform grid"),
+        _field("ax", pa.float64(), "m/s^2", "low-pass filtered specific force, body x"),
+        _field("ay", pa.float64(), "m/s^2", "low-pass filtered specific force, body y"),
+        _field("az", pa.float64(), "m/s^2", "low-pass filtered specific force, body z"),
+        _field("gz", pa.float64(), "rad/s", "low-pass filtered angular rate about body z"),
+        _field("in_gap", pa.bool_(), "", "true where the raw stream had a hole longer than max_gap_s"),
+    ]),
+    "truth": pa.schema([
+        _field("t", pa.float64(), "s", "time on the logger clock"),
+        _field("s", pa.float64(), "m", "position along the campaign path (rail)"),
+        _field("x", pa.float64(), "m", "east coordinate"),
+        _field("y", pa.float64(), "m", "north coordinate"),
+        _LINE,
+    ]),
+    "anchors": pa.schema([
+        _field("anchor_id", pa.string(), "", "anchor identifier"),
+        _field("tech", pa.string(), "", "technology: uwb, zigbee, cricket, ..."),
+        _field("x", pa.float64(), "m", "east coordinate"),
+        _field("y", pa.float64(), "m", "north coordinate"),
+    ]),
+    "quarantine": pa.schema([
+        _field("file", pa.string(), "", "raw file the line came from"),
+        _field("line", pa.int32(), "1", "line number in that file (1-based)"),
+        _field("text", pa.string(), "", "the line as read (trailing whitespace removed)"),
+        _field("reason", pa.string(), "", "why the line could not be used"),
+    ]),
+}
+
+RAW_TABLES = ("ranges", "rss", "imu", "truth", "anchors", "quarantine")
+
+
+def empty(table: str) -> pd.DataFrame:
+    return SCHEMAS[table].empty_table().to_pandas()
+
+
+def to_arrow(table: str, frame: pd.DataFrame, extra_metadata: dict[str, str] | None = None) -> pa.Table:
+    """Cast a DataFrame to the table's schema (columns in schema order); raises on mismatch."""
+    schema = SCHEMAS[table]
+    meta = {b"table": table.encode(), **{k.encode(): str(v).encode() for k, v in (extra_metadata or {}).items()}}
+    arrow = pa.Table.from_pandas(frame[schema.names], schema=schema, preserve_index=False)
+    return arrow.replace_schema_metadata(meta)
+
+
+def write(table: str, frame: pd.DataFrame, path: str | Path, extra_metadata: dict[str, str] | None = None) -> None:
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    pq.write_table(to_arrow(table, frame, extra_metadata), path, compression="zstd")
+
+
+def read(path: str | Path) -> pd.DataFrame:
+    return pq.read_table(path).to_pandas()
+
+
+def unit_of(path: str | Path, column: str) -> str:
+    """The unit recorded for `column` in a written table's schema."""
+    field = pq.read_schema(path).field(column)
+    return (field.metadata or {}).get(b"unit", b"").decode()

@@ -1,0 +1,1 @@
+"""Metrics: error statistics, confidence intervals over Monte Carlo runs, data quality."""

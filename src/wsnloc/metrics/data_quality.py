@@ -1,0 +1,130 @@
+"""Per-scenario data summary: inventory, quarantine, UWB range error, RSS path-loss fit.
+
+Reads the processed tables of every run of one scenario; returns a JSON-ready summary for
+the report, results rows for results.csv, and the pooled samples the figures need.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from wsnloc import results
+from wsnloc.campaign import Campaign
+from wsnloc.io import tables
+from wsnloc.metrics.ranging import fit_path_loss, range_errors, rss_with_distance
+from wsnloc.metrics.stats import error_summary
+
+EXPERIMENT = "data"
+
+
+def reason_category(reason: str) -> str:
+    """Group quarantine reasons: quoted values and numbers become placeholders."""
+    text = re.sub(r"'[^']*'|\"[^\"]*\"", "'…'", reason)
+    return re.sub(r"-?\d+(\.\d+)?(e-?\d+)?", "N", text)
+
+
+def load_runs(tables_dir: Path) -> dict[str, dict[str, pd.DataFrame]]:
+    """{run: {table: DataFrame}} for every run directory under `tables_dir`."""
+    runs = {}
+    for run_dir in sorted(p for p in Path(tables_dir).iterdir() if p.is_dir()):
+        runs[run_dir.name] = {name: tables.read(run_dir / f"{name}.parquet") for name in tables.RAW_TABLES}
+    return runs
+
+
+def summarize(runs: dict[str, dict[str, pd.DataFrame]], imu_5hz: dict[str, pd.DataFrame],
+              campaign: Campaign, label: str) -> tuple[dict, list[dict], dict[str, pd.DataFrame]]:
+    """Summary dict, results rows and pooled samples (range errors, RSS vs distance)."""
+    per_run, errors, rss_samples, quarantine = [], [], [], []
+    for run, data in runs.items():
+        err = range_errors(data["ranges"], data["truth"], campaign).assign(run=run)
+        rss = rss_with_distance(data["rss"], data["truth"], campaign).assign(run=run)
+        errors.append(err)
+        rss_samples.append(rss)
+        quarantine.append(data["quarantine"].assign(run=run))
+        d0 = campaign.spec.get("radio", {}).get("zigbee", {}).get("d0_m", 1.0)
+        fit_all = fit_path_loss(rss["rss_dbm"], rss["true_distance_m"], d0)
+        los = rss[rss["los"]]
+        fit_los = fit_path_loss(los["rss_dbm"], los["true_distance_m"], d0)
+        truth = data["truth"]
+        resampled = imu_5hz.get(run, pd.DataFrame())
+        per_run.append({
+            "run": run,
+            "duration_s": float(truth["t"].max() - truth["t"].min()) if len(truth) else float("nan"),
+            "uwb_valid": int((data["ranges"]["status"] == 0).sum()),
+            "uwb_flagged": int((data["ranges"]["status"] != 0).sum()),
+            "rss": len(data["rss"]),
+            "imu": len(data["imu"]),
+            "imu_5hz": len(resampled),
+            "imu_5hz_in_gap": int(resampled["in_gap"].sum()) if len(resampled) else 0,
+            "truth": len(truth),
+            "quarantined": len(data["quarantine"]),
+            **{f"los_{k}": v for k, v in error_summary(err.loc[err["los"], "error_m"]).items()},
+            **{f"nlos_{k}": v for k, v in error_summary(err.loc[~err["los"], "error_m"]).items()},
+            **{f"fit_all_{k}": v for k, v in fit_all.items()},
+            **{f"fit_los_{k}": v for k, v in fit_los.items()},
+        })
+    per_run = pd.DataFrame(per_run)
+    errors = pd.concat(errors, ignore_index=True) if errors else pd.DataFrame()
+    rss_samples = pd.concat(rss_samples, ignore_index=True) if rss_samples else pd.DataFrame()
+    quarantine = pd.concat(quarantine, ignore_index=True) if quarantine else tables.empty("quarantine")
+
+    rows = []
+    common = {"experiment": EXPERIMENT, "scenario": label}
+    for link in ("los", "nlos"):
+        for stat in ("median", "p95"):
+            rows.append(results.row_over_runs(per_run[f"{link}_{stat}"], table="UWB range error",
+                                              row=link.upper(), column=stat, metric="range_error_m", **common))
+    for subset in ("all", "los"):
+        for key in ("P0_dBm", "n", "sigma_dB"):
+            rows.append(results.row_over_runs(per_run[f"fit_{subset}_{key}"], table="RSS path-loss fit",
+                                              row="all links" if subset == "all" else "LOS links",
+                                              column=key, metric=key, **common))
+    rows.append(results.row_over_runs(per_run["quarantined"], table="Inventory", row="all files",
+                                      column="quarantined lines per run", metric="lines", **common))
+
+    per_anchor = _per_anchor_counts(runs)
+    q = quarantine.assign(category=quarantine["reason"].map(reason_category))
+    by_reason = (q.groupby(["file", "category"]).size().rename("lines").reset_index()
+                 .sort_values(["file", "lines"], ascending=[True, False]))
+    pooled_errors = {
+        link: error_summary(errors.loc[errors["los"] == (link == "LOS"), "error_m"]) if len(errors) else {}
+        for link in ("LOS", "NLOS")
+    }
+    summary = {
+        "label": label,
+        "runs": len(runs),
+        "per_run": per_run.to_dict(orient="records"),
+        "totals": per_run.drop(columns="run").sum(numeric_only=True).to_dict(),
+        "per_anchor": per_anchor.to_dict(orient="records"),
+        "quarantine_by_reason": by_reason.to_dict(orient="records"),
+        "quarantine_examples": quarantine.head(20).to_dict(orient="records"),
+        "range_error_pooled": pooled_errors,
+        "configured_path_loss": {k: campaign.spec.get("radio", {}).get("zigbee", {}).get(k)
+                                 for k in ("p0_dbm", "path_loss_exponent", "shadowing_sigma_db",
+                                           "fast_fading_sigma_db", "wall_loss_db")},
+    }
+    return summary, rows, {"range_errors": errors, "rss": rss_samples}
+
+
+def _per_anchor_counts(runs: dict[str, dict[str, pd.DataFrame]]) -> pd.DataFrame:
+    """Mean number of measurements per run for each anchor (valid and flagged ranges, RSS)."""
+    frames = []
+    for run, data in runs.items():
+        r = data["ranges"]
+        counts = pd.DataFrame({
+            "ranges_valid": r[r["status"] == 0].groupby("anchor_id").size(),
+            "ranges_flagged": r[r["status"] != 0].groupby("anchor_id").size(),
+            "rss": data["rss"].groupby("anchor_id").size(),
+        })
+        anchors = data["anchors"].set_index("anchor_id")
+        counts = counts.reindex(anchors.index).fillna(0).assign(tech=anchors["tech"], run=run)
+        frames.append(counts.reset_index())
+    if not frames:
+        return pd.DataFrame(columns=["anchor_id", "tech", "ranges_valid", "ranges_flagged", "rss"])
+    all_runs = pd.concat(frames)
+    mean = all_runs.groupby(["anchor_id", "tech"], sort=False)[["ranges_valid", "ranges_flagged", "rss"]].mean()
+    return mean.round(1).reset_index()

@@ -1,0 +1,67 @@
+"""Measurement quality against ground truth: range errors and the path-loss fit.
+
+Uses only processed tables (ranges, rss, truth, anchors) and the campaign geometry
+(walls), never simulator internals, so it applies equally to real logs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from wsnloc.campaign import Campaign
+
+
+def truth_at(truth: pd.DataFrame, t: np.ndarray) -> np.ndarray:
+    """(N, 2) true position at times t (s) by linear interpolation; NaN outside the truth span."""
+    x = np.interp(t, truth["t"], truth["x"], left=np.nan, right=np.nan)
+    y = np.interp(t, truth["t"], truth["y"], left=np.nan, right=np.nan)
+    return np.column_stack([x, y])
+
+
+def _with_geometry(frame: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign) -> pd.DataFrame:
+    """Add true distance (m) and walls crossed between the true position and the anchor."""
+    frame = frame.copy()
+    position = truth_at(truth, frame["t"].to_numpy())
+    frame["true_x"], frame["true_y"] = position[:, 0], position[:, 1]
+    frame = frame[np.isfinite(frame["true_x"])]
+    anchors = campaign.anchors.set_index("anchor_id")
+    frame["true_distance_m"] = np.nan
+    frame["walls"] = -1
+    for anchor_id, idx in frame.groupby("anchor_id").groups.items():
+        a = anchors.loc[anchor_id, ["x", "y"]].to_numpy(float)
+        pts = frame.loc[idx, ["true_x", "true_y"]].to_numpy()
+        frame.loc[idx, "true_distance_m"] = np.hypot(pts[:, 0] - a[0], pts[:, 1] - a[1])
+        frame.loc[idx, "walls"] = campaign.walls_between(pts, a)
+    frame["los"] = frame["walls"] == 0
+    return frame
+
+
+def range_errors(ranges: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign) -> pd.DataFrame:
+    """Valid ranges (status 0) with error = measured - true distance (m) and a LOS flag."""
+    valid = ranges[ranges["status"] == 0]
+    frame = _with_geometry(valid, truth, campaign)
+    frame["error_m"] = frame["range_m"] - frame["true_distance_m"]
+    return frame
+
+
+def rss_with_distance(rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign) -> pd.DataFrame:
+    """RSS samples with the true distance (m) and walls crossed."""
+    return _with_geometry(rss, truth, campaign)
+
+
+def fit_path_loss(rss_dbm, distance_m, d0_m: float = 1.0) -> dict[str, float]:
+    """Least-squares fit of P = P0 - 10 n log10(d / d0) + e; sigma = std of the residual e (dB).
+
+    Samples closer than d0 are left out (the model is not defined below d0).
+    """
+    p = np.asarray(rss_dbm, dtype=float)
+    d = np.asarray(distance_m, dtype=float)
+    keep = np.isfinite(p) & np.isfinite(d) & (d >= d0_m)
+    if keep.sum() < 3:
+        return {"P0_dBm": float("nan"), "n": float("nan"), "sigma_dB": float("nan"), "samples": int(keep.sum())}
+    design = np.column_stack([np.ones(keep.sum()), -10.0 * np.log10(d[keep] / d0_m)])
+    (p0, n), *_ = np.linalg.lstsq(design, p[keep], rcond=None)
+    residual = p[keep] - design @ np.array([p0, n])
+    return {"P0_dBm": float(p0), "n": float(n), "sigma_dB": float(residual.std(ddof=2)),
+            "samples": int(keep.sum())}

@@ -1,0 +1,43 @@
+"""Summary statistics of errors and confidence intervals over Monte Carlo runs."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats
+
+
+def mean_ci95(values) -> tuple[float, float, float]:
+    """Mean and two-sided 95% Student-t interval of the mean: m +- t_{0.975, n-1} s / sqrt(n).
+
+    NaN values are ignored. With a single value the interval is (nan, nan).
+    """
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if len(v) == 0:
+        return float("nan"), float("nan"), float("nan")
+    mean = float(v.mean())
+    if len(v) < 2:
+        return mean, float("nan"), float("nan")
+    half = float(stats.t.ppf(0.975, len(v) - 1) * v.std(ddof=1) / np.sqrt(len(v)))
+    return mean, mean - half, mean + half
+
+
+def error_summary(errors) -> dict[str, float]:
+    """RMSE, mean, median, 75th and 95th percentiles and max of error magnitudes (m).
+
+    IPIN/EvAAL practice: report the distribution, not only the RMSE.
+    """
+    e = np.asarray(errors, dtype=float)
+    e = e[np.isfinite(e)]
+    if len(e) == 0:
+        return {k: float("nan") for k in ("rmse", "mean", "median", "p75", "p95", "max", "n")}
+    a = np.abs(e)
+    return {
+        "rmse": float(np.sqrt(np.mean(e**2))),
+        "mean": float(a.mean()),
+        "median": float(np.median(a)),
+        "p75": float(np.percentile(a, 75)),
+        "p95": float(np.percentile(a, 95)),
+        "max": float(a.max()),
+        "n": float(len(e)),
+    }

@@ -1,0 +1,1 @@
+"""Report building: figures (matplotlib, embedded as PNG) and HTML rendering (jinja2)."""

@@ -1,0 +1,104 @@
+"""Figures for the report. Each function returns PNG bytes (deterministic for equal inputs)."""
+
+from __future__ import annotations
+
+import io
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from wsnloc.campaign import Campaign  # noqa: E402
+
+TECH_STYLE = {"uwb": ("tab:red", "^"), "zigbee": ("tab:blue", "o"), "cricket": ("tab:green", "s")}
+LABEL_OFFSET = {"uwb": (4, -10), "zigbee": (4, 3)}   # points; keeps co-located anchors readable
+
+
+def to_png(fig) -> bytes:
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=110, bbox_inches="tight", metadata={"Software": None})
+    plt.close(fig)
+    return buffer.getvalue()
+
+
+def floor_plan(campaign: Campaign, track: pd.DataFrame | None = None) -> bytes:
+    """Walls (doors as gaps), anchors by technology with their ids, and the path (m)."""
+    fig, ax = plt.subplots(figsize=(10, 5.4))
+    for x1, y1, x2, y2 in campaign.walls:
+        ax.plot([x1, x2], [y1, y2], color="0.25", lw=2.2, solid_capstyle="butt")
+    s = np.linspace(0, campaign.path.length, 400)
+    pose = campaign.path.evaluate(s)
+    ax.plot(pose["x"], pose["y"], color="tab:orange", lw=2.5, label=f"path ({campaign.path.length:.1f} m)")
+    if track is not None and len(track):
+        ax.plot(track["x"], track["y"], color="k", lw=0.8, ls="--", label="truth (run 1)")
+    for tech, group in campaign.anchors.groupby("tech"):
+        color, marker = TECH_STYLE.get(tech, ("tab:gray", "D"))
+        ax.scatter(group["x"], group["y"], c=color, marker=marker, s=45, label=f"{tech} ({len(group)})", zorder=3)
+        for _, a in group.iterrows():
+            ax.annotate(a["anchor_id"], (a["x"], a["y"]), xytext=LABEL_OFFSET.get(tech, (4, 3)),
+                        textcoords="offset points", fontsize=7, color=color)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    ax.set_title(f"{campaign.name}: floor plan")
+    return to_png(fig)
+
+
+def range_error_histogram(errors: pd.DataFrame, title: str) -> bytes:
+    """Histogram of UWB range error (measured - true, m), LOS and NLOS links separately."""
+    fig, ax = plt.subplots(figsize=(7, 3.6))
+    bins = np.linspace(-1.0, 5.0, 121)
+    for los, color, name in ((True, "tab:green", "LOS"), (False, "tab:purple", "NLOS")):
+        e = errors.loc[errors["los"] == los, "error_m"].clip(bins[0], bins[-1])
+        if len(e):
+            ax.hist(e, bins=bins, color=color, alpha=0.6, density=True,
+                    label=f"{name}: n={len(e)}, median {np.median(e):.3f} m")
+    ax.set_xlabel("range error [m] (clipped to [-1, 5])")
+    ax.set_ylabel("density")
+    ax.set_title(title)
+    ax.legend(fontsize=8)
+    return to_png(fig)
+
+
+def rss_vs_distance(rss: pd.DataFrame, fit: dict, configured: dict, title: str, max_points: int = 6000) -> bytes:
+    """RSS (dBm) against log distance, coloured by walls crossed, with the fitted path-loss line."""
+    fig, ax = plt.subplots(figsize=(7, 4))
+    sample = rss.iloc[:: max(1, len(rss) // max_points)]
+    points = ax.scatter(sample["true_distance_m"], sample["rss_dbm"], c=sample["walls"].clip(0, 4),
+                        cmap="viridis", s=4, alpha=0.5)
+    fig.colorbar(points, ax=ax, label="walls crossed")
+    d = np.logspace(np.log10(max(0.3, rss["true_distance_m"].min())), np.log10(rss["true_distance_m"].max()), 50)
+    if np.isfinite(fit.get("P0_dBm", np.nan)):
+        ax.plot(d, fit["P0_dBm"] - 10 * fit["n"] * np.log10(d), "r-", lw=2,
+                label=f"fit, all links: P0={fit['P0_dBm']:.1f} dBm, n={fit['n']:.2f}, σ={fit['sigma_dB']:.1f} dB")
+    if configured.get("p0_dbm") is not None:
+        ax.plot(d, configured["p0_dbm"] - 10 * configured["path_loss_exponent"] * np.log10(d), "k--", lw=1.5,
+                label=f"configured (no walls): P0={configured['p0_dbm']:.1f}, n={configured['path_loss_exponent']:.2f}")
+    ax.set_xscale("log")
+    ax.set_xlabel("true distance [m]")
+    ax.set_ylabel("RSS [dBm]")
+    ax.set_title(title)
+    ax.legend(fontsize=7, loc="lower left")
+    return to_png(fig)
+
+
+def imu_resampling(raw: pd.DataFrame, resampled: pd.DataFrame, title: str, window_s: float = 20.0) -> bytes:
+    """Body-x specific force: raw samples, naive 5 Hz sub-sampling, and the filtered 5 Hz output."""
+    fig, ax = plt.subplots(figsize=(7, 3.6))
+    if len(raw):
+        moving = raw["t"].iloc[0] + 5.0
+        raw = raw[(raw["t"] >= moving) & (raw["t"] <= moving + window_s)]
+        res = resampled[(resampled["t"] >= moving) & (resampled["t"] <= moving + window_s)]
+        ax.plot(raw["t"], raw["ax"], color="0.75", lw=0.5, label="raw ~500 Hz")
+        naive = raw.iloc[::100]
+        ax.plot(naive["t"], naive["ax"], "o-", color="tab:red", ms=3, lw=0.8, label="plain sub-sampling (every 100th)")
+        ax.plot(res["t"], res["ax"], "s-", color="tab:blue", ms=3, lw=1.2, label="low-pass + decimation, 5 Hz")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("a_x [m/s²]")
+    ax.set_title(title)
+    ax.legend(fontsize=7)
+    return to_png(fig)

@@ -1,0 +1,116 @@
+"""Motion of the mobile along its path: arc length s(t), speed v(t), acceleration a(t).
+
+Kinematics are integrated on a fine time grid (1 ms) with piecewise-constant
+acceleration: s_{k+1} = s_k + v_k dt + a_k dt^2 / 2, v_{k+1} = v_k + a_k dt.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+STEP_S = 0.001
+
+
+@dataclass
+class Trajectory:
+    """Sampled motion; times in s from the start of logging, s in m, v in m/s, a in m/s^2."""
+
+    t: np.ndarray
+    s: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1])
+
+    def at(self, times) -> dict[str, np.ndarray]:
+        """Linear interpolation of s and v; acceleration held from the previous step."""
+        times = np.asarray(times, dtype=float)
+        idx = np.clip(np.searchsorted(self.t, times, side="right") - 1, 0, len(self.t) - 1)
+        return {
+            "s": np.interp(times, self.t, self.s),
+            "v": np.interp(times, self.t, self.v),
+            "a": self.a[idx],
+        }
+
+
+def _integrate(accel: np.ndarray) -> Trajectory:
+    n = len(accel)
+    v = np.concatenate([[0.0], np.cumsum(accel) * STEP_S])
+    s = np.concatenate([[0.0], np.cumsum(v[:-1] * STEP_S + 0.5 * accel * STEP_S**2)])
+    t = np.arange(n + 1) * STEP_S
+    return Trajectory(t=t, s=s, v=v, a=np.concatenate([accel, [0.0]]))
+
+
+def constant_speed(length: float, static_start_s: float, accel_time_s: float,
+                   speed_mps: float, static_end_s: float) -> Trajectory:
+    """Rest, accelerate to `speed_mps` in `accel_time_s`, cruise, brake symmetrically, rest."""
+    accel = speed_mps / accel_time_s
+    ramp_distance = speed_mps * accel_time_s          # accel + decel ramps together
+    if ramp_distance > length:
+        raise ValueError("path too short for the requested speed and acceleration time")
+    cruise_s = (length - ramp_distance) / speed_mps
+    durations = [static_start_s, accel_time_s, cruise_s, accel_time_s, static_end_s]
+    values = [0.0, accel, 0.0, -accel, 0.0]
+    steps = np.round(np.array(durations) / STEP_S).astype(int)
+    traj = _integrate(np.repeat(values, steps))
+    traj.s = np.clip(traj.s, 0.0, length)
+    traj.v = np.maximum(traj.v, 0.0)
+    return traj
+
+
+def variable_speed(length: float, rng: np.random.Generator, static_start_s: float,
+                   ramp_interval_s: float, speed_range_mps, max_accel_mps2: float,
+                   stop_s: float, static_end_s: float) -> Trajectory:
+    """Random target speed every `ramp_interval_s`, one stop half-way, rest at both ends.
+
+    A speed controller tracks the target with |a| <= max_accel and brakes so as to stop
+    exactly at the half-way point and at the end: v_des = min(target, sqrt(2 a_max d)),
+    d being the distance to the next stop point.
+    """
+    low, high = speed_range_mps
+    stops = [length / 2.0, length]
+    a_list = [0.0] * int(round(static_start_s / STEP_S))
+    s, v, t_move, stop_index, hold = 0.0, 0.0, 0.0, 0, 0
+    target = rng.uniform(low, high)
+    max_steps = int(10 * length / low / STEP_S)
+    for _ in range(max_steps):
+        if hold > 0:
+            a_list.append(0.0)
+            hold -= 1
+            continue
+        remaining = stops[stop_index] - s
+        if remaining <= 1e-6 and v <= max_accel_mps2 * STEP_S:
+            # Arrived: stop exactly, then hold or finish.
+            if stop_index == len(stops) - 1:
+                break
+            stop_index += 1
+            hold = int(round(stop_s / STEP_S))
+            v = 0.0
+            continue
+        if t_move >= ramp_interval_s:
+            target, t_move = rng.uniform(low, high), 0.0
+        v_des = min(target, np.sqrt(2.0 * max_accel_mps2 * max(remaining, 0.0)))
+        a = float(np.clip((v_des - v) / STEP_S, -max_accel_mps2, max_accel_mps2))
+        if remaining > 0 and v > 0 and v * v / (2 * remaining) > max_accel_mps2:
+            a = -v * v / (2 * remaining)   # never overshoot a stop point
+        a_list.append(a)
+        s += v * STEP_S + 0.5 * a * STEP_S**2
+        v = max(v + a * STEP_S, 0.0)
+        t_move += STEP_S
+    a_list.extend([0.0] * int(round(static_end_s / STEP_S)))
+    traj = _integrate(np.asarray(a_list))
+    traj.s = np.clip(traj.s, 0.0, length)
+    traj.v = np.maximum(traj.v, 0.0)
+    return traj
+
+
+def for_scenario(scenario: dict, length: float, rng: np.random.Generator) -> Trajectory:
+    """Build the trajectory a campaign scenario describes (``motion: constant|variable``)."""
+    params = {k: v for k, v in scenario.items() if k not in ("motion", "overrides")}
+    if scenario["motion"] == "constant":
+        return constant_speed(length, **params)
+    return variable_speed(length, rng, **params)

@@ -1,0 +1,59 @@
+"""Workflow helpers used by the Snakefile: datasets, scenarios, runs and their paths.
+
+Simulated datasets write to data/raw/<dataset>/<scenario>/run-NN; datasets with
+`source: logs` are read from <raw_dir>/<scenario>/<run>/ and their runs are the
+sub-directories found there.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from wsnloc.errors import ConfigError
+
+SIMULATED_ROOT = "data/raw"
+
+
+def run_name(index: int, total: int) -> str:
+    return f"run-{index:0{max(2, len(str(total)))}d}"
+
+
+def simulated_runs(config: dict) -> list[str]:
+    return [run_name(i, config["runs"]) for i in range(1, config["runs"] + 1)]
+
+
+def raw_root(config: dict, dataset: str) -> str:
+    spec = config["datasets"][dataset]
+    return f"{SIMULATED_ROOT}/{dataset}" if spec["source"] == "simulate" else spec["raw_dir"].rstrip("/")
+
+
+def dataset_runs(config: dict, dataset: str, scenario: str) -> list[str]:
+    """Run names of one scenario; for real logs, the run directories present on disk."""
+    if config["datasets"][dataset]["source"] == "simulate":
+        return simulated_runs(config)
+    folder = Path(raw_root(config, dataset)) / scenario
+    runs = sorted(p.name for p in folder.iterdir() if p.is_dir()) if folder.is_dir() else []
+    if not runs:
+        raise ConfigError(f"config key 'datasets.{dataset}.raw_dir': no run directories in {folder}")
+    return runs
+
+
+def raw_run_dir(config: dict, dataset: str, scenario: str, run: str) -> str:
+    return f"{raw_root(config, dataset)}/{scenario}/{run}"
+
+
+def scenario_pairs(config: dict) -> list[tuple[str, str]]:
+    return [(d, s) for d, spec in config["datasets"].items() for s in spec["scenarios"]]
+
+
+def script_logger(log_path: str, name: str):
+    """A logger writing to the rule's log file (Snakemake's `log:`)."""
+    import logging
+
+    Path(log_path).parent.mkdir(parents=True, exist_ok=True)
+    logger = logging.getLogger(name)
+    logger.setLevel(logging.INFO)
+    handler = logging.FileHandler(log_path, mode="w")
+    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
+    logger.addHandler(handler)
+    return logger

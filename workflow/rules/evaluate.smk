@@ -1,0 +1,22 @@
+# Data quality against ground truth: inventory, quarantine, range error, path-loss fit.
+
+
+rule summarize_data:
+    input:
+        tables="data/processed/{dataset}/{scenario}/tables",
+        imu_5hz="data/processed/{dataset}/{scenario}/imu_5hz",
+        campaign=campaign_file,
+    output:
+        summary="data/processed/{dataset}/{scenario}/data_summary.json",
+        results="data/processed/{dataset}/{scenario}/data_results.csv",
+        range_error="data/processed/{dataset}/{scenario}/figures/range_error.png",
+        rss="data/processed/{dataset}/{scenario}/figures/rss_distance.png",
+        imu="data/processed/{dataset}/{scenario}/figures/imu_resampling.png",
+    params:
+        label="{dataset}/{scenario}",
+    log:
+        "logs/summarize_data/{dataset}-{scenario}.log",
+    conda:
+        ENV
+    script:
+        "../scripts/summarize_data.py"

@@ -1,0 +1,24 @@
+# One self-contained HTML report and the results contract (reports/results.csv).
+
+
+rule report:
+    input:
+        summaries=scenario_outputs("data/processed/{dataset}/{scenario}/data_summary.json"),
+        results=scenario_outputs("data/processed/{dataset}/{scenario}/data_results.csv"),
+        figures=scenario_outputs("data/processed/{dataset}/{scenario}/figures/range_error.png")
+        + scenario_outputs("data/processed/{dataset}/{scenario}/figures/rss_distance.png")
+        + scenario_outputs("data/processed/{dataset}/{scenario}/figures/imu_resampling.png"),
+        tables=scenario_outputs("data/processed/{dataset}/{scenario}/tables"),
+        campaigns=sorted({d["campaign"] for d in config["datasets"].values()}),
+        template="workflow/templates/report.html.j2",
+    output:
+        html="reports/index.html",
+        results="reports/results.csv",
+    params:
+        config=config,
+    log:
+        "logs/report/report.log",
+    conda:
+        ENV
+    script:
+        "../scripts/report.py"

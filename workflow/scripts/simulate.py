@@ -1,0 +1,18 @@
+"""Snakemake adapter: simulate every run of one scenario of a simulated dataset."""
+
+from pathlib import Path
+
+from wsnloc.campaign import Campaign
+from wsnloc.sim.newcom import simulate_run
+from wsnloc.sim.seeding import run_seed_sequence
+from wsnloc.workflow import script_logger, simulated_runs
+
+sm = snakemake  # noqa: F821  (injected by Snakemake)
+log = script_logger(sm.log[0], "simulate")
+campaign = Campaign.load(sm.input.campaign)
+config = {"runs": sm.params.runs}
+for index, run in enumerate(simulated_runs(config), start=1):
+    seeds = run_seed_sequence(sm.params.seed, sm.wildcards.dataset, sm.wildcards.scenario, index)
+    out = simulate_run(campaign, sm.wildcards.scenario, seeds, Path(sm.params.root) / run,
+                       meta={"run": run, "base_seed": sm.params.seed, "dataset": sm.wildcards.dataset})
+    log.info("simulated %s", out)
