@@ -92,8 +92,11 @@ def validate_config(config: dict, schema_path: str | Path) -> dict:
     for name, dataset in config["datasets"].items():
         if not Path(dataset["campaign"]).is_file():
             raise ConfigError(f"config key 'datasets.{name}.campaign': no such file {dataset['campaign']!r}")
-        if dataset["source"] == "logs" and not dataset.get("raw_dir"):
-            raise ConfigError(f"config key 'datasets.{name}.raw_dir': required when source is 'logs'")
+        if dataset["source"] == "logs":
+            if not dataset.get("raw_dir"):
+                raise ConfigError(f"config key 'datasets.{name}.raw_dir': required when source is 'logs'")
+            if not Path(dataset["raw_dir"]).is_dir():
+                raise ConfigError(f"config key 'datasets.{name}.raw_dir': no such directory {dataset['raw_dir']!r}")
     return config
 
 

@@ -56,7 +56,8 @@ class Path:
         trims = np.zeros(len(pts))
         turns = np.zeros(len(pts))
         for i in range(1, len(pts) - 1):
-            turn = np.arctan2(np.cross(dirs[i - 1], dirs[i]), np.dot(dirs[i - 1], dirs[i]))
+            a, b = dirs[i - 1], dirs[i]
+            turn = np.arctan2(a[0] * b[1] - a[1] * b[0], np.dot(a, b))   # signed turn, left > 0
             turns[i] = turn
             trims[i] = radius * np.tan(abs(turn) / 2.0)
         parts: list = []

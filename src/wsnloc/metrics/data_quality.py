@@ -62,8 +62,8 @@ def summarize(runs: dict[str, dict[str, pd.DataFrame]], imu_5hz: dict[str, pd.Da
             "imu_5hz_in_gap": int(resampled["in_gap"].sum()) if len(resampled) else 0,
             "truth": len(truth),
             "quarantined": len(data["quarantine"]),
-            **{f"los_{k}": v for k, v in error_summary(err.loc[err["los"], "error_m"]).items()},
-            **{f"nlos_{k}": v for k, v in error_summary(err.loc[~err["los"], "error_m"]).items()},
+            **_range_error_stats(err, "los", err["los"]),
+            **_range_error_stats(err, "nlos", ~err["los"]),
             **{f"fit_all_{k}": v for k, v in fit_all.items()},
             **{f"fit_los_{k}": v for k, v in fit_los.items()},
         })
@@ -75,9 +75,9 @@ def summarize(runs: dict[str, dict[str, pd.DataFrame]], imu_5hz: dict[str, pd.Da
     rows = []
     common = {"experiment": EXPERIMENT, "scenario": label}
     for link in ("los", "nlos"):
-        for stat in ("median", "p95"):
+        for stat, column in (("bias", "median error"), ("p95", "p95 |error|")):
             rows.append(results.row_over_runs(per_run[f"{link}_{stat}"], table="UWB range error",
-                                              row=link.upper(), column=stat, metric="range_error_m", **common))
+                                              row=link.upper(), column=column, metric="range_error_m", **common))
     for subset in ("all", "los"):
         for key in ("P0_dBm", "n", "sigma_dB"):
             rows.append(results.row_over_runs(per_run[f"fit_{subset}_{key}"], table="RSS path-loss fit",
@@ -91,9 +91,10 @@ def summarize(runs: dict[str, dict[str, pd.DataFrame]], imu_5hz: dict[str, pd.Da
     by_reason = (q.groupby(["file", "category"]).size().rename("lines").reset_index()
                  .sort_values(["file", "lines"], ascending=[True, False]))
     pooled_errors = {
-        link: error_summary(errors.loc[errors["los"] == (link == "LOS"), "error_m"]) if len(errors) else {}
-        for link in ("LOS", "NLOS")
-    }
+        link.upper(): {k.removeprefix(f"{link}_"): v for k, v in
+                       _range_error_stats(errors, link, errors["los"] == (link == "los")).items()}
+        for link in ("los", "nlos")
+    } if len(errors) else {}
     summary = {
         "label": label,
         "runs": len(runs),
@@ -108,6 +109,14 @@ def summarize(runs: dict[str, dict[str, pd.DataFrame]], imu_5hz: dict[str, pd.Da
                                            "fast_fading_sigma_db", "wall_loss_db")},
     }
     return summary, rows, {"range_errors": errors, "rss": rss_samples}
+
+
+def _range_error_stats(errors: pd.DataFrame, prefix: str, mask) -> dict[str, float]:
+    """Signed median (bias) and the distribution of |error| for the selected range errors."""
+    selected = errors.loc[mask, "error_m"] if len(errors) else pd.Series(dtype=float)
+    stats = error_summary(selected)
+    stats["bias"] = float(selected.median()) if len(selected) else float("nan")
+    return {f"{prefix}_{k}": v for k, v in stats.items()}
 
 
 def _per_anchor_counts(runs: dict[str, dict[str, pd.DataFrame]]) -> pd.DataFrame:

@@ -69,43 +69,47 @@ def variable_speed(length: float, rng: np.random.Generator, static_start_s: floa
 
     A speed controller tracks the target with |a| <= max_accel and brakes so as to stop
     exactly at the half-way point and at the end: v_des = min(target, sqrt(2 a_max d)),
-    d being the distance to the next stop point.
+    d being the distance to the next stop point. The state is recorded as integrated,
+    so the cart is exactly at rest (v = 0, s constant) during the stops.
     """
     low, high = speed_range_mps
     stops = [length / 2.0, length]
-    a_list = [0.0] * int(round(static_start_s / STEP_S))
+    rest_start = int(round(static_start_s / STEP_S))
+    s_list, v_list, a_list = [0.0] * rest_start, [0.0] * rest_start, [0.0] * rest_start
     s, v, t_move, stop_index, hold = 0.0, 0.0, 0.0, 0, 0
     target = rng.uniform(low, high)
-    max_steps = int(10 * length / low / STEP_S)
-    for _ in range(max_steps):
+    for _ in range(int(10 * length / low / STEP_S)):
+        a = 0.0
         if hold > 0:
-            a_list.append(0.0)
             hold -= 1
-            continue
-        remaining = stops[stop_index] - s
-        if remaining <= 1e-6 and v <= max_accel_mps2 * STEP_S:
-            # Arrived: stop exactly, then hold or finish.
-            if stop_index == len(stops) - 1:
-                break
-            stop_index += 1
-            hold = int(round(stop_s / STEP_S))
-            v = 0.0
-            continue
-        if t_move >= ramp_interval_s:
-            target, t_move = rng.uniform(low, high), 0.0
-        v_des = min(target, np.sqrt(2.0 * max_accel_mps2 * max(remaining, 0.0)))
-        a = float(np.clip((v_des - v) / STEP_S, -max_accel_mps2, max_accel_mps2))
-        if remaining > 0 and v > 0 and v * v / (2 * remaining) > max_accel_mps2:
-            a = -v * v / (2 * remaining)   # never overshoot a stop point
+        else:
+            remaining = stops[stop_index] - s
+            if remaining <= 1e-6 and v <= max_accel_mps2 * STEP_S:
+                # Arrived: stop exactly, then hold or finish.
+                s, v = stops[stop_index], 0.0
+                if stop_index == len(stops) - 1:
+                    break
+                stop_index += 1
+                hold = int(round(stop_s / STEP_S))
+            else:
+                if t_move >= ramp_interval_s:
+                    target, t_move = rng.uniform(low, high), 0.0
+                v_des = min(target, np.sqrt(2.0 * max_accel_mps2 * max(remaining, 0.0)))
+                a = float(np.clip((v_des - v) / STEP_S, -max_accel_mps2, max_accel_mps2))
+                if remaining > 0 and v > 0 and v * v / (2 * remaining) > max_accel_mps2:
+                    a = -v * v / (2 * remaining)   # never overshoot a stop point
+                t_move += STEP_S
+        s_list.append(s)
+        v_list.append(v)
         a_list.append(a)
-        s += v * STEP_S + 0.5 * a * STEP_S**2
+        s = min(s + v * STEP_S + 0.5 * a * STEP_S**2, length)
         v = max(v + a * STEP_S, 0.0)
-        t_move += STEP_S
-    a_list.extend([0.0] * int(round(static_end_s / STEP_S)))
-    traj = _integrate(np.asarray(a_list))
-    traj.s = np.clip(traj.s, 0.0, length)
-    traj.v = np.maximum(traj.v, 0.0)
-    return traj
+    rest_end = int(round(static_end_s / STEP_S))
+    s_list += [length] * rest_end
+    v_list += [0.0] * rest_end
+    a_list += [0.0] * rest_end
+    t = np.arange(len(s_list)) * STEP_S
+    return Trajectory(t=t, s=np.asarray(s_list), v=np.asarray(v_list), a=np.asarray(a_list))
 
 
 def for_scenario(scenario: dict, length: float, rng: np.random.Generator) -> Trajectory:

@@ -1,0 +1,35 @@
+"""The wsnloc command line: exit codes and what it prints."""
+
+import pytest
+
+from wsnloc.cli import main
+
+from conftest import NEWCOM, ROOT
+
+
+def test_ingest_prints_counts(simulated_run, tmp_path, capsys):
+    assert main(["ingest", "--format", "newcom", "--campaign", str(NEWCOM), str(simulated_run), str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "uwb.log" in out and "quarantined share: 0.00%" in out
+    assert (tmp_path / "ranges.parquet").exists()
+
+
+def test_ingest_unreadable_input_exits_nonzero(tmp_path, capsys):
+    assert main(["ingest", "--format", "newcom", "--campaign", str(NEWCOM), str(tmp_path / "none"), str(tmp_path)]) == 2
+    assert "not a directory" in capsys.readouterr().err
+
+
+def test_simulate_then_validate(tmp_path, capsys, monkeypatch):
+    assert main(["simulate", "--campaign", str(NEWCOM), "--scenario", "variable", "--out", str(tmp_path)]) == 0
+    assert (tmp_path / "run-01" / "imu.log").exists()
+    monkeypatch.chdir(ROOT)
+    assert main(["validate-config"]) == 0
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("runs: -1\ndatasets: {}\n")
+    assert main(["validate-config", str(bad)]) == 2
+    assert "config key 'runs'" in capsys.readouterr().err
+
+
+def test_unknown_scenario_is_named(tmp_path, capsys):
+    assert main(["simulate", "--campaign", str(NEWCOM), "--scenario", "sprint", "--out", str(tmp_path)]) == 2
+    assert "scenarios.sprint" in capsys.readouterr().err

@@ -1,0 +1,126 @@
+"""Config and campaign validation: defaults filled in, every error names its key."""
+
+import copy
+
+import pytest
+import yaml
+
+from wsnloc.campaign import Campaign
+from wsnloc.config import read_yaml, validate_config
+from wsnloc.errors import ConfigError
+
+from conftest import NEWCOM, ROOT
+
+SCHEMA = ROOT / "config" / "schema.yaml"
+
+
+@pytest.fixture
+def config(monkeypatch):
+    monkeypatch.chdir(ROOT)
+    return read_yaml(ROOT / "config" / "config.yaml")
+
+
+def test_shipped_config_is_valid_and_defaults_are_filled(config):
+    del config["resample"]
+    validate_config(config, SCHEMA)
+    assert config["resample"]["rate_hz"] == 5.0
+    assert config["datasets"]["newcom"]["source"] == "simulate"
+
+
+@pytest.mark.parametrize("value", [-1, 0, "20", 2.5])
+def test_bad_runs_names_the_key(config, value):
+    config["runs"] = value
+    with pytest.raises(ConfigError, match=r"config key 'runs'"):
+        validate_config(config, SCHEMA)
+
+
+def test_unknown_top_level_key_is_named(config):
+    config["rnus"] = 3
+    with pytest.raises(ConfigError, match=r"'rnus': unknown key"):
+        validate_config(config, SCHEMA)
+
+
+def test_unknown_nested_key_is_named_with_its_path(config):
+    config["resample"] = {"rate_hz": 5.0, "cutoff": 2}
+    with pytest.raises(ConfigError, match=r"'resample.cutoff': unknown key"):
+        validate_config(config, SCHEMA)
+
+
+def test_wrong_enum_names_the_nested_key(config):
+    config["datasets"]["newcom"]["source"] = "simulated"
+    with pytest.raises(ConfigError, match=r"config key 'datasets.newcom.source'"):
+        validate_config(config, SCHEMA)
+
+
+def test_missing_campaign_file_is_named(config):
+    config["datasets"]["newcom"]["campaign"] = "config/campaigns/nowhere.yaml"
+    with pytest.raises(ConfigError, match=r"'datasets.newcom.campaign': no such file"):
+        validate_config(config, SCHEMA)
+
+
+def test_logs_source_needs_an_existing_raw_dir(config, tmp_path):
+    config["datasets"]["newcom"]["source"] = "logs"
+    del config["datasets"]["newcom"]["raw_dir"]
+    with pytest.raises(ConfigError, match=r"'datasets.newcom.raw_dir': required"):
+        validate_config(config, SCHEMA)
+    config["datasets"]["newcom"]["raw_dir"] = str(tmp_path / "missing")
+    with pytest.raises(ConfigError, match=r"'datasets.newcom.raw_dir': no such directory"):
+        validate_config(config, SCHEMA)
+
+
+def test_yaml_syntax_error_names_file_and_line(tmp_path):
+    bad = tmp_path / "config.yaml"
+    bad.write_text("runs: 3\nseed: [1, 2\n")
+    with pytest.raises(ConfigError, match=r"config.yaml:\d+: invalid YAML"):
+        read_yaml(bad)
+
+
+def _campaign_with(tmp_path, mutate):
+    spec = yaml.safe_load(NEWCOM.read_text())
+    mutate(spec)
+    path = tmp_path / "campaign.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    return path
+
+
+def test_campaign_anchor_without_coordinate_is_named(tmp_path):
+    path = _campaign_with(tmp_path, lambda s: s["anchors"][0].pop("x"))
+    with pytest.raises(ConfigError, match=r"'anchors.0.x': required"):
+        Campaign.load(path)
+
+
+def test_campaign_subset_with_unknown_anchor_is_named(tmp_path):
+    path = _campaign_with(tmp_path, lambda s: s["subsets"]["UWB=9"].append("U99"))
+    with pytest.raises(ConfigError, match=r"'subsets.UWB=9': unknown anchor 'U99'"):
+        Campaign.load(path)
+
+
+def test_campaign_duplicate_anchor_is_refused(tmp_path):
+    path = _campaign_with(tmp_path, lambda s: s["anchors"].append(copy.deepcopy(s["anchors"][0])))
+    with pytest.raises(ConfigError, match=r"duplicate anchor id 'U01'"):
+        Campaign.load(path)
+
+
+def test_newcom_campaign_transcribes_the_spec(campaign):
+    assert len(campaign.anchors_of("uwb")) == 12
+    assert len(campaign.anchors_of("zigbee")) == 21
+    subsets = campaign.spec["subsets"]
+    assert set(subsets["UWB=12"]) - set(subsets["UWB=9"]) == {"U03", "U08", "U11"}
+    assert set(subsets["UWB=12"]) - set(subsets["UWB=10"]) == {"U03", "U11"}
+    assert set(subsets["ZigBee=21"]) - set(subsets["ZigBee=17"]) == {"Z02", "Z07", "Z14", "Z19"}
+    z = campaign.anchors.set_index("anchor_id")
+    assert z.loc["Z01", "y"] == 6.2 and z.loc["Z02", "y"] == 8.8 and z.loc["Z10", "x"] == 28.5
+
+
+def test_every_model_parameter_has_a_justification():
+    """Each numeric leaf under radio/imu/truth is followed by a '#' comment on its line."""
+    section = None
+    for line in NEWCOM.read_text().splitlines():
+        if line and not line.startswith((" ", "#")):
+            section = line.split(":")[0]
+        stripped = line.strip()
+        if section in ("radio", "imu", "truth") and ":" in stripped and not stripped.startswith("#"):
+            key, _, value = stripped.partition(":")
+            value = value.split("#")[0].strip()
+            if value and not value.startswith("{"):
+                assert "#" in line, f"no justification for {key!r}: {line!r}"

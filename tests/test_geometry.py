@@ -1,0 +1,58 @@
+"""Wall-crossing geometry and the rail path, against hand-computed cases."""
+
+import numpy as np
+import pytest
+
+from wsnloc.geometry.path import Path
+from wsnloc.geometry.walls import count_crossings, wall_pieces
+
+WALL = [{"from": [0, 6], "to": [10, 6], "doors": [[2.5, 3.5]]}]
+
+
+def test_doors_split_walls_into_pieces():
+    pieces = wall_pieces(WALL)
+    np.testing.assert_allclose(pieces, [[0, 6, 2.5, 6], [3.5, 6, 10, 6]])
+
+
+@pytest.mark.parametrize("point, anchor, expected", [
+    ((3.0, 8.0), (3.0, 3.0), 0),     # straight through the door
+    ((5.0, 8.0), (5.0, 3.0), 1),     # through the solid wall
+    ((1.0, 8.0), (1.0, 7.0), 0),     # both on the same side
+    ((11.0, 8.0), (11.0, 3.0), 0),   # beyond the wall's end
+    ((2.5, 8.0), (2.5, 3.0), 0),     # grazing the door jamb end point is not a crossing
+])
+def test_single_wall_crossings(point, anchor, expected):
+    assert count_crossings(np.array([point]), np.array(anchor), wall_pieces(WALL))[0] == expected
+
+
+def test_campaign_links_cross_the_expected_walls(campaign):
+    # From the corridor at (15, 7.5) to U07 in room S1: corridor wall, then partition x = 6.
+    assert campaign.walls_between(np.array([[15.0, 7.5]]), campaign.anchor_position("U07"))[0] == 2
+    # From the rail start to U07, the link passes through the door at x in [2.5, 3.5].
+    assert campaign.walls_between(np.array([[2.5, 7.5]]), campaign.anchor_position("U07"))[0] == 0
+    # Corridor anchors along the corridor are in LOS.
+    assert campaign.walls_between(np.array([[10.0, 7.5]]), campaign.anchor_position("U04"))[0] == 0
+
+
+def test_rail_length_and_shape(campaign):
+    path = campaign.path
+    assert path.length == pytest.approx(19.0 + np.pi / 2 + 4.0)
+    end = path.evaluate([path.length])
+    assert (end["x"][0], end["y"][0]) == pytest.approx((22.5, 12.5))
+    mid_arc = path.evaluate([19.0 + np.pi / 4])
+    assert np.hypot(mid_arc["x"][0] - 21.5, mid_arc["y"][0] - 8.5) == pytest.approx(1.0)
+    assert mid_arc["curvature"][0] == pytest.approx(1.0)        # left turn, radius 1 m
+    assert mid_arc["heading"][0] == pytest.approx(np.pi / 4)
+    assert path.start_pose() == pytest.approx((2.5, 7.5, 0.0))
+
+
+def test_sharp_corner_path_has_polyline_length():
+    path = Path([[1, 1], [5, 1], [5, 3], [1, 3], [1, 1]])
+    assert path.length == pytest.approx(12.0)
+    p = path.evaluate([4.0, 5.0, 12.0])
+    np.testing.assert_allclose(np.column_stack([p["x"], p["y"]]), [[5, 1], [5, 2], [1, 1]])
+
+
+def test_path_rejects_repeated_points():
+    with pytest.raises(ValueError, match="repeated"):
+        Path([[0, 0], [0, 0], [1, 0]])

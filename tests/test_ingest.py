@@ -1,0 +1,205 @@
+"""Raw-log parsers on hand-written fixtures, including the damage real logs carry."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from wsnloc.errors import IngestError
+from wsnloc.io import tables
+from wsnloc.io.ingest import ingest_one, ingest_scenario
+from wsnloc.io.newcom import ingest_run
+
+UWB = """# newcom-uwb v1
+# t_ms anchor tw_toa_ps status
+12500 U01 51234 0
+12510 U04 80211 0\r
+12520 U09 0 7
+12530 U99 41000 0
+12540 Z01 41000 0
+12550 U02 4x000 0
+12560 U03 41000
+12400 U05 41000 0
+12570   U06   41000   0   \t
+12580 U07 nan 0
+"""
+
+ZIGBEE = """# newcom-zigbee v1
+# t_ms seq n anchor:rssi_dbm ...
+12550 251 3 Z01:-61 Z02:-70 Z11:-83
+12600 252 2 Z01:-61 Z02:-70 Z11:-83
+12650 253 1 Z01
+12700 254 1 Z77:-60
+12750 255 2 Z01:-60 Z01:-62
+12800 0 1 U01:-60
+12850 1 1 Z03:-7.5
+12900 2 0
+"""
+
+IMU = """# newcom-imu v1
+# accel_lsb_per_g=1024 gyro_lsb_per_dps=131.072
+# t_ms ax ay az gz
+12500.000 12 -3 1021 5
+12502.001 1024 0 1024 131
+12502.001 1 1 1 1
+12504.000 1 1
+12506.000 1 1 1.5 1
+12508.000 -1024 0 0 -262
+"""
+
+TRUTH = """# newcom-truth v1
+# t_ms rail_m
+12500 0.00
+12540 20.5708
+12580 99.0
+12520 3.00
+12620 abc
+12660 24.57
+"""
+
+
+@pytest.fixture
+def run_dir(tmp_path):
+    folder = tmp_path / "run-01"
+    folder.mkdir()
+    for name, text in (("uwb.log", UWB), ("zigbee.log", ZIGBEE), ("imu.log", IMU), ("truth.log", TRUTH)):
+        (folder / name).write_bytes(text.encode("ascii"))
+    return folder
+
+
+@pytest.fixture
+def parsed(run_dir, campaign):
+    return ingest_run(run_dir, campaign)
+
+
+def _reasons(quarantine, file):
+    q = quarantine[quarantine["file"] == file]
+    return dict(zip(q["line"], q["reason"]))
+
+
+def test_uwb_lines(parsed):
+    result, _ = parsed
+    ranges = result["ranges"]
+    assert ranges["anchor_id"].tolist() == ["U01", "U04", "U09", "U06"]
+    assert ranges["line"].tolist() == [3, 4, 5, 11]
+    c = 299792458.0
+    assert ranges["range_m"].iloc[0] == pytest.approx(c * 51234e-12 / 2)
+    assert ranges["t"].iloc[0] == pytest.approx(12.5)
+    assert ranges["status"].tolist() == [0, 0, 7, 0]          # flagged record kept with its status
+    reasons = _reasons(result["quarantine"], "uwb.log")
+    assert set(reasons) == {6, 7, 8, 9, 10, 12}
+    assert "unknown anchor 'U99'" in reasons[6]
+    assert "zigbee anchor, not uwb" in reasons[7]
+    assert "tw_toa_ps is not an integer" in reasons[8]
+    assert "expected 4 fields" in reasons[9]
+    assert "time goes backwards" in reasons[10]
+    assert "tw_toa_ps is not an integer: 'nan'" in reasons[12]
+
+
+def test_zigbee_lines(parsed):
+    result, _ = parsed
+    rss = result["rss"]
+    assert rss["line"].unique().tolist() == [3]
+    assert rss["rss_dbm"].tolist() == [-61.0, -70.0, -83.0] and rss["seq"].tolist() == [251] * 3
+    reasons = _reasons(result["quarantine"], "zigbee.log")
+    assert "n = 2 but 3" in reasons[4]
+    assert "not anchor:rssi_dbm" in reasons[5]
+    assert "unknown anchor 'Z77'" in reasons[6]
+    assert "appears twice" in reasons[7]
+    assert "uwb anchor, not zigbee" in reasons[8]
+    assert "rssi of Z03 is not an integer" in reasons[9]
+    assert 10 not in reasons                          # an empty broadcast is valid, with no samples
+
+
+def test_imu_lines_are_converted_to_si(parsed):
+    result, _ = parsed
+    imu = result["imu"]
+    assert imu["line"].tolist() == [4, 5, 9]
+    g = 9.80665
+    assert imu["ax"].iloc[1] == pytest.approx(g) and imu["az"].iloc[1] == pytest.approx(g)
+    assert imu["gz"].iloc[1] == pytest.approx(np.deg2rad(131 / 131.072))
+    assert imu["ax"].iloc[2] == pytest.approx(-g)
+    reasons = _reasons(result["quarantine"], "imu.log")
+    assert "time repeats" in reasons[6]
+    assert "expected 5 fields" in reasons[7]
+    assert "az is not an integer" in reasons[8]
+
+
+def test_truth_becomes_xy_on_the_rail(parsed):
+    result, _ = parsed
+    truth = result["truth"]
+    assert truth["line"].tolist() == [3, 4, 8]
+    assert (truth["x"].iloc[0], truth["y"].iloc[0]) == pytest.approx((2.5, 7.5))
+    assert (truth["x"].iloc[1], truth["y"].iloc[1]) == pytest.approx((22.5, 8.5), abs=1e-3)   # end of the arc
+    reasons = _reasons(result["quarantine"], "truth.log")
+    assert "outside the rail" in reasons[5]
+    assert "time goes backwards" in reasons[6]
+    assert "rail_m is not a number" in reasons[7]
+
+
+def test_inventory_counts_and_checksums(parsed, run_dir):
+    _, inventory = parsed
+    assert inventory["uwb.log"]["data_lines"] == 10 and inventory["uwb.log"]["quarantined"] == 6
+    assert len(inventory["imu.log"]["sha256"]) == 64
+
+
+def test_non_ascii_and_blank_lines(run_dir, campaign):
+    (run_dir / "uwb.log").write_bytes(b"# newcom-uwb v1\n12500 U01 51234 0\n\n12510 U\xc3\xa9 1 0\n")
+    result, _ = ingest_run(run_dir, campaign)
+    assert len(result["ranges"]) == 1
+    assert _reasons(result["quarantine"], "uwb.log") == {4: "not ASCII text"}
+
+
+def test_missing_imu_scale_header_is_an_error(run_dir, campaign):
+    (run_dir / "imu.log").write_text("# newcom-imu v1\n12500.000 1 2 3 4\n")
+    with pytest.raises(IngestError, match=r"imu.log: header must give 'accel_lsb_per_g"):
+        ingest_run(run_dir, campaign)
+
+
+def test_wrong_file_is_an_error(run_dir, campaign):
+    (run_dir / "uwb.log").write_text(ZIGBEE)
+    with pytest.raises(IngestError, match=r"uwb.log:1: expected a 'newcom-uwb v1' log"):
+        ingest_run(run_dir, campaign)
+
+
+def test_missing_file_is_an_error(run_dir, campaign):
+    (run_dir / "truth.log").unlink()
+    with pytest.raises(IngestError, match=r"truth.log: cannot read"):
+        ingest_run(run_dir, campaign)
+
+
+def test_tables_have_units_in_the_schema(run_dir, campaign, tmp_path):
+    out = tmp_path / "out"
+    ingest_one("newcom", run_dir, campaign, out)
+    assert tables.unit_of(out / "ranges.parquet", "range_m") == "m"
+    assert tables.unit_of(out / "imu.parquet", "gz") == "rad/s"
+    assert tables.unit_of(out / "rss.parquet", "rss_dbm") == "dBm"
+    quarantine = tables.read(out / "quarantine.parquet")
+    assert set(quarantine.columns) == {"file", "line", "text", "reason"}
+    assert len(quarantine) == 6 + 6 + 3 + 3   # uwb, zigbee, imu, truth
+
+
+def test_quarantine_share_limit_fails_loudly(run_dir, campaign, tmp_path):
+    with pytest.raises(IngestError, match=r"max_quarantine_share"):
+        ingest_scenario("newcom", {"run-01": str(run_dir)}, campaign, tmp_path / "out", 0.1)
+
+
+def test_empty_logs_give_empty_tables(run_dir, campaign):
+    for name in ("uwb.log", "zigbee.log", "truth.log"):
+        (run_dir / name).write_text("")
+    result, _ = ingest_run(run_dir, campaign)
+    assert len(result["ranges"]) == len(result["rss"]) == len(result["truth"]) == 0
+    assert list(result["ranges"].columns) == tables.SCHEMAS["ranges"].names
+
+
+def test_damaged_line_in_a_simulated_log(simulated_run, campaign, tmp_path):
+    """A real-world cut line appended to a simulated log is quarantined with file and line."""
+    damaged = tmp_path / "run"
+    damaged.mkdir()
+    for p in simulated_run.iterdir():
+        (damaged / p.name).write_bytes(p.read_bytes())
+    lines = (damaged / "uwb.log").read_text().splitlines()
+    (damaged / "uwb.log").write_text("\n".join(lines + ["999999 U0"]) + "\n")
+    result, _ = ingest_run(damaged, campaign)
+    q = result["quarantine"]
+    assert q[["file", "line", "text"]].values.tolist() == [["uwb.log", len(lines) + 1, "999999 U0"]]
+    assert len(result["ranges"]) == len(lines) - 2
