@@ -97,6 +97,10 @@ def validate_config(config: dict, schema_path: str | Path) -> dict:
                 raise ConfigError(f"config key 'datasets.{name}.raw_dir': required when source is 'logs'")
             if not Path(dataset["raw_dir"]).is_dir():
                 raise ConfigError(f"config key 'datasets.{name}.raw_dir': no such directory {dataset['raw_dir']!r}")
+    for experiment, spec in config.get("experiments", {}).items():
+        for name in spec.get("datasets", []):
+            if name not in config["datasets"]:
+                raise ConfigError(f"config key 'experiments.{experiment}.datasets': unknown dataset {name!r}")
     return config
 
 

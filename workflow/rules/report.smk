@@ -11,11 +11,23 @@ rule report:
         tables=scenario_outputs("data/processed/{dataset}/{scenario}/tables"),
         campaigns=sorted({d["campaign"] for d in config["datasets"].values()}),
         template="workflow/templates/report.html.j2",
+        papers="config/papers.yaml",
+        paper_d=(
+            [
+                "data/processed/paper_d/results.csv",
+                "data/processed/paper_d/claims.json",
+                "data/processed/paper_d/figures/error_cdf.png",
+                "data/processed/paper_d/figures/trajectories.png",
+            ]
+            if PAPER_D_PAIRS
+            else []
+        ),
     output:
         html="reports/index.html",
         results="reports/results.csv",
     params:
         config=config,
+        paper_d_labels=[f"{d}/{s}" for d, s in PAPER_D_PAIRS],
     log:
         "logs/report/report.log",
     conda:

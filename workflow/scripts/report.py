@@ -9,7 +9,9 @@ from wsnloc import results
 from wsnloc.campaign import Campaign
 from wsnloc.io import tables
 from wsnloc.report import figures
-from wsnloc.report.render import build_context, render
+from wsnloc.config import read_yaml
+from wsnloc.report.render import build_context, png_data_uri, render
+from wsnloc.report.sections import paper_d_section
 from wsnloc.workflow import script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
@@ -17,7 +19,8 @@ log = script_logger(sm.log[0], "report")
 config = sm.params.config
 
 summaries = [json.loads(Path(p).read_text()) for p in sm.input.summaries]
-all_results = pd.concat([results.read(p) for p in sm.input.results], ignore_index=True)
+result_files = list(sm.input.results) + [p for p in sm.input.paper_d if p.endswith("results.csv")]
+all_results = pd.concat([results.read(p) for p in result_files], ignore_index=True)
 results.write(all_results, sm.output.results)
 
 scenario_figures = {}
@@ -32,7 +35,16 @@ for name, spec in config["datasets"].items():
     track = tables.read(truth_files[0]) if truth_files else None
     floor_plans[name] = figures.floor_plan(Campaign.load(spec["campaign"]), track)
 
-context = build_context(config, summaries, results.read(sm.output.results), scenario_figures, floor_plans)
+final_results = results.read(sm.output.results)
+context = build_context(config, summaries, final_results, scenario_figures, floor_plans)
+papers = read_yaml(sm.input.papers)
+context["papers"] = []
+if sm.input.paper_d:
+    outputs = {Path(p).name: Path(p) for p in sm.input.paper_d}
+    context["papers"].append(paper_d_section(
+        final_results, json.loads(outputs["claims.json"].read_text()),
+        {name: png_data_uri(outputs[f"{name}.png"].read_bytes()) for name in ("error_cdf", "trajectories")},
+        papers["D"], list(sm.params.paper_d_labels), config["experiments"]["paper_d"]))
 html = render(sm.input.template, context)
 Path(sm.output.html).write_text(html, encoding="utf-8")
 log.info("report: %d bytes, %d results rows", len(html), len(all_results))

@@ -12,8 +12,9 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 
-def _field(name: str, kind: pa.DataType, unit: str, description: str) -> pa.Field:
-    return pa.field(name, kind, nullable=False, metadata={"unit": unit, "description": description})
+def _field(name: str, kind: pa.DataType, unit: str, description: str, nullable: bool = False) -> pa.Field:
+    """A column with its unit; `nullable` where a value may be missing (NaN: no estimate)."""
+    return pa.field(name, kind, nullable=nullable, metadata={"unit": unit, "description": description})
 
 
 _LINE = _field("line", pa.int32(), "1", "line number in the raw file (1-based), for traceability")
@@ -61,6 +62,18 @@ SCHEMAS: dict[str, pa.Schema] = {
         _field("tech", pa.string(), "", "technology: uwb, zigbee, cricket, ..."),
         _field("x", pa.float64(), "m", "east coordinate"),
         _field("y", pa.float64(), "m", "north coordinate"),
+    ]),
+    "estimates_paper_d": pa.schema([
+        _field("run", pa.string(), "", "run name"),
+        _field("t", pa.float64(), "s", "epoch time (end of the estimation period)"),
+        _field("localizer", pa.string(), "", "minmax | multilateration"),
+        _field("technique", pa.string(), "", "narrowband | uwb | pmix | fmix"),
+        _field("stage", pa.string(), "", "raw fix | velocity tracker | kalman filter"),
+        _field("x", pa.float64(), "m", "estimated east coordinate (NaN: no fix)", nullable=True),
+        _field("y", pa.float64(), "m", "estimated north coordinate (NaN: no fix)", nullable=True),
+        _field("true_x", pa.float64(), "m", "truth at t", nullable=True),
+        _field("true_y", pa.float64(), "m", "truth at t", nullable=True),
+        _field("error_m", pa.float64(), "m", "Euclidean position error", nullable=True),
     ]),
     "quarantine": pa.schema([
         _field("file", pa.string(), "", "raw file the line came from"),

@@ -102,3 +102,36 @@ def imu_resampling(raw: pd.DataFrame, resampled: pd.DataFrame, title: str, windo
     ax.set_title(title)
     ax.legend(fontsize=7)
     return to_png(fig)
+
+
+def error_cdf(panels: dict[str, dict[str, np.ndarray]], xmax: float = 4.0) -> bytes:
+    """Empirical CDFs of position error (m), one panel per title, one curve per label."""
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 3.8), squeeze=False)
+    for ax, (title, curves) in zip(axes[0], panels.items()):
+        for label, errors in curves.items():
+            e = np.sort(np.asarray(errors, dtype=float)[np.isfinite(errors)])
+            if len(e):
+                ax.plot(e, np.arange(1, len(e) + 1) / len(e), lw=1.4, label=f"{label} (median {np.median(e):.2f} m)")
+        ax.set_xlim(0, xmax)
+        ax.set_ylim(0, 1)
+        ax.grid(alpha=0.3)
+        ax.set_xlabel("position error [m]")
+        ax.set_ylabel("CDF")
+        ax.set_title(title, fontsize=10)
+        ax.legend(fontsize=7, loc="lower right")
+    return to_png(fig)
+
+
+def trajectories(panels: dict[str, tuple[pd.DataFrame, dict[str, pd.DataFrame]]]) -> bytes:
+    """True path and estimated tracks (x, y in m), one panel per title."""
+    fig, axes = plt.subplots(len(panels), 1, figsize=(10, 3.3 * len(panels)), squeeze=False)
+    for ax, (title, (truth, tracks)) in zip(axes[:, 0], panels.items()):
+        ax.plot(truth["x"], truth["y"], color="k", lw=2.2, label="truth")
+        for label, track in tracks.items():
+            ax.plot(track["x"], track["y"], lw=0.9, marker=".", ms=3, label=label)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.set_title(title, fontsize=10)
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    return to_png(fig)

@@ -1,0 +1,1 @@
+"""Experiment families (one module per paper): run estimators on processed tables, score them."""

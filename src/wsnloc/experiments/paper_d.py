@@ -1,0 +1,383 @@
+"""Paper D (Kianoush et al. 2012): Min-Max / multilateration on narrowband (RSS), UWB,
+P-mix and F-mix ranges; velocity-bounded tracking; a Kalman filter for comparison.
+
+Per run: group the measurements in estimation periods, localise every epoch with every
+(localizer, technique), then track each fix sequence with the velocity-bounded tracker
+and the PV Kalman filter. Scores are errors against the truth at the epoch time.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from wsnloc import results
+from wsnloc.campaign import Campaign
+from wsnloc.errors import ConfigError
+from wsnloc.experiments.epochs import Epoch, build_epochs, score
+from wsnloc.filters.kalman import KalmanFilter
+from wsnloc.filters.motion_models import constant_velocity
+from wsnloc.geometry.lateration import LOCALIZERS
+from wsnloc.geometry.selection import k_smallest, rss_to_distance
+from wsnloc.metrics.ranging import fit_path_loss, rss_with_distance
+from wsnloc.metrics.stats import error_summary
+from wsnloc.tracking.velocity_bounded import VelocityBoundedTracker
+
+EXPERIMENT = "D"
+TECHNIQUES = ("narrowband", "uwb", "pmix", "fmix")
+LOCALIZER_LABEL = {"minmax": "Min-Max", "multilateration": "Multilateration"}
+TECHNIQUE_LABEL = {"narrowband": "narrowband", "uwb": "UWB", "pmix": "P-mix", "fmix": "F-mix"}
+COST_LABEL = {"velocity": "velocity tracker", "kalman": "Kalman filter"}
+
+
+@dataclass
+class Settings:
+    """Paper D parameters from config (experiments.paper_d)."""
+
+    epoch_s: float
+    k_smallest: int
+    uwb_subset: str
+    narrowband_subset: str
+    uwb_preliminary_filter: bool
+    max_range_m: float
+    rss_calibration: str
+    rss_model: dict
+    pmix_weights: dict
+    tracker_window: int
+    tracker_speed_from: str
+    kalman: dict
+    cost_iterations: int
+
+    @classmethod
+    def from_config(cls, spec: dict) -> "Settings":
+        return cls(epoch_s=spec["epoch_s"], k_smallest=spec["k_smallest"], uwb_subset=spec["subsets"]["uwb"],
+                   narrowband_subset=spec["subsets"]["narrowband"],
+                   uwb_preliminary_filter=spec["uwb_preliminary_filter"], max_range_m=spec["max_range_m"],
+                   rss_calibration=spec["rss_calibration"], rss_model=spec["rss_model"],
+                   pmix_weights=spec["pmix_weights"], tracker_window=spec["tracker"]["window"],
+                   tracker_speed_from=spec["tracker"]["speed_from"], kalman=spec["kalman"],
+                   cost_iterations=spec["cost_iterations"])
+
+
+    def check_against(self, campaign: Campaign) -> None:
+        """Anchor subsets must exist in the campaign file; names the config key otherwise."""
+        for role, name in (("uwb", self.uwb_subset), ("narrowband", self.narrowband_subset)):
+            if name not in campaign.spec.get("subsets", {}):
+                raise ConfigError(f"config key 'experiments.paper_d.subsets.{role}': no subset {name!r} "
+                                  f"in {campaign.source} (has: {', '.join(campaign.spec.get('subsets', {}))})")
+
+
+def preliminary_filter(ranges: pd.DataFrame, max_range_m: float) -> pd.DataFrame:
+    """Paper D's preliminary filter: drop records with a non-zero device status and
+    physically impossible values (not finite, <= 0, or longer than max_range_m)."""
+    r = ranges["range_m"]
+    keep = (ranges["status"] == 0) & np.isfinite(r) & (r > 0) & (r <= max_range_m)
+    return ranges[keep]
+
+
+def calibrate(rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign, d0_m: float) -> dict:
+    """P0 and n fitted on one run with ground truth (all links, walls included)."""
+    samples = rss_with_distance(rss, truth, campaign)
+    fit = fit_path_loss(samples["rss_dbm"], samples["true_distance_m"], d0_m)
+    return {"p0_dbm": fit["P0_dBm"], "path_loss_exponent": fit["n"], "d0_m": d0_m}
+
+
+def _subset(frame: pd.DataFrame, members: list[str]) -> pd.DataFrame:
+    return frame[frame["anchor_id"].isin(members)]
+
+
+class _Anchors:
+    def __init__(self, campaign: Campaign):
+        self._xy = {a: np.array([x, y]) for a, x, y in campaign.anchors[["anchor_id", "x", "y"]].itertuples(index=False)}
+
+    def positions(self, ids) -> np.ndarray:
+        return np.array([self._xy[i] for i in ids]).reshape(-1, 2)
+
+
+def localize_epoch(epoch: Epoch, anchors: _Anchors, localizer: str, settings: Settings,
+                   rss_model: dict) -> dict[str, np.ndarray | None]:
+    """Fix of each technique for one epoch (None = no fix)."""
+    solve = LOCALIZERS[localizer]
+    k = settings.k_smallest
+    nb_ranges = rss_to_distance(epoch.rss, rss_model["p0_dbm"], rss_model["path_loss_exponent"], rss_model["d0_m"])
+    nb_xy, uwb_xy = anchors.positions(epoch.rss_ids), anchors.positions(epoch.range_ids)
+
+    def solve_smallest(xy, ranges):
+        keep = k_smallest(ranges, k)
+        return solve(xy[keep], ranges[keep])
+
+    fixes = {"narrowband": solve_smallest(nb_xy, nb_ranges), "uwb": solve_smallest(uwb_xy, epoch.ranges)}
+    parts = [(fixes[t], settings.pmix_weights[t]) for t in ("narrowband", "uwb") if fixes[t] is not None]
+    fixes["pmix"] = (sum(w * p for p, w in parts) / sum(w for _, w in parts)) if parts else None
+    fixes["fmix"] = solve_smallest(np.vstack([nb_xy, uwb_xy]), np.concatenate([nb_ranges, epoch.ranges]))
+    return fixes
+
+
+def localize_run(tables: dict, campaign: Campaign, settings: Settings, rss_model: dict) -> pd.DataFrame:
+    """Raw fixes: one row per epoch, localizer and technique (x, y NaN when no fix)."""
+    subsets = campaign.spec["subsets"]
+    ranges = _subset(tables["ranges"], subsets[settings.uwb_subset])
+    if settings.uwb_preliminary_filter:
+        ranges = preliminary_filter(ranges, settings.max_range_m)
+    else:
+        ranges = ranges[np.isfinite(ranges["range_m"])]
+    rss = _subset(tables["rss"], subsets[settings.narrowband_subset])
+    rss = rss[np.isfinite(rss["rss_dbm"])]
+    epochs = build_epochs(ranges, rss, settings.epoch_s)
+    anchors = _Anchors(campaign)
+    rows = []
+    for epoch in epochs:
+        for localizer in LOCALIZERS:
+            for technique, fix in localize_epoch(epoch, anchors, localizer, settings, rss_model).items():
+                x, y = (fix if fix is not None and np.all(np.isfinite(fix)) else (np.nan, np.nan))
+                rows.append((epoch.t, localizer, technique, "raw", float(x), float(y)))
+    return pd.DataFrame(rows, columns=["t", "localizer", "technique", "stage", "x", "y"])
+
+
+def kalman_for_fixes(settings: Settings) -> tuple:
+    """(F, Q, H, R, P0) of the comparison KF: PV model, position measurements."""
+    k = settings.kalman
+    F, Q = constant_velocity(settings.epoch_s, k["accel_sigma_mps2"])
+    H = np.hstack([np.eye(2), np.zeros((2, 2))])
+    R = np.eye(2) * k["position_sigma_m"] ** 2
+    P0 = np.diag([k["position_sigma_m"] ** 2] * 2 + [k["initial_speed_sigma_mps"] ** 2] * 2)
+    return F, Q, H, R, P0
+
+
+def track(raw: pd.DataFrame, settings: Settings) -> pd.DataFrame:
+    """Velocity-bounded tracker and Kalman filter outputs at the epochs that have a fix.
+
+    The KF predicts at every epoch (also those without a fix) and is updated with each fix.
+    """
+    out = []
+    F, Q, H, R, P0 = kalman_for_fixes(settings)
+    for (localizer, technique), series in raw.groupby(["localizer", "technique"], sort=False):
+        tracker = VelocityBoundedTracker(settings.tracker_window, settings.tracker_speed_from)
+        kf = None
+        for t, x, y in series[["t", "x", "y"]].itertuples(index=False):
+            has_fix = np.isfinite(x) and np.isfinite(y)
+            if kf is not None:
+                kf.predict()
+            if not has_fix:
+                continue
+            if kf is None:
+                kf = KalmanFilter(np.array([x, y, 0.0, 0.0]), P0, F, Q, H, R)
+            else:
+                kf.update(np.array([x, y]))
+            vx, vy = tracker.step(t, (x, y))
+            out.append((t, localizer, technique, "velocity", vx, vy))
+            out.append((t, localizer, technique, "kalman", kf.x[0], kf.x[1]))
+    return pd.DataFrame(out, columns=["t", "localizer", "technique", "stage", "x", "y"])
+
+
+def run(tables: dict, campaign: Campaign, settings: Settings, rss_model: dict) -> pd.DataFrame:
+    """All estimates of one run, scored against its truth."""
+    raw = localize_run(tables, campaign, settings, rss_model)
+    estimates = pd.concat([raw, track(raw, settings)], ignore_index=True)
+    return score(estimates, tables["truth"])
+
+
+def run_metrics(estimates: pd.DataFrame) -> pd.DataFrame:
+    """Per (localizer, technique, stage): RMSE, median, p95, max (m) and fix availability."""
+    rows = []
+    epochs = estimates.loc[estimates["stage"] == "raw", "t"].nunique()
+    for key, group in estimates.groupby(["localizer", "technique", "stage"], sort=False):
+        stats = error_summary(group["error_m"])
+        rows.append({**dict(zip(["localizer", "technique", "stage"], key)),
+                     **{k: stats[k] for k in ("rmse", "median", "p95", "max")},
+                     "availability": float(np.isfinite(group["error_m"]).sum() / epochs) if epochs else np.nan})
+    return pd.DataFrame(rows)
+
+
+def rss_models_for_runs(run_tables: dict[str, dict], campaign: Campaign, settings: Settings) -> dict[str, dict]:
+    """The RSS model each run is evaluated with.
+
+    `other_run`: P0, n fitted on the next run (cyclically) with its truth, so that no run
+    is localised with a model fitted on itself; `configured`: rss_model from config.
+    With a single run `other_run` falls back to the configured model.
+    """
+    names = list(run_tables)
+    if settings.rss_calibration == "configured" or len(names) < 2:
+        return {name: dict(settings.rss_model, source="configured") for name in names}
+    members = campaign.spec["subsets"][settings.narrowband_subset]
+    fitted = {name: calibrate(_subset(t["rss"], members), t["truth"], campaign, settings.rss_model["d0_m"])
+              for name, t in run_tables.items()}
+    return {name: dict(fitted[names[(i + 1) % len(names)]], source=f"fitted on {names[(i + 1) % len(names)]}")
+            for i, name in enumerate(names)}
+
+
+# ---- tables, claims and cost -------------------------------------------------------------
+
+TABLES = {
+    "Table 1": ("raw", "localization RMSE [m]"),
+    "Table 2": ("velocity", "localization + velocity tracking RMSE [m]"),
+}
+
+
+def results_rows(metrics: pd.DataFrame, scenario: str) -> list[dict]:
+    """results.csv rows: Tables 1-3 (RMSE) and their detail metrics, mean over runs with 95% CI."""
+    rows = []
+    common = {"experiment": EXPERIMENT, "scenario": scenario}
+    for table, (stage, _) in TABLES.items():
+        for localizer, loc_label in LOCALIZER_LABEL.items():
+            for technique, tech_label in TECHNIQUE_LABEL.items():
+                sel = metrics[(metrics["localizer"] == localizer) & (metrics["technique"] == technique)
+                              & (metrics["stage"] == stage)]
+                for metric in ("rmse", "median", "p95", "max", "availability"):
+                    rows.append(results.row_over_runs(sel[metric], table=table, row=loc_label, column=tech_label,
+                                                      metric=metric if metric == "availability" else f"{metric}_m",
+                                                      **common))
+    for stage, row in (("velocity", "velocity tracker"), ("kalman", "Kalman filter")):
+        for technique, tech_label in TECHNIQUE_LABEL.items():
+            sel = metrics[(metrics["localizer"] == "minmax") & (metrics["technique"] == technique)
+                          & (metrics["stage"] == stage)]
+            for metric in ("rmse", "median", "p95", "max"):
+                rows.append(results.row_over_runs(sel[metric], table="Table 3", row=row, column=tech_label,
+                                                  metric=f"{metric}_m", **common))
+    return rows
+
+
+def measure_cost(settings: Settings, repeats: int = 5) -> dict[str, float]:
+    """Median time per step (microseconds) of the velocity tracker and the KF on this machine.
+
+    Each repeat feeds `cost_iterations` noisy fixes of a straight walk; the median over
+    repeats of the mean time per step is reported.
+    """
+    rng = np.random.default_rng(0)
+    n = settings.cost_iterations
+    t = np.arange(n) * settings.epoch_s
+    fixes = np.column_stack([0.3 * t, np.zeros(n)]) + rng.normal(0, 1.0, (n, 2))
+    F, Q, H, R, P0 = kalman_for_fixes(settings)
+    per_step = {"velocity": [], "kalman": []}
+    for _ in range(repeats):
+        tracker = VelocityBoundedTracker(settings.tracker_window, settings.tracker_speed_from)
+        start = time.perf_counter()
+        for k in range(n):
+            tracker.step(t[k], fixes[k])
+        per_step["velocity"].append((time.perf_counter() - start) / n * 1e6)
+        kf = KalmanFilter(np.array([*fixes[0], 0, 0]), P0, F, Q, H, R)
+        start = time.perf_counter()
+        for k in range(n):
+            kf.predict()
+            kf.update(fixes[k])
+        per_step["kalman"].append((time.perf_counter() - start) / n * 1e6)
+    return {name: float(np.median(v)) for name, v in per_step.items()}
+
+
+def cost_rows(cost_us: dict[str, float], paper_ms: dict[str, float]) -> list[dict]:
+    """Measured time per step (us) beside the paper's (ms on a 200 MHz SA-110, given in us)."""
+    rows = [results.single_row(cost_us[name], experiment=EXPERIMENT, table="Cost", row=label,
+                               column="time per step", scenario="this machine", metric="us_per_step",
+                               paper_value=paper_ms[label] * 1000.0)
+            for name, label in COST_LABEL.items()]
+    rows.append(results.single_row(cost_us["kalman"] / cost_us["velocity"], experiment=EXPERIMENT, table="Cost",
+                                   row="Kalman / velocity", column="time per step", scenario="this machine",
+                                   metric="ratio", paper_value=paper_ms["Kalman filter"] / paper_ms["velocity tracker"]))
+    return rows
+
+
+def _rmse(res: pd.DataFrame, table: str, row: str, column: str, scenario: str) -> float:
+    sel = res[(res["experiment"] == EXPERIMENT) & (res["table"] == table) & (res["row"] == row)
+              & (res["column"] == column) & (res["scenario"] == scenario) & (res["metric"] == "rmse_m")]
+    return float(sel["value"].iloc[0]) if len(sel) else float("nan")
+
+
+def claims(res: pd.DataFrame, scenarios: list[str]) -> list[dict]:
+    """Each published claim of paper D, checked on our results, with the deciding numbers."""
+    out = []
+    locs = list(LOCALIZER_LABEL.values())
+    techs = list(TECHNIQUE_LABEL.values())
+
+    def check(text, cases):
+        holds = all(ok for ok, _ in cases)
+        out.append({"claim": text, "holds": holds, "evidence": "; ".join(e for _, e in cases)})
+
+    cases = []
+    for sc in scenarios:
+        for loc in locs:
+            single = min(_rmse(res, "Table 1", loc, t, sc) for t in ("narrowband", "UWB"))
+            fused = min(_rmse(res, "Table 1", loc, t, sc) for t in ("P-mix", "F-mix"))
+            cases.append((fused < single, f"{sc} {loc}: best fusion {fused:.3f} vs best single {single:.3f} m"))
+    check("Fusion beats a single source", cases)
+
+    cases = []
+    for sc in scenarios:
+        for loc in locs:
+            values = {t: _rmse(res, "Table 1", loc, t, sc) for t in techs}
+            best = min(values, key=values.get)
+            cases.append((best == "F-mix", f"{sc} {loc}: best is {best} ({values[best]:.3f} m; F-mix {values['F-mix']:.3f} m)"))
+    check("F-mix is the best fusion and technique", cases)
+
+    cases = []
+    for sc in scenarios:
+        for loc in locs:
+            for t in techs:
+                before, after = _rmse(res, "Table 1", loc, t, sc), _rmse(res, "Table 2", loc, t, sc)
+                cases.append((after < before, f"{sc} {loc} {t}: {before:.3f} -> {after:.3f} m"))
+    check("Velocity tracking lowers the RMSE in every cell", cases)
+
+    cases = []
+    for sc in scenarios:
+        table2 = {(loc, t): _rmse(res, "Table 2", loc, t, sc) for loc in locs for t in techs}
+        best = min(table2, key=table2.get)
+        cases.append((best[1] == "F-mix", f"{sc}: lowest with tracking is {best[0]} {best[1]} ({table2[best]:.3f} m)"))
+    check("F-mix followed by velocity tracking gives the lowest RMSE", cases)
+
+    cases = []
+    for sc in scenarios:
+        for t in techs:
+            mm, ml = _rmse(res, "Table 1", "Min-Max", t, sc), _rmse(res, "Table 1", "Multilateration", t, sc)
+            cases.append((mm < ml, f"{sc} {t}: Min-Max {mm:.3f} vs multilateration {ml:.3f} m"))
+    check("Min-Max is more accurate than multilateration", cases)
+
+    cases = []
+    for sc in scenarios:
+        kf, vel = _rmse(res, "Table 3", "Kalman filter", "F-mix", sc), _rmse(res, "Table 3", "velocity tracker", "F-mix", sc)
+        cases.append((kf < vel <= 1.25 * kf, f"{sc} Min-Max F-mix: KF {kf:.3f} vs velocity {vel:.3f} m"))
+    check("The Kalman filter is slightly more accurate than the velocity tracker (within 25%)", cases)
+    return out
+
+
+def cost_claim(cost_us: dict[str, float], paper_ms: dict[str, float]) -> dict:
+    """Paper D: the KF costs about 6x the velocity tracker per step (72 ms vs 12 ms)."""
+    ratio = cost_us["kalman"] / cost_us["velocity"]
+    paper = paper_ms["Kalman filter"] / paper_ms["velocity tracker"]
+    return {"claim": "The Kalman filter is several times costlier per step than the velocity tracker",
+            "holds": bool(ratio > 2.0),
+            "evidence": f"this machine: KF {cost_us['kalman']:.1f} us, velocity {cost_us['velocity']:.1f} us per step "
+                        f"(ratio {ratio:.1f}; paper {paper:.0f} on a 200 MHz SA-110)"}
+
+
+FIGURE_CURVES = {   # label: (localizer, technique, stage)
+    "Min-Max narrowband": ("minmax", "narrowband", "raw"),
+    "Min-Max UWB": ("minmax", "uwb", "raw"),
+    "Min-Max F-mix": ("minmax", "fmix", "raw"),
+    "Min-Max F-mix + velocity": ("minmax", "fmix", "velocity"),
+    "Min-Max F-mix + KF": ("minmax", "fmix", "kalman"),
+    "Multilateration F-mix": ("multilateration", "fmix", "raw"),
+}
+
+
+def _select(est: pd.DataFrame, localizer: str, technique: str, stage: str) -> pd.DataFrame:
+    return est[(est["localizer"] == localizer) & (est["technique"] == technique) & (est["stage"] == stage)]
+
+
+def cdf_panels(estimates: dict[str, pd.DataFrame]) -> dict:
+    """Error samples (all runs) per scenario and curve, for the CDF figure."""
+    return {label: {name: _select(est, *key)["error_m"].to_numpy() for name, key in FIGURE_CURVES.items()}
+            for label, est in estimates.items()}
+
+
+def trajectory_panels(estimates: dict[str, pd.DataFrame]) -> dict:
+    """First run of each scenario: truth and the Min-Max F-mix tracks."""
+    panels = {}
+    for label, est in estimates.items():
+        first = est[est["run"] == est["run"].iloc[0]]
+        raw = _select(first, "minmax", "fmix", "raw")
+        truth = raw[["true_x", "true_y"]].rename(columns={"true_x": "x", "true_y": "y"})
+        tracks = {name: _select(first, *key) for name, key in FIGURE_CURVES.items() if key[0] == "minmax" and key[1] == "fmix"}
+        panels[f"{label}, {first['run'].iloc[0]}: Min-Max F-mix"] = (truth, tracks)
+    return panels

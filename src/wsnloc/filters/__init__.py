@@ -1,0 +1,1 @@
+"""State estimators with explicit matrices (F, Q, H, R, P), filterpy-style attributes."""

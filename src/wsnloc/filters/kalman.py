@@ -1,0 +1,45 @@
+"""Linear Kalman filter with the Joseph-form covariance update.
+
+State x (n,), covariance P (n, n), transition F, process noise Q, observation H, noise R.
+  predict:  x <- F x (+ B u),        P <- F P F^T + Q
+  update:   y = z - H x,  S = H P H^T + R,  K = P H^T S^-1
+            x <- x + K y,  P <- (I - K H) P (I - K H)^T + K R K^T      (Joseph form)
+The attribute names follow filterpy.kalman.KalmanFilter so results can be compared
+one to one; the innovation y, its covariance S and NIS = y^T S^-1 y of the last update
+are kept for diagnostics.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class KalmanFilter:
+    def __init__(self, x, P, F, Q, H, R):
+        self.x = np.asarray(x, dtype=float).copy()
+        self.P = np.asarray(P, dtype=float).copy()
+        self.F = np.asarray(F, dtype=float)
+        self.Q = np.asarray(Q, dtype=float)
+        self.H = np.asarray(H, dtype=float)
+        self.R = np.asarray(R, dtype=float)
+        self.y = np.zeros(self.H.shape[0])
+        self.S = np.eye(self.H.shape[0])
+        self.K = np.zeros((len(self.x), self.H.shape[0]))
+        self.nis = float("nan")
+
+    def predict(self, u=None, B=None) -> None:
+        self.x = self.F @ self.x
+        if u is not None:
+            self.x = self.x + np.asarray(B, dtype=float) @ np.asarray(u, dtype=float)
+        self.P = self.F @ self.P @ self.F.T + self.Q
+
+    def update(self, z, H=None, R=None) -> None:
+        H = self.H if H is None else np.asarray(H, dtype=float)
+        R = self.R if R is None else np.asarray(R, dtype=float)
+        self.y = np.asarray(z, dtype=float) - H @ self.x
+        self.S = H @ self.P @ H.T + R
+        self.K = np.linalg.solve(self.S.T, (self.P @ H.T).T).T        # P H^T S^-1
+        self.x = self.x + self.K @ self.y
+        joseph = np.eye(len(self.x)) - self.K @ H
+        self.P = joseph @ self.P @ joseph.T + self.K @ R @ self.K.T
+        self.nis = float(self.y @ np.linalg.solve(self.S, self.y))

@@ -1,0 +1,91 @@
+"""Position from ranges to known anchors: Min-Max and multilateration (paper D).
+
+Both return None ("no fix") with fewer than 3 usable ranges or a degenerate geometry,
+never raise on such input. Non-finite or negative ranges are dropped first.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+MIN_RANGES = 3
+MAX_CONDITION = 1e8          # linear system worse than this: anchors (nearly) collinear
+GAUSS_NEWTON_STEPS = 10
+
+
+def _usable(anchors, ranges) -> tuple[np.ndarray, np.ndarray]:
+    anchors = np.asarray(anchors, dtype=float).reshape(-1, 2)
+    ranges = np.asarray(ranges, dtype=float).reshape(-1)
+    keep = np.isfinite(ranges) & (ranges >= 0) & np.all(np.isfinite(anchors), axis=1)
+    return anchors[keep], ranges[keep]
+
+
+def min_max(anchors, ranges) -> np.ndarray | None:
+    """Centre of the intersection of the boxes [x_i - d_i, x_i + d_i] x [y_i - d_i, y_i + d_i].
+
+    Lower corner = max over i of (x_i - d_i, y_i - d_i); upper corner = min over i of
+    (x_i + d_i, y_i + d_i); estimate = (lower + upper) / 2. With inconsistent ranges the
+    "intersection" may be empty (lower > upper); its centre is still returned, as in the
+    paper. Anchors all on one vertical or horizontal line are still solvable by Min-Max.
+    """
+    a, d = _usable(anchors, ranges)
+    if len(d) < MIN_RANGES:
+        return None
+    lower = np.max(a - d[:, None], axis=0)
+    upper = np.min(a + d[:, None], axis=0)
+    return (lower + upper) / 2.0
+
+
+def _linear_solution(a: np.ndarray, d: np.ndarray) -> np.ndarray | None:
+    """Least squares on the circles linearised by subtracting the last equation.
+
+    (x - x_i)^2 + (y - y_i)^2 = d_i^2 minus the same for anchor L gives
+    2 (x_L - x_i) x + 2 (y_L - y_i) y = d_i^2 - d_L^2 - |a_i|^2 + |a_L|^2.
+    """
+    ref, d_ref = a[-1], d[-1]
+    matrix = 2.0 * (ref[None, :] - a[:-1])
+    rhs = d[:-1] ** 2 - d_ref**2 - np.sum(a[:-1] ** 2, axis=1) + np.sum(ref**2)
+    if np.linalg.cond(matrix) > MAX_CONDITION:
+        return None
+    solution, *_ = np.linalg.lstsq(matrix, rhs, rcond=None)
+    return solution
+
+
+def multilateration(anchors, ranges, refine: bool = True) -> np.ndarray | None:
+    """Linearised least squares, then Gauss-Newton on sum_i (||p - a_i|| - d_i)^2.
+
+    Gauss-Newton: J_i = (p - a_i)^T / ||p - a_i||, p <- p - (J^T J)^-1 J^T r with
+    r_i = ||p - a_i|| - d_i; a step that does not lower the cost is not taken.
+    Returns None for fewer than 3 ranges or (nearly) collinear anchors.
+    """
+    a, d = _usable(anchors, ranges)
+    if len(d) < MIN_RANGES:
+        return None
+    p = _linear_solution(a, d)
+    if p is None or not refine:
+        return p
+
+    def cost(point):
+        return float(np.sum((np.hypot(*(point[None, :] - a).T) - d) ** 2))
+
+    current = cost(p)
+    for _ in range(GAUSS_NEWTON_STEPS):
+        diff = p[None, :] - a
+        dist = np.maximum(np.hypot(diff[:, 0], diff[:, 1]), 1e-9)
+        jac = diff / dist[:, None]
+        residual = dist - d
+        try:
+            step = np.linalg.solve(jac.T @ jac, jac.T @ residual)
+        except np.linalg.LinAlgError:
+            break
+        candidate = p - step
+        new = cost(candidate)
+        if not new < current:
+            break
+        p, current = candidate, new
+        if np.linalg.norm(step) < 1e-9:
+            break
+    return p
+
+
+LOCALIZERS = {"minmax": min_max, "multilateration": multilateration}

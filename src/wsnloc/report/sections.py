@@ -1,0 +1,77 @@
+"""Report sections for the papers: tables in the papers' layout, claims, figures.
+
+A paper table is {title, scenario, columns, rows: [{label, cells: [cell]}]} where a cell
+holds our value with its 95% interval and the paper's value (None when unpublished).
+"""
+
+from __future__ import annotations
+
+import math
+
+import pandas as pd
+
+
+def _cell(results: pd.DataFrame, **keys) -> dict:
+    sel = results
+    for column, value in keys.items():
+        sel = sel[sel[column] == value]
+    if not len(sel):
+        return {"value": None, "low": None, "high": None, "runs": None, "paper": None, "delta": None}
+    row = sel.iloc[0]
+    paper = row["paper_value"] if pd.notna(row["paper_value"]) else None
+    value = row["value"] if pd.notna(row["value"]) else None
+    delta = value - paper if value is not None and paper is not None else None
+    return {"value": value, "low": row["ci95_low"] if pd.notna(row["ci95_low"]) else None,
+            "high": row["ci95_high"] if pd.notna(row["ci95_high"]) else None,
+            "runs": int(row["runs"]) if pd.notna(row["runs"]) else None, "paper": paper, "delta": delta}
+
+
+def paper_table(results: pd.DataFrame, *, experiment: str, table: str, scenario: str, rows: list[str],
+                columns: list[str], metric: str, title: str) -> dict:
+    return {
+        "title": title, "scenario": scenario, "columns": columns,
+        "rows": [{"label": r, "cells": [_cell(results, experiment=experiment, table=table, scenario=scenario,
+                                              row=r, column=c, metric=metric) for c in columns]} for r in rows],
+    }
+
+
+def detail_table(results: pd.DataFrame, *, experiment: str, table: str, scenario: str, rows: list[str],
+                 columns: list[str], metrics: list[str]) -> dict:
+    """Median, percentiles, max (and availability) per cell: one line per (row, column)."""
+    lines = []
+    for r in rows:
+        for c in columns:
+            cells = [_cell(results, experiment=experiment, table=table, scenario=scenario, row=r, column=c, metric=m)
+                     for m in metrics]
+            lines.append({"label": f"{r} / {c}", "cells": cells})
+    return {"title": f"{table} detail, {scenario}", "metrics": metrics, "lines": lines}
+
+
+def paper_d_section(results: pd.DataFrame, claims: dict, figures: dict[str, str], paper: dict,
+                    scenarios: list[str], settings: dict) -> dict:
+    """Context of paper D's section."""
+    from wsnloc.experiments.paper_d import LOCALIZER_LABEL, TECHNIQUE_LABEL
+
+    locs, techs = list(LOCALIZER_LABEL.values()), list(TECHNIQUE_LABEL.values())
+    tables, details = [], []
+    for scenario in scenarios:
+        for table, title in (("Table 1", "Localization RMSE [m]"),
+                             ("Table 2", "Localization followed by velocity tracking, RMSE [m]")):
+            tables.append(paper_table(results, experiment="D", table=table, scenario=scenario, rows=locs,
+                                      columns=techs, metric="rmse_m", title=f"{table}: {title}"))
+            details.append(detail_table(results, experiment="D", table=table, scenario=scenario, rows=locs,
+                                        columns=techs, metrics=["median_m", "p95_m", "max_m", "availability"]))
+        tables.append(paper_table(results, experiment="D", table="Table 3", scenario=scenario,
+                                  rows=["velocity tracker", "Kalman filter"], columns=techs, metric="rmse_m",
+                                  title="Table 3: velocity tracking vs Kalman filter on Min-Max fixes, RMSE [m]"))
+    cost = results[(results["experiment"] == "D") & (results["table"] == "Cost")].to_dict(orient="records")
+    return {
+        "id": "D", "title": paper["title"], "citation": paper["citation"],
+        "published": bool(paper.get("tables_published", True)),
+        "tables": tables, "details": details, "claims": claims["claims"], "cost": cost,
+        "figures": figures, "settings": settings,
+    }
+
+
+def finite(value) -> bool:
+    return value is not None and not (isinstance(value, float) and math.isnan(value))

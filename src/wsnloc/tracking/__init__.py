@@ -1,0 +1,1 @@
+"""Trackers that smooth a sequence of position fixes."""

@@ -1,0 +1,217 @@
+"""Paper D building blocks against closed-form cases, and the KF against filterpy."""
+
+import numpy as np
+import pandas as pd
+import pytest
+from filterpy.kalman import KalmanFilter as FilterpyKF
+
+from wsnloc import results
+from wsnloc.experiments import paper_d
+from wsnloc.experiments.epochs import Epoch, build_epochs
+from wsnloc.filters.kalman import KalmanFilter
+from wsnloc.filters.motion_models import constant_velocity
+from wsnloc.geometry.lateration import min_max, multilateration
+from wsnloc.geometry.selection import k_smallest, rss_to_distance
+from wsnloc.tracking.velocity_bounded import VelocityBoundedTracker
+
+SETTINGS = {
+    "epoch_s": 0.5, "k_smallest": 6, "subsets": {"uwb": "UWB=12", "narrowband": "ZigBee=21"},
+    "uwb_preliminary_filter": True, "max_range_m": 50.0, "rss_calibration": "configured",
+    "rss_model": {"p0_dbm": -50.0, "path_loss_exponent": 3.0, "d0_m": 1.0},
+    "pmix_weights": {"uwb": 0.5, "narrowband": 0.5}, "tracker": {"window": 6, "speed_from": "raw"},
+    "kalman": {"accel_sigma_mps2": 0.5, "position_sigma_m": 1.5, "initial_speed_sigma_mps": 0.5},
+    "cost_iterations": 200,
+}
+
+
+def _ranges(anchors, target):
+    return np.hypot(*(np.asarray(anchors, float) - target).T)
+
+
+@pytest.mark.parametrize("target", [(3.0, 4.0), (12.3, 7.9), (0.5, 0.2)])
+def test_multilateration_is_exact_on_noise_free_ranges(target):
+    anchors = np.array([[0, 0], [10, 0], [0, 8], [10, 8], [5, 12]])
+    for n in (3, 4, 5):
+        assert multilateration(anchors[:n], _ranges(anchors[:n], target)) == pytest.approx(target, abs=1e-9)
+        assert multilateration(anchors[:n], _ranges(anchors[:n], target), refine=False) == pytest.approx(target, abs=1e-9)
+
+
+def test_min_max_is_exact_when_anchors_bound_the_target_on_both_axes():
+    """Box edges touch the target when an anchor lies on each axis line through it."""
+    target = np.array([3.0, 4.0])
+    anchors = np.array([[0, 4], [7, 4], [3, 0], [3, 9]])
+    assert min_max(anchors, _ranges(anchors, target)) == pytest.approx(target)
+    assert min_max(anchors[:3], _ranges(anchors[:3], target))[0] == pytest.approx(3.0)
+
+
+def test_min_max_box_centre_hand_computed():
+    # Boxes: A (0,0) d=5 -> [-5,5]x[-5,5]; B (8,0) d=5 -> [3,13]x[-5,5]; C (4,6) d=3 -> [1,7]x[3,9]
+    # Intersection [3,5] x [3,5], centre (4, 4).
+    assert min_max([[0, 0], [8, 0], [4, 6]], [5, 5, 3]) == pytest.approx([4.0, 4.0])
+
+
+@pytest.mark.parametrize("solve", [min_max, multilateration])
+def test_no_fix_with_fewer_than_three_usable_ranges(solve):
+    assert solve([[0, 0], [5, 0]], [1, 2]) is None
+    assert solve([[0, 0], [5, 0], [0, 5]], [1, np.nan, 2]) is None
+    assert solve(np.empty((0, 2)), []) is None
+
+
+def test_multilateration_refuses_collinear_anchors():
+    anchors = np.array([[0, 0], [5, 0], [10, 0]])
+    assert multilateration(anchors, _ranges(anchors, (4.0, 3.0))) is None
+
+
+def test_gauss_newton_improves_on_the_linear_solution():
+    rng = np.random.default_rng(0)
+    anchors = np.array([[0, 0], [10, 0], [0, 8], [10, 8], [5, 12], [2, 3]])
+    target = np.array([4.0, 5.0])
+    d = _ranges(anchors, target) + rng.normal(0, 0.3, len(anchors))
+
+    def cost(p):
+        return np.sum((_ranges(anchors, p) - d) ** 2)
+
+    assert cost(multilateration(anchors, d)) <= cost(multilateration(anchors, d, refine=False))
+
+
+def test_k_smallest_pools_technologies():
+    uwb = np.array([7.0, 1.5, 9.0, 4.0])
+    narrowband = np.array([2.0, 12.0, 0.5, np.nan, 3.0])
+    pooled = np.concatenate([narrowband, uwb])
+    kept = k_smallest(pooled, 4)
+    assert pooled[kept].tolist() == [0.5, 1.5, 2.0, 3.0]      # both technologies, NaN never kept
+    assert len(k_smallest(pooled, 20)) == 8
+
+
+def test_fmix_localises_the_six_smallest_pooled_ranges(campaign):
+    settings = paper_d.Settings.from_config(SETTINGS)
+    anchors = paper_d._Anchors(campaign)
+    target = np.array([10.0, 7.5])
+    uwb_ids = np.array(["U01", "U02", "U03", "U04", "U05"], dtype=object)
+    nb_ids = np.array(["Z03", "Z04", "Z05", "Z06"], dtype=object)
+    uwb_r = _ranges(anchors.positions(uwb_ids), target)
+    nb_r = _ranges(anchors.positions(nb_ids), target)
+    rss = -50.0 - 30.0 * np.log10(nb_r)                       # exact inverse of the model
+    epoch = Epoch(1.0, uwb_ids, uwb_r, nb_ids, rss)
+    fixes = paper_d.localize_epoch(epoch, anchors, "multilateration", settings, SETTINGS["rss_model"])
+    assert fixes["fmix"] == pytest.approx(target, abs=1e-6)
+    ids = np.concatenate([nb_ids, uwb_ids])
+    pooled = np.concatenate([nb_r, uwb_r])
+    keep = k_smallest(pooled, 6)
+    assert min_max(anchors.positions(ids[keep]), pooled[keep]) == pytest.approx(
+        paper_d.localize_epoch(epoch, anchors, "minmax", settings, SETTINGS["rss_model"])["fmix"])
+    assert fixes["pmix"] == pytest.approx((fixes["uwb"] + fixes["narrowband"]) / 2)
+
+
+def test_rss_to_distance_inverts_the_path_loss_model():
+    d = np.array([1.0, 3.0, 17.5])
+    assert rss_to_distance(-45.0 - 27.0 * np.log10(d), -45.0, 2.7) == pytest.approx(d)
+
+
+def test_preliminary_filter():
+    ranges = pd.DataFrame({"t": [0, 1, 2, 3, 4], "anchor_id": ["U01"] * 5, "range_m": [3.0, 3.0, -1.0, 80.0, np.nan],
+                           "status": [0, 7, 0, 0, 0], "line": [1, 2, 3, 4, 5]})
+    assert paper_d.preliminary_filter(ranges, 50.0)["line"].tolist() == [1]
+
+
+class TestVelocityTracker:
+    def _primed(self):
+        tracker = VelocityBoundedTracker(window=2)
+        tracker.step(0.0, (0.0, 0.0))
+        tracker.step(1.0, (1.0, 0.0))            # window speed: 1 m/s
+        return tracker
+
+    def test_inside_the_bound_is_accepted(self):
+        out = self._primed().step(2.0, (1.6, 0.5))   # 0.78 m from (1, 0), bound 1 m
+        assert out == pytest.approx([1.6, 0.5])
+
+    def test_outside_goes_on_the_circle_towards_the_raw_fix(self):
+        out = self._primed().step(2.0, (4.0, 4.0))   # 5 m away along (3, 4)/5, bound 1 m
+        assert out == pytest.approx([1.6, 0.8])
+
+    def test_bound_scales_with_the_time_step(self):
+        out = self._primed().step(3.0, (5.0, 0.0))   # 2 s at 1 m/s
+        assert out == pytest.approx([3.0, 0.0])
+
+    def test_stop_keeps_the_last_coordinates(self):
+        tracker = self._primed()
+        first = tracker.step(2.0, (4.0, 4.0)).copy()
+        assert tracker.step(2.5, (4.0, 4.0)) == pytest.approx(first)
+
+    def test_first_fixes_are_accepted(self):
+        assert VelocityBoundedTracker().step(0.0, (5.0, 5.0)) == pytest.approx([5.0, 5.0])
+
+    def test_speed_from_tracked_freezes_after_a_static_phase(self):
+        """Why the default feeds raw fixes: with its own outputs the speed cannot recover."""
+        frozen, live = VelocityBoundedTracker(3, "tracked"), VelocityBoundedTracker(3, "raw")
+        for k in range(10):
+            frozen.step(k * 0.5, (0.0, 0.0) if k % 2 == 0 else (0.0, 1e-12))
+            live.step(k * 0.5, (0.0, 0.0) if k % 2 == 0 else (0.0, 1e-12))
+        for k in range(10, 20):
+            a, b = frozen.step(k * 0.5, (0.3 * (k - 9), 0.0)), live.step(k * 0.5, (0.3 * (k - 9), 0.0))
+        assert a[0] < 1e-6 and b[0] > 1.0
+
+    def test_window_must_be_positive(self):
+        with pytest.raises(ValueError):
+            VelocityBoundedTracker(0)
+
+
+def test_kalman_filter_equals_filterpy():
+    rng = np.random.default_rng(3)
+    F, Q = constant_velocity(0.5, 0.4)
+    H = np.hstack([np.eye(2), np.zeros((2, 2))])
+    R = np.eye(2) * 1.2
+    x0, P0 = np.array([1.0, 2.0, 0.0, 0.0]), np.diag([2.0, 2.0, 0.3, 0.3])
+    ours = KalmanFilter(x0, P0, F, Q, H, R)
+    ref = FilterpyKF(dim_x=4, dim_z=2)
+    ref.x, ref.P, ref.F, ref.Q, ref.H, ref.R = x0.copy(), P0.copy(), F, Q, H, R
+    for k in range(200):
+        ours.predict()
+        ref.predict()
+        if k % 7 != 3:                             # some epochs without a fix
+            z = np.array([0.15 * k, 2.0]) + rng.normal(0, 1.0, 2)
+            ours.update(z)
+            ref.update(z)
+        np.testing.assert_allclose(ours.x, ref.x, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(ours.P, ref.P, rtol=0, atol=1e-9)
+
+
+def test_constant_velocity_process_noise():
+    F, Q = constant_velocity(2.0, 1.0)
+    assert F[0, 2] == 2.0 and F[1, 3] == 2.0
+    assert Q[0, 0] == pytest.approx(4.0) and Q[0, 2] == pytest.approx(4.0) and Q[2, 2] == pytest.approx(4.0)
+
+
+def test_epochs_group_measurements():
+    ranges = pd.DataFrame({"t": [0.1, 0.2, 0.7], "anchor_id": ["U01", "U01", "U02"], "range_m": [1.0, 3.0, 5.0],
+                           "status": 0, "line": 1})
+    rss = pd.DataFrame({"t": [0.05, 0.3, 0.6], "anchor_id": ["Z01", "Z01", "Z01"], "rss_dbm": [-60.0, -62.0, -70.0],
+                        "seq": 0, "line": 1})
+    epochs = build_epochs(ranges, rss, 0.5, start=0.0, end=1.0)
+    assert [e.t for e in epochs] == [0.5, 1.0]
+    assert epochs[0].range_ids.tolist() == ["U01"] and epochs[0].ranges.tolist() == [2.0]
+    assert epochs[0].rss.tolist() == [-61.0] and epochs[1].rss.tolist() == [-70.0]
+
+
+def test_paper_d_on_a_simulated_run(campaign, simulated_run):
+    from wsnloc.io.newcom import ingest_run
+
+    tables, _ = ingest_run(simulated_run, campaign)
+    settings = paper_d.Settings.from_config(SETTINGS)
+    estimates = paper_d.run(tables, campaign, settings, SETTINGS["rss_model"])
+    metrics = paper_d.run_metrics(estimates)
+    assert set(metrics["stage"]) == {"raw", "velocity", "kalman"} and len(metrics) == 2 * 4 * 3
+    uwb = metrics[(metrics["localizer"] == "multilateration") & (metrics["technique"] == "uwb")
+                  & (metrics["stage"] == "raw")]
+    assert uwb["rmse"].iloc[0] < 1.0 and uwb["availability"].iloc[0] > 0.9
+    rows = paper_d.results_rows(metrics.assign(run="run-01"), "newcom/constant")
+    frame = results.frame(rows)
+    assert set(frame["table"]) == {"Table 1", "Table 2", "Table 3"}
+    claims = paper_d.claims(frame, ["newcom/constant"])
+    assert len(claims) == 6 and all(isinstance(c["holds"], bool) for c in claims)
+
+
+def test_unknown_subset_names_the_config_key(campaign):
+    settings = paper_d.Settings.from_config({**SETTINGS, "subsets": {"uwb": "UWB=7", "narrowband": "ZigBee=21"}})
+    with pytest.raises(Exception, match=r"experiments.paper_d.subsets.uwb"):
+        settings.check_against(campaign)

@@ -1,0 +1,41 @@
+# Paper D: Min-Max / multilateration, P-mix / F-mix, velocity tracking vs Kalman filter.
+PAPER_D = config["experiments"].get("paper_d")
+PAPER_D_PAIRS = [(d, s) for d, s in PAIRS if PAPER_D and d in PAPER_D["datasets"]]
+
+
+rule paper_d:
+    input:
+        tables="data/processed/{dataset}/{scenario}/tables",
+        campaign=campaign_file,
+    output:
+        estimates="data/processed/{dataset}/{scenario}/paper_d/estimates.parquet",
+        metrics="data/processed/{dataset}/{scenario}/paper_d/metrics.csv",
+    params:
+        settings=PAPER_D,
+    log:
+        "logs/paper_d/{dataset}-{scenario}.log",
+    conda:
+        ENV
+    script:
+        "../scripts/paper_d.py"
+
+
+rule paper_d_summary:
+    input:
+        metrics=[f"data/processed/{d}/{s}/paper_d/metrics.csv" for d, s in PAPER_D_PAIRS],
+        estimates=[f"data/processed/{d}/{s}/paper_d/estimates.parquet" for d, s in PAPER_D_PAIRS],
+        papers="config/papers.yaml",
+    output:
+        results="data/processed/paper_d/results.csv",
+        claims="data/processed/paper_d/claims.json",
+        cdf="data/processed/paper_d/figures/error_cdf.png",
+        tracks="data/processed/paper_d/figures/trajectories.png",
+    params:
+        settings=PAPER_D,
+        labels=[f"{d}/{s}" for d, s in PAPER_D_PAIRS],
+    log:
+        "logs/paper_d/summary.log",
+    conda:
+        ENV
+    script:
+        "../scripts/paper_d_summary.py"

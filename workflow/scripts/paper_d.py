@@ -1,0 +1,28 @@
+"""Snakemake adapter: paper D estimators on every run of one scenario."""
+
+import json
+from pathlib import Path
+
+import pandas as pd
+
+from wsnloc.campaign import Campaign
+from wsnloc.experiments import paper_d
+from wsnloc.io import tables
+from wsnloc.metrics.data_quality import load_runs
+from wsnloc.workflow import script_logger
+
+sm = snakemake  # noqa: F821  (injected by Snakemake)
+log = script_logger(sm.log[0], "paper_d")
+campaign = Campaign.load(sm.input.campaign)
+settings = paper_d.Settings.from_config(sm.params.settings)
+settings.check_against(campaign)
+runs = load_runs(Path(sm.input.tables))
+models = paper_d.rss_models_for_runs(runs, campaign, settings)
+estimates, metrics = [], []
+for name, run_tables in runs.items():
+    est = paper_d.run(run_tables, campaign, settings, models[name]).assign(run=name)
+    estimates.append(est)
+    metrics.append(paper_d.run_metrics(est).assign(run=name, **{f"rss_{k}": v for k, v in models[name].items()}))
+    log.info("%s: RSS model %s", name, json.dumps(models[name]))
+tables.write("estimates_paper_d", pd.concat(estimates, ignore_index=True), sm.output.estimates)
+pd.concat(metrics, ignore_index=True).to_csv(sm.output.metrics, index=False, float_format="%.6g")
