@@ -20,6 +20,7 @@ include: "workflow/rules/ingest.smk"
 include: "workflow/rules/resample.smk"
 include: "workflow/rules/evaluate.smk"
 include: "workflow/rules/paper_d.smk"
+include: "workflow/rules/paper_b.smk"
 include: "workflow/rules/report.smk"
 
 

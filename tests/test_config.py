@@ -124,3 +124,9 @@ def test_every_model_parameter_has_a_justification():
             value = value.split("#")[0].strip()
             if value and not value.startswith("{"):
                 assert "#" in line, f"no justification for {key!r}: {line!r}"
+
+
+def test_experiment_on_an_undeclared_scenario_is_named(config):
+    config["experiments"]["paper_d"]["scenarios"] = ["newcom/sprint"]
+    with pytest.raises(ConfigError, match=r"'experiments.paper_d.scenarios': 'newcom/sprint' is not a declared"):
+        validate_config(config, SCHEMA)

@@ -30,6 +30,10 @@ def workdir(tmp_path_factory):
     config = yaml.safe_load((work / "config" / "config.yaml").read_text())
     config["runs"] = 2
     config["datasets"]["newcom"]["scenarios"] = ["constant"]
+    config["experiments"]["paper_d"]["scenarios"] = ["newcom/constant"]
+    config["experiments"]["paper_d"]["cost_iterations"] = 500
+    config["experiments"]["paper_b"]["scenarios"] = ["newcom/constant"]
+    config["experiments"]["paper_b"]["simulation_scenarios"] = []
     (work / "config" / "config.yaml").write_text(yaml.safe_dump(config))
     result = snakemake(work, "--cores", "2")
     assert result.returncode == 0, result.stderr[-3000:]
@@ -45,6 +49,8 @@ def test_builds_report_and_results(workdir):
     assert len(los_bias) == 1 and abs(los_bias["value"].iloc[0]) < 0.1 and los_bias["runs"].iloc[0] == 2
     html = (workdir / "reports" / "index.html").read_text()
     assert "SIMULATED campaign" in html and "data:image/png;base64," in html
+    assert 'id="paper-B"' in html and 'id="paper-D"' in html
+    assert {"data", "B", "D"} <= set(results["experiment"])
     assert "http://" not in html and "https://" not in html.replace("https://json-schema.org", "")
 
 

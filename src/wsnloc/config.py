@@ -97,10 +97,13 @@ def validate_config(config: dict, schema_path: str | Path) -> dict:
                 raise ConfigError(f"config key 'datasets.{name}.raw_dir': required when source is 'logs'")
             if not Path(dataset["raw_dir"]).is_dir():
                 raise ConfigError(f"config key 'datasets.{name}.raw_dir': no such directory {dataset['raw_dir']!r}")
+    declared = {f"{d}/{s}" for d, spec in config["datasets"].items() for s in spec["scenarios"]}
     for experiment, spec in config.get("experiments", {}).items():
-        for name in spec.get("datasets", []):
-            if name not in config["datasets"]:
-                raise ConfigError(f"config key 'experiments.{experiment}.datasets': unknown dataset {name!r}")
+        for key in ("scenarios", "simulation_scenarios"):
+            for label in spec.get(key, []):
+                if label not in declared:
+                    raise ConfigError(f"config key 'experiments.{experiment}.{key}': {label!r} is not a declared "
+                                      f"dataset/scenario (declared: {', '.join(sorted(declared))})")
     return config
 
 

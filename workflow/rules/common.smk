@@ -29,6 +29,11 @@ def campaign_file(wildcards):
     return config["datasets"][wildcards.dataset]["campaign"]
 
 
+def experiment_pairs(spec, key="scenarios"):
+    """(dataset, scenario) pairs an experiment runs on; none when it is not configured."""
+    return [tuple(label.split("/", 1)) for label in spec[key]] if spec else []
+
+
 def scenario_outputs(pattern):
     """Expand a per-scenario path pattern over every (dataset, scenario) pair."""
     return [pattern.format(dataset=d, scenario=s) for d, s in PAIRS]

@@ -1,6 +1,6 @@
 # Paper D: Min-Max / multilateration, P-mix / F-mix, velocity tracking vs Kalman filter.
 PAPER_D = config["experiments"].get("paper_d")
-PAPER_D_PAIRS = [(d, s) for d, s in PAIRS if PAPER_D and d in PAPER_D["datasets"]]
+PAPER_D_PAIRS = experiment_pairs(PAPER_D)
 
 
 rule paper_d:

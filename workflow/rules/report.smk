@@ -12,6 +12,16 @@ rule report:
         campaigns=sorted({d["campaign"] for d in config["datasets"].values()}),
         template="workflow/templates/report.html.j2",
         papers="config/papers.yaml",
+        paper_b=(
+            [
+                "data/processed/paper_b/results.csv",
+                "data/processed/paper_b/claims.json",
+                "data/processed/paper_b/figures/trajectories.png",
+                "data/processed/paper_b/figures/error_over_time.png",
+            ]
+            if PAPER_B_PAIRS
+            else []
+        ),
         paper_d=(
             [
                 "data/processed/paper_d/results.csv",
@@ -28,6 +38,7 @@ rule report:
     params:
         config=config,
         paper_d_labels=[f"{d}/{s}" for d, s in PAPER_D_PAIRS],
+        paper_b_labels=[f"{d}/{s}" for d, s in PAPER_B_PAIRS],
     log:
         "logs/report/report.log",
     conda:

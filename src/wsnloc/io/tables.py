@@ -75,6 +75,16 @@ SCHEMAS: dict[str, pa.Schema] = {
         _field("true_y", pa.float64(), "m", "truth at t", nullable=True),
         _field("error_m", pa.float64(), "m", "Euclidean position error", nullable=True),
     ]),
+    "estimates_paper_b": pa.schema([
+        _field("run", pa.string(), "", "run name"),
+        _field("t", pa.float64(), "s", "estimate time"),
+        _field("method", pa.string(), "", "uwb | imu | sskf | kf"),
+        _field("x", pa.float64(), "m", "estimated east coordinate (NaN: no fix)", nullable=True),
+        _field("y", pa.float64(), "m", "estimated north coordinate (NaN: no fix)", nullable=True),
+        _field("true_x", pa.float64(), "m", "truth at t", nullable=True),
+        _field("true_y", pa.float64(), "m", "truth at t", nullable=True),
+        _field("error_m", pa.float64(), "m", "Euclidean position error", nullable=True),
+    ]),
     "quarantine": pa.schema([
         _field("file", pa.string(), "", "raw file the line came from"),
         _field("line", pa.int32(), "1", "line number in that file (1-based)"),

@@ -24,7 +24,7 @@ def png_data_uri(png: bytes) -> str:
 
 def fmt_number(value, digits: int = 3) -> str:
     """Fixed decimals for display; empty for missing values."""
-    if value is None or (isinstance(value, float) and math.isnan(value)):
+    if value is None or pd.isna(value):
         return ""
     if isinstance(value, (int,)) or (isinstance(value, float) and value.is_integer() and abs(value) >= 1000):
         return f"{int(value):d}"

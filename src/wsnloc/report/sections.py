@@ -6,8 +6,6 @@ holds our value with its 95% interval and the paper's value (None when unpublish
 
 from __future__ import annotations
 
-import math
-
 import pandas as pd
 
 
@@ -73,5 +71,27 @@ def paper_d_section(results: pd.DataFrame, claims: dict, figures: dict[str, str]
     }
 
 
-def finite(value) -> bool:
-    return value is not None and not (isinstance(value, float) and math.isnan(value))
+
+
+def paper_b_section(results: pd.DataFrame, claims: dict, figures: dict[str, str], paper: dict,
+                    scenarios: list[str], settings: dict) -> dict:
+    """Context of paper B's section: RMSE and max error per method and scenario."""
+    from wsnloc.experiments.paper_b import METHODS
+
+    methods = list(METHODS.values())
+    tables = []
+    for table, metric, title in (("RMSE", "rmse_m", "RMSE [m]"), ("Max error", "max_m", "Max error [m]")):
+        sel = results[(results["experiment"] == "B") & (results["table"] == table)]
+        grid = {"title": f"{title} (paper: simulation column beside b_simulation, real-data column beside the "
+                         f"campaign scenarios)", "scenario": ", ".join(scenarios), "columns": scenarios, "rows": []}
+        for method in methods:
+            grid["rows"].append({"label": method, "cells": [
+                _cell(sel, row=method, scenario=sc, metric=metric) for sc in scenarios]})
+        tables.append(grid)
+    details = [{"title": f"Detail, {sc}", "metrics": ["median_m", "p95_m"],
+                "lines": [{"label": m, "cells": [_cell(results, experiment="B", table="Detail", scenario=sc, row=m,
+                                                       column=stat, metric=f"{stat}_m") for stat in ("median", "p95")]}
+                          for m in methods]} for sc in scenarios]
+    return {"id": "B", "title": paper["title"], "citation": paper["citation"], "published": True,
+            "tables": tables, "details": details, "claims": claims["claims"], "cost": [],
+            "figures": figures, "settings": settings}

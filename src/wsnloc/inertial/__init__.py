@@ -1,0 +1,1 @@
+"""Inertial processing: dead reckoning, sensor bias estimation (and motion detection)."""

@@ -1,0 +1,42 @@
+# Paper B: dead reckoning + UWB Min-Max fused by a steady-state KF (and the classical KF).
+PAPER_B = config["experiments"].get("paper_b")
+PAPER_B_PAIRS = experiment_pairs(PAPER_B) + experiment_pairs(PAPER_B, "simulation_scenarios")
+
+
+rule paper_b:
+    input:
+        tables="data/processed/{dataset}/{scenario}/tables",
+        imu_5hz="data/processed/{dataset}/{scenario}/imu_5hz",
+        campaign=campaign_file,
+    output:
+        estimates="data/processed/{dataset}/{scenario}/paper_b/estimates.parquet",
+        metrics="data/processed/{dataset}/{scenario}/paper_b/metrics.csv",
+    params:
+        settings=PAPER_B,
+    log:
+        "logs/paper_b/{dataset}-{scenario}.log",
+    conda:
+        ENV
+    script:
+        "../scripts/paper_b.py"
+
+
+rule paper_b_summary:
+    input:
+        metrics=[f"data/processed/{d}/{s}/paper_b/metrics.csv" for d, s in PAPER_B_PAIRS],
+        estimates=[f"data/processed/{d}/{s}/paper_b/estimates.parquet" for d, s in PAPER_B_PAIRS],
+        papers="config/papers.yaml",
+    output:
+        results="data/processed/paper_b/results.csv",
+        claims="data/processed/paper_b/claims.json",
+        tracks="data/processed/paper_b/figures/trajectories.png",
+        errors="data/processed/paper_b/figures/error_over_time.png",
+    params:
+        labels=[f"{d}/{s}" for d, s in PAPER_B_PAIRS],
+        simulated=[f"{d}/{s}" for d, s in experiment_pairs(PAPER_B, "simulation_scenarios")],
+    log:
+        "logs/paper_b/summary.log",
+    conda:
+        ENV
+    script:
+        "../scripts/paper_b_summary.py"

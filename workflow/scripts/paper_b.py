@@ -1,0 +1,26 @@
+"""Snakemake adapter: paper B estimators on every run of one scenario."""
+
+from pathlib import Path
+
+import pandas as pd
+
+from wsnloc.campaign import Campaign
+from wsnloc.experiments import paper_b
+from wsnloc.io import tables
+from wsnloc.metrics.data_quality import load_runs
+from wsnloc.workflow import script_logger
+
+sm = snakemake  # noqa: F821  (injected by Snakemake)
+log = script_logger(sm.log[0], "paper_b")
+campaign = Campaign.load(sm.input.campaign)
+settings = paper_b.Settings.from_config(sm.params.settings)
+settings.check_against(campaign)
+estimates, metrics = [], []
+for name, run_tables in load_runs(Path(sm.input.tables)).items():
+    imu = tables.read(Path(sm.input.imu_5hz) / f"{name}.parquet")
+    est = paper_b.run(run_tables, imu, campaign, settings).assign(run=name)
+    estimates.append(est)
+    metrics.append(paper_b.run_metrics(est).assign(run=name))
+    log.info("%s done", name)
+tables.write("estimates_paper_b", pd.concat(estimates, ignore_index=True), sm.output.estimates)
+pd.concat(metrics, ignore_index=True).to_csv(sm.output.metrics, index=False, float_format="%.6g")

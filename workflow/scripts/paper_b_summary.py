@@ -1,0 +1,29 @@
+"""Snakemake adapter: paper B tables, claims and figures over all scenarios."""
+
+import json
+from pathlib import Path
+
+import pandas as pd
+
+from wsnloc import results
+from wsnloc.config import read_yaml
+from wsnloc.experiments import paper_b
+from wsnloc.io import tables
+from wsnloc.report import figures
+from wsnloc.workflow import script_logger
+
+sm = snakemake  # noqa: F821  (injected by Snakemake)
+log = script_logger(sm.log[0], "paper_b_summary")
+paper = read_yaml(sm.input.papers)["B"]
+labels, simulated = list(sm.params.labels), set(sm.params.simulated)
+rows = []
+for label, path in zip(labels, sm.input.metrics):
+    rows += paper_b.results_rows(pd.read_csv(path), label, paper, label in simulated)
+results.write(rows, sm.output.results)
+claims = paper_b.claims(results.read(sm.output.results), labels)
+Path(sm.output.claims).write_text(json.dumps({"claims": claims}, indent=1))
+
+estimates = {label: tables.read(p) for label, p in zip(labels, sm.input.estimates)}
+Path(sm.output.tracks).write_bytes(figures.trajectories(paper_b.trajectory_panels(estimates)))
+Path(sm.output.errors).write_bytes(figures.error_over_time(paper_b.error_panels(estimates)))
+log.info("paper B summary over %s", labels)
