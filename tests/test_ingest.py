@@ -131,7 +131,7 @@ def test_truth_becomes_xy_on_the_rail(parsed):
     assert (truth["x"].iloc[0], truth["y"].iloc[0]) == pytest.approx((2.5, 7.5))
     assert (truth["x"].iloc[1], truth["y"].iloc[1]) == pytest.approx((22.5, 8.5), abs=1e-3)   # end of the arc
     reasons = _reasons(result["quarantine"], "truth.log")
-    assert "outside the rail" in reasons[5]
+    assert "outside the path" in reasons[5]
     assert "time goes backwards" in reasons[6]
     assert "rail_m is not a number" in reasons[7]
 
@@ -157,7 +157,7 @@ def test_missing_imu_scale_header_is_an_error(run_dir, campaign):
 
 def test_wrong_file_is_an_error(run_dir, campaign):
     (run_dir / "uwb.log").write_text(ZIGBEE)
-    with pytest.raises(IngestError, match=r"uwb.log:1: expected a 'newcom-uwb v1' log"):
+    with pytest.raises(IngestError, match=r"uwb.log:1: expected a '\*-uwb' log"):
         ingest_run(run_dir, campaign)
 
 

@@ -14,10 +14,11 @@ import pandas as pd
 
 from wsnloc.campaign import Campaign
 from wsnloc.errors import IngestError
-from wsnloc.io import newcom, tables
+from wsnloc.io import cricket, newcom, tables
 
 PARSERS: dict[str, Callable[[Path, Campaign], tuple[dict[str, pd.DataFrame], dict]]] = {
     "newcom": newcom.ingest_run,
+    "cricket": cricket.ingest_run,
 }
 
 

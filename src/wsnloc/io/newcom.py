@@ -71,7 +71,7 @@ def _anchor(anchor_id: str, techs: dict[str, str], tech: str) -> str:
 
 def parse_uwb(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.DataFrame:
     """uwb.log: `t_ms anchor tw_toa_ps status`; range = c * tw_toa / 2 (m)."""
-    check_magic(raw, "newcom-uwb v1")
+    check_magic(raw, "-uwb")
     c = campaign.spec["speed_of_light_mps"]
     techs = dict(zip(campaign.anchors["anchor_id"], campaign.anchors["tech"]))
     clock = _Clock(strict=False)
@@ -95,7 +95,7 @@ def parse_uwb(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.Da
 
 def parse_zigbee(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.DataFrame:
     """zigbee.log: `t_ms seq n anchor:rssi_dbm ...` with n matching the number of pairs."""
-    check_magic(raw, "newcom-zigbee v1")
+    check_magic(raw, "-zigbee")
     techs = dict(zip(campaign.anchors["anchor_id"], campaign.anchors["tech"]))
     clock = _Clock(strict=False)
     rows = []
@@ -147,7 +147,7 @@ def imu_scales(raw: RawFile) -> tuple[float, float]:
 
 def parse_imu(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.DataFrame:
     """imu.log: `t_ms ax ay az gz` raw counts; a = counts / lsb_per_g * g, w = counts / lsb_per_dps (deg/s -> rad/s)."""
-    check_magic(raw, "newcom-imu v1")
+    check_magic(raw, "-imu")
     accel_lsb, gyro_lsb = imu_scales(raw)
     clock = _Clock(strict=True)
     times, counts, numbers = [], [], []
@@ -180,19 +180,19 @@ def parse_imu(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.Da
 
 
 def parse_truth(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.DataFrame:
-    """truth.log: `t_ms rail_m`; (x, y) from the campaign's rail polyline at rail_m."""
-    check_magic(raw, "newcom-truth v1")
+    """truth.log: `t_ms rail_m` (or `path_m`); (x, y) from the campaign's path at that arc length."""
+    check_magic(raw, "-truth")
     length = campaign.path.length
     clock = _Clock(strict=True)
     rows = []
     for number, text, fields in iter_fields(raw):
         try:
             if len(fields) != 2:
-                raise _LineError(f"expected 2 fields 't_ms rail_m', found {len(fields)}")
+                raise _LineError(f"expected 2 fields 't_ms path position', found {len(fields)}")
             t_ms = _finite(fields[0], "t_ms")
             s = _finite(fields[1], "rail_m")
             if not -TRUTH_TOLERANCE_M <= s <= length + TRUTH_TOLERANCE_M:
-                raise _LineError(f"rail_m = {s:g} is outside the rail [0, {length:.2f}] m")
+                raise _LineError(f"rail_m = {s:g} is outside the path [0, {length:.2f}] m")
             clock.check(t_ms)
         except _LineError as reason:
             quarantine.add(raw.name, number, text, str(reason))

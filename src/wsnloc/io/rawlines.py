@@ -87,18 +87,22 @@ def header_value(raw: RawFile, key: str) -> str | None:
     return None
 
 
-def check_magic(raw: RawFile, expected: str) -> None:
-    """The first header line names the format ('# newcom-uwb v1'); a different one is an error.
+KINDS = ("-uwb", "-zigbee", "-imu", "-truth", "-listener")
 
-    A file without a format line is accepted (hand-made logs), one naming another
-    format is refused: it is most likely the wrong file.
+
+def check_magic(raw: RawFile, expected_kind: str) -> None:
+    """The first header line names the log kind ('# newcom-uwb v1'); another kind is an error.
+
+    A file without a format line is accepted (hand-made logs); the campaign prefix may
+    differ (a Cricket run's imu.log says 'cricket-imu'); a header naming another kind of
+    log is refused: it is most likely the wrong file.
     """
     if not raw.header:
         return
     first = raw.header[0].lstrip("#").strip()
     name = first.split()[0] if first.split() else ""
-    if name.endswith(("-uwb", "-zigbee", "-imu", "-truth")) and name != expected.split()[0]:
-        raise IngestError(f"{raw.path}:1: expected a '{expected}' log, the header says '{first}'")
+    if name.endswith(KINDS) and not name.endswith(expected_kind):
+        raise IngestError(f"{raw.path}:1: expected a '*{expected_kind}' log, the header says '{first}'")
 
 
 def iter_fields(raw: RawFile) -> Iterator[tuple[int, str, list[str]]]:

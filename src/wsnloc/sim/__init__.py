@@ -1,1 +1,5 @@
-"""Physically modelled campaign simulator: writes raw logs exactly as a testbed logger would."""
+"""Physically modelled campaign simulators: write raw logs exactly as a testbed logger would."""
+
+from wsnloc.sim import cricket, newcom
+
+SIMULATORS = {"newcom": newcom.simulate_run, "cricket": cricket.simulate_run}

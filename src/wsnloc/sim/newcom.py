@@ -10,23 +10,12 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import yaml
-
-from wsnloc import __version__
 from wsnloc.campaign import Campaign
-from wsnloc.sim import imu as imu_model
 from wsnloc.sim import rss as rss_model
 from wsnloc.sim import trajectory as motion
 from wsnloc.sim import uwb_channel
+from wsnloc.sim.logs import imu_lines, positions as _positions, truth_lines, write_run
 from wsnloc.sim.seeding import model_rng
-
-GENERATOR = "wsnloc-sim"
-
-
-def _positions(campaign: Campaign, traj: motion.Trajectory, times_s: np.ndarray) -> dict:
-    state = traj.at(times_s)
-    pose = campaign.path.evaluate(state["s"])
-    return {**state, **pose, "xy": np.column_stack([pose["x"], pose["y"]])}
 
 
 def _uwb_lines(campaign: Campaign, traj, rng_time, rng_channel, rng_fault, detector: str,
@@ -94,37 +83,6 @@ def _zigbee_lines(campaign: Campaign, traj, rng, clock_ms: int) -> list[str]:
     return lines
 
 
-def _imu_lines(campaign: Campaign, traj, rng, noise_model: str, clock_ms: int) -> list[str]:
-    spec = dict(campaign.section("imu"), noise_model=noise_model)
-    g = campaign.spec["gravity_mps2"]
-    period_ms = 1000.0 / spec["rate_hz"]
-    nominal = np.arange(0.0, traj.duration * 1000, period_ms)
-    t_ms = nominal + rng.normal(0.0, spec["timestamp_jitter_ms"], len(nominal))
-    kept = rng.random(len(t_ms)) >= spec["drop_rate"]
-    t_ms = np.sort(t_ms[kept])
-    state = _positions(campaign, traj, t_ms / 1000.0)
-    force, yaw_rate = imu_model.body_motion(state["v"], state["a"], state["curvature"], g)
-    accel, gyro = imu_model.sensor_readings(t_ms / 1000.0, force, yaw_rate, state["v"], spec, g, rng)
-    acc_counts, gyro_counts = imu_model.to_counts(accel, gyro, spec, g)
-    header = ["# newcom-imu v1",
-              f"# accel_lsb_per_g={spec['accel_lsb_per_g']:g} gyro_lsb_per_dps={spec['gyro_lsb_per_dps']:g}",
-              "# t_ms ax ay az gz"]
-    body = [f"{t + clock_ms:.3f} {a[0]} {a[1]} {a[2]} {w}"
-            for t, a, w in zip(t_ms.tolist(), acc_counts.tolist(), gyro_counts.tolist())]
-    return header + body
-
-
-def _truth_lines(campaign: Campaign, traj, clock_ms: int) -> list[str]:
-    spec = campaign.section("truth")
-    period_ms = 1000.0 / spec["rate_hz"]
-    t_ms = np.arange(0.0, traj.duration * 1000 + 1e-9, period_ms)
-    s = traj.at(t_ms / 1000.0)["s"]
-    s = np.round(s / spec["resolution_m"]) * spec["resolution_m"]
-    lines = ["# newcom-truth v1", "# t_ms rail_m"]
-    lines += [f"{int(round(t)) + clock_ms} {v:.2f}" for t, v in zip(t_ms.tolist(), s.tolist())]
-    return lines
-
-
 def simulate_run(campaign: Campaign, scenario: str, seeds: np.random.SeedSequence, out_dir: Path,
                  *, detector: str | None = None, imu_noise: str | None = None,
                  meta: dict | None = None) -> Path:
@@ -144,23 +102,8 @@ def simulate_run(campaign: Campaign, scenario: str, seeds: np.random.SeedSequenc
         "uwb.log": _uwb_lines(campaign, traj, model_rng(seeds, "uwb-timing"), model_rng(seeds, "uwb-channel"),
                               model_rng(seeds, "uwb-faults"), detector, clock_ms),
         "zigbee.log": _zigbee_lines(campaign, traj, model_rng(seeds, "zigbee"), clock_ms),
-        "imu.log": _imu_lines(campaign, traj, model_rng(seeds, "imu"), imu_noise, clock_ms),
-        "truth.log": _truth_lines(campaign, traj, clock_ms),
+        "imu.log": imu_lines(campaign, traj, model_rng(seeds, "imu"), imu_noise, clock_ms),
+        "truth.log": truth_lines(campaign, traj, clock_ms, "rail_m"),
     }
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    for name, lines in files.items():
-        (out_dir / name).write_text("\n".join(lines) + "\n", encoding="ascii")
-    record = {
-        "generator": f"{GENERATOR} {__version__}",
-        "campaign": campaign.name,
-        "scenario": scenario,
-        "seed_entropy": [int(x) for x in np.atleast_1d(seeds.entropy)],
-        "date": None,
-        "uwb_detector": detector,
-        "imu_noise_model": imu_noise,
-        "notes": "simulated campaign; no wall-clock date is written so that reruns are byte-identical",
-        **(meta or {}),
-    }
-    (out_dir / "meta.yaml").write_text(yaml.safe_dump(record, sort_keys=True), encoding="ascii")
-    return out_dir
+    return write_run(out_dir, files, campaign, scenario, seeds,
+                     {"uwb_detector": detector, "imu_noise_model": imu_noise, **(meta or {})})

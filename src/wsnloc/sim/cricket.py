@@ -1,0 +1,101 @@
+"""Simulate one run of the Cricket campaign (paper C) and write its raw logs.
+
+Each beacon sends RF + ultrasound at random intervals uniform in [668, 1332] ms (Cricket v2
+firmware); a share of messages is lost to collisions. The listener measures the
+ultrasound flight time:  DR = d_measured / c_sound  (us), with
+  c_sound = 331.3 + 0.606 T  (m/s, T in deg C),
+  d_measured = ||p - b_true|| + N(0, sigma) (+ U(0.2, 1.5) m for a reflection);
+beyond the ultrasound range only the RF part arrives (a line without DB/DR).
+True beacon positions are the nominal ones plus the hand-measurement error; the
+estimators only know the nominal positions from the campaign file.
+A small share of lines is damaged on the serial link (cut short, or run into the next
+line), as in real captures. Writes listener.log (host ms + TAB + Cricket v2 line),
+imu.log, truth.log, meta.yaml.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from wsnloc.campaign import Campaign
+from wsnloc.sim import trajectory as motion
+from wsnloc.sim.logs import imu_lines, positions, truth_lines, write_run
+from wsnloc.sim.seeding import model_rng
+
+
+def speed_of_sound(temperature_c: float) -> float:
+    """m/s, linear approximation around 0 deg C: 331.3 + 0.606 T."""
+    return 331.3 + 0.606 * temperature_c
+
+
+def _serial_damage(lines: list[str], rate: float, rng) -> list[str]:
+    """Lines lost on the serial link: a share is cut short or runs into the next line."""
+    out, k = [], 0
+    while k < len(lines):
+        line = lines[k]
+        if rng.random() < rate:
+            if rng.random() < 0.5 or k + 1 == len(lines):
+                out.append(line[: int(rng.integers(len(line) // 3, len(line) - 1))])   # cut short
+            else:
+                out.append(line + lines[k + 1].split("\t", 1)[1])                   # newline lost
+                k += 1
+        else:
+            out.append(line)
+        k += 1
+    return out
+
+
+def _listener_lines(campaign: Campaign, traj, rng_beacons, rng_timing, rng_range, clock_ms: int) -> list[str]:
+    spec = campaign.section("radio", "cricket")
+    anchors = campaign.anchors_of("cricket")
+    nominal = anchors[["x", "y"]].to_numpy(float)
+    true_xy = nominal + rng_beacons.normal(0.0, spec["beacon_position_sigma_m"], nominal.shape)
+    c = speed_of_sound(spec["temperature_c"])
+    low, high = spec["interval_ms"]
+    duration_ms = traj.duration * 1000.0
+    events = []
+    for j in range(len(anchors)):
+        t = rng_timing.uniform(0.0, high)
+        while t < duration_ms:
+            if rng_timing.random() >= spec["collision_loss"]:
+                events.append((t, j))
+            t += rng_timing.uniform(low, high)
+    events.sort()
+    times = np.array([e[0] for e in events])
+    which = np.array([e[1] for e in events], dtype=int)
+    xy = positions(campaign, traj, times / 1000.0)["xy"]
+    distance = np.hypot(*(xy - true_xy[which]).T)
+    measured = distance + rng_range.normal(0.0, spec["range_noise_m"], len(events))
+    reflected = rng_range.random(len(events)) < spec["reflection_rate"]
+    measured += reflected * rng_range.uniform(*spec["reflection_excess_m"], len(events))
+    listener_boot_ms = int(rng_timing.integers(1_000, 60_000))        # listener clock offset
+    lines = []
+    for t, j, d_true, d in zip(times, which, distance, measured):
+        host = int(t) + clock_ms
+        head = f"VR=2.0,ID={anchors['beacon_id'][j]},SP={anchors['space_id'][j]}"
+        ts = f"TS={host + listener_boot_ms}"
+        if d_true > spec["max_ultrasound_range_m"]:
+            lines.append(f"{host}\t{head},{ts}")
+        else:
+            lines.append(f"{host}\t{head},DB={int(round(d * 100))},DR={int(round(d / c * 1e6))},{ts}")
+    header = [f"# {campaign.format}-listener v1", "# host_ms<TAB>Cricket v2 line"]
+    return header + _serial_damage(lines, spec["serial_damage_rate"], rng_range)
+
+
+def simulate_run(campaign: Campaign, scenario: str, seeds: np.random.SeedSequence, out_dir: Path,
+                 *, imu_noise: str | None = None, meta: dict | None = None, **_ignored) -> Path:
+    """Simulate `scenario` (e.g. speed_40) and write its raw logs into `out_dir`."""
+    scenario_spec = campaign.section("scenarios", scenario)
+    imu_noise = imu_noise or scenario_spec.get("overrides", {}).get("imu_noise_model") \
+        or campaign.section("imu").get("noise_model", "mems")
+    clock_ms = int(campaign.spec.get("clock_start_ms", 0))
+    traj = motion.for_scenario(scenario_spec, campaign.path.length, model_rng(seeds, "motion"))
+    files = {
+        "listener.log": _listener_lines(campaign, traj, model_rng(seeds, "beacons"), model_rng(seeds, "timing"),
+                                        model_rng(seeds, "ranging"), clock_ms),
+        "imu.log": imu_lines(campaign, traj, model_rng(seeds, "imu"), imu_noise, clock_ms),
+        "truth.log": truth_lines(campaign, traj, clock_ms, "path_m"),
+    }
+    return write_run(out_dir, files, campaign, scenario, seeds, {"imu_noise_model": imu_noise, **(meta or {})})
