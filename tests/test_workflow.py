@@ -30,6 +30,7 @@ def workdir(tmp_path_factory):
     config = yaml.safe_load((work / "config" / "config.yaml").read_text())
     config["runs"] = 2
     config["datasets"]["newcom"]["scenarios"] = ["constant"]
+    config["datasets"]["cricket"]["scenarios"] = ["speed_40"]
     config["experiments"]["paper_d"]["scenarios"] = ["newcom/constant"]
     config["experiments"]["paper_d"]["cost_iterations"] = 500
     config["experiments"]["paper_b"]["scenarios"] = ["newcom/constant"]
@@ -44,12 +45,12 @@ def test_builds_report_and_results(workdir):
     results = pd.read_csv(workdir / "reports" / "results.csv")
     assert list(results.columns) == ["experiment", "table", "row", "column", "scenario", "metric",
                                      "value", "ci95_low", "ci95_high", "runs", "paper_value"]
-    los_bias = results[(results["table"] == "UWB range error") & (results["row"] == "LOS")
-                       & (results["column"] == "median error")]
+    los_bias = results[(results["table"] == "Range error") & (results["row"] == "LOS")
+                       & (results["column"] == "median error") & (results["scenario"] == "newcom/constant")]
     assert len(los_bias) == 1 and abs(los_bias["value"].iloc[0]) < 0.1 and los_bias["runs"].iloc[0] == 2
     html = (workdir / "reports" / "index.html").read_text()
     assert "SIMULATED campaign" in html and "data:image/png;base64," in html
-    assert 'id="paper-B"' in html and 'id="paper-D"' in html
+    assert 'id="paper-B"' in html and 'id="paper-D"' in html and "cricket/speed_40" in html
     assert {"data", "B", "D"} <= set(results["experiment"])
     assert "http://" not in html and "https://" not in html.replace("https://json-schema.org", "")
 

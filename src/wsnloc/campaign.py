@@ -35,11 +35,14 @@ class Campaign:
     source: str = ""
     walls: np.ndarray = field(init=False)
     anchors: pd.DataFrame = field(init=False)
-    path: Path = field(init=False)
+    path: Path | None = field(init=False)
 
     def __post_init__(self) -> None:
         self.walls = wall_pieces(self.spec.get("walls", []))
-        self.anchors = pd.DataFrame(self.spec["anchors"]).rename(columns={"id": "anchor_id"})
+        self.anchors = pd.DataFrame(self.spec.get("anchors", []), columns=None if self.spec.get("anchors")
+                                    else ["id", "tech", "x", "y"]).rename(columns={"id": "anchor_id"})
+        if "z" not in self.anchors:
+            self.anchors["z"] = np.nan
         duplicated = self.anchors["anchor_id"][self.anchors["anchor_id"].duplicated()]
         if len(duplicated):
             raise ConfigError(f"{self.source}: key 'anchors': duplicate anchor id {duplicated.iloc[0]!r}")
@@ -48,9 +51,9 @@ class Campaign:
             unknown = [m for m in members if m not in known]
             if unknown:
                 raise ConfigError(f"{self.source}: key 'subsets.{subset}': unknown anchor {unknown[0]!r}")
-        path = self.spec["path"]
+        path = self.spec.get("path")
         try:
-            self.path = Path(path["points"], path.get("corner_radius_m", 0.0))
+            self.path = Path(path["points"], path.get("corner_radius_m", 0.0)) if path else None
         except ValueError as exc:
             raise ConfigError(f"{self.source}: key 'path': {exc}") from exc
 
@@ -77,6 +80,11 @@ class Campaign:
     def anchor_position(self, anchor_id: str) -> np.ndarray:
         row = self.anchors.loc[self.anchors["anchor_id"] == anchor_id]
         return row[["x", "y"]].to_numpy(dtype=float)[0]
+
+    @property
+    def tag_height_m(self) -> float | None:
+        """Antenna height of the mobile (m) when the campaign's ranges are 3-D, else None."""
+        return self.spec.get("tag_height_m")
 
     def walls_between(self, points: np.ndarray, anchor_xy: np.ndarray) -> np.ndarray:
         """Walls crossed by the straight link from each point to the anchor."""

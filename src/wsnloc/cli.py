@@ -1,4 +1,4 @@
-"""Command line for use outside Snakemake: simulate, ingest, validate-config.
+"""Command line for use outside Snakemake: simulate, ingest, convert, validate-config.
 
 Exit codes: 0 success, 2 bad input (unreadable log, invalid config) with a one-line
 message naming the file/line or key.
@@ -23,12 +23,14 @@ def _default_campaign(fmt: str) -> str:
 
 
 def cmd_simulate(args) -> int:
-    from wsnloc.sim.newcom import simulate_run
+    from wsnloc.sim import SIMULATORS
     from wsnloc.sim.seeding import run_seed_sequence
 
     campaign = Campaign.load(args.campaign)
-    if campaign.format != "newcom":
-        raise WsnlocError(f"{args.campaign}: the simulator for format {campaign.format!r} is not available")
+    if campaign.format not in SIMULATORS:
+        raise WsnlocError(f"{args.campaign}: no simulator for format {campaign.format!r} "
+                          f"(available: {', '.join(SIMULATORS)})")
+    simulate_run = SIMULATORS[campaign.format]
     total = args.first_run + args.runs - 1
     for index in range(args.first_run, total + 1):
         seeds = run_seed_sequence(args.seed, args.dataset, args.scenario, index)
@@ -51,6 +53,14 @@ def cmd_ingest(args) -> int:
         for (file, reason), count in quarantine.groupby(["file", "reason"]).size().items():
             print(f"  {count:>6}  {file}: {reason}")
     print(f"quarantined share: {quarantine_share(inventory):.2%}; tables written to {args.out_dir}")
+    return 0
+
+
+def cmd_convert(args) -> int:
+    from wsnloc.io.convert import convert_cucudasluv
+
+    for run_dir in convert_cucudasluv(args.src, args.out):
+        print(f"wrote {run_dir}")
     return 0
 
 
@@ -79,10 +89,17 @@ def parser() -> argparse.ArgumentParser:
 
     ing = sub.add_parser("ingest", help="parse one raw run directory into Parquet tables")
     ing.add_argument("--format", required=True, choices=sorted(PARSERS))
-    ing.add_argument("--campaign", help="campaign file (default: config/campaigns/<format>.yaml)")
+    ing.add_argument("--campaign", help="campaign file (default: config/campaigns/<format>.yaml; "
+                                        "a generic dataset needs its own, e.g. config/campaigns/cucudasluv.yaml)")
     ing.add_argument("run_dir")
     ing.add_argument("out_dir")
     ing.set_defaults(func=cmd_ingest)
+
+    conv = sub.add_parser("convert", help="convert a public dataset into the generic format")
+    conv.add_argument("dataset", choices=["cucudasluv"])
+    conv.add_argument("src", help="the dataset's folder (e.g. ../shared/realdata/cucudasluv-uwb)")
+    conv.add_argument("out", help="output folder; runs go to OUT/<scenario>/<run>")
+    conv.set_defaults(func=cmd_convert)
 
     val = sub.add_parser("validate-config", help="validate a workflow configuration file")
     val.add_argument("config", nargs="?", default="config/config.yaml")

@@ -1,10 +1,12 @@
 # Helpers shared by the rules: which datasets, scenarios and runs exist, and where.
+from pathlib import Path
+
 
 from wsnloc.workflow import dataset_runs, raw_run_dir, scenario_pairs, simulated_runs
 
 ENV = "../envs/wsnloc.yaml"
-SIM_FILES = ["uwb.log", "zigbee.log", "imu.log", "truth.log", "meta.yaml"]
-RAW_FILES = {"newcom": ["uwb.log", "zigbee.log", "imu.log", "truth.log"]}
+RAW_FILES = {"newcom": ["uwb.log", "zigbee.log", "imu.log", "truth.log"],
+             "cricket": ["listener.log", "imu.log", "truth.log"]}
 SIMULATED = [name for name, d in config["datasets"].items() if d["source"] == "simulate"]
 PAIRS = scenario_pairs(config)
 
@@ -15,14 +17,16 @@ wildcard_constraints:
 
 
 def raw_inputs(wildcards):
-    """Raw log files of every run of one scenario (simulated or real)."""
+    """Raw files of every run of one scenario (simulated or real; generic: what is there)."""
     dataset = config["datasets"][wildcards.dataset]
-    names = RAW_FILES[dataset["format"]]
-    return [
-        f"{raw_run_dir(config, wildcards.dataset, wildcards.scenario, run)}/{name}"
-        for run in dataset_runs(config, wildcards.dataset, wildcards.scenario)
-        for name in names
-    ]
+    files = []
+    for run in dataset_runs(config, wildcards.dataset, wildcards.scenario):
+        run_dir = raw_run_dir(config, wildcards.dataset, wildcards.scenario, run)
+        if dataset["format"] == "generic":
+            files += sorted(str(p) for p in Path(run_dir).iterdir() if p.suffix in (".csv", ".parquet"))
+        else:
+            files += [f"{run_dir}/{name}" for name in RAW_FILES[dataset["format"]]]
+    return files
 
 
 def campaign_file(wildcards):

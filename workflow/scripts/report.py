@@ -32,9 +32,9 @@ for path in map(Path, sm.input.figures):
 floor_plans = {}
 for name, spec in config["datasets"].items():
     tables_dir = next(Path(p) for p in sm.input.tables if Path(p).parents[1].name == name)
-    truth_files = sorted(tables_dir.glob("*/truth.parquet"))
-    track = tables.read(truth_files[0]) if truth_files else None
-    floor_plans[name] = figures.floor_plan(Campaign.load(spec["campaign"]), track)
+    first_run = sorted(p for p in tables_dir.iterdir() if p.is_dir())[0]
+    floor_plans[name] = figures.floor_plan(Campaign.load(spec["campaign"]), tables.read(first_run / "truth.parquet"),
+                                           tables.read(first_run / "anchors.parquet"))
 
 final_results = results.read(sm.output.results)
 context = build_context(config, summaries, final_results, scenario_figures, floor_plans)

@@ -3,13 +3,14 @@
 from pathlib import Path
 
 from wsnloc.campaign import Campaign
-from wsnloc.sim.newcom import simulate_run
+from wsnloc.sim import SIMULATORS
 from wsnloc.sim.seeding import run_seed_sequence
 from wsnloc.workflow import script_logger, simulated_runs
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "simulate")
 campaign = Campaign.load(sm.input.campaign)
+simulate_run = SIMULATORS[campaign.format]
 config = {"runs": sm.params.runs}
 for index, run in enumerate(simulated_runs(config), start=1):
     seeds = run_seed_sequence(sm.params.seed, sm.wildcards.dataset, sm.wildcards.scenario, index)

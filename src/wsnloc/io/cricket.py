@@ -196,7 +196,7 @@ def ingest_run(run_dir: str | Path, campaign: Campaign) -> tuple[dict[str, pd.Da
         "rss": tables.empty("rss"),
         "imu": newcom.parse_imu(raws["imu.log"], campaign, quarantine),
         "truth": newcom.parse_truth(raws["truth.log"], campaign, quarantine),
-        "anchors": campaign.anchors[["anchor_id", "tech", "x", "y"]].copy(),
+        "anchors": campaign.anchors[["anchor_id", "tech", "x", "y", "z"]].copy(),
         "quarantine": quarantine.frame(),
     }
     q = result["quarantine"]

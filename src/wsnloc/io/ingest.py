@@ -14,11 +14,12 @@ import pandas as pd
 
 from wsnloc.campaign import Campaign
 from wsnloc.errors import IngestError
-from wsnloc.io import cricket, newcom, tables
+from wsnloc.io import cricket, generic, newcom, tables
 
 PARSERS: dict[str, Callable[[Path, Campaign], tuple[dict[str, pd.DataFrame], dict]]] = {
     "newcom": newcom.ingest_run,
     "cricket": cricket.ingest_run,
+    "generic": generic.ingest_run,
 }
 
 

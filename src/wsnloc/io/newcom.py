@@ -224,7 +224,7 @@ def ingest_run(run_dir: str | Path, campaign: Campaign) -> tuple[dict[str, pd.Da
         "rss": parse_zigbee(raws["zigbee.log"], campaign, quarantine),
         "imu": parse_imu(raws["imu.log"], campaign, quarantine),
         "truth": parse_truth(raws["truth.log"], campaign, quarantine),
-        "anchors": campaign.anchors[["anchor_id", "tech", "x", "y"]].copy(),
+        "anchors": campaign.anchors[["anchor_id", "tech", "x", "y", "z"]].copy(),
         "quarantine": quarantine.frame(),
     }
     q = result["quarantine"]

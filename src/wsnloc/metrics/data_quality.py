@@ -1,4 +1,4 @@
-"""Per-scenario data summary: inventory, quarantine, UWB range error, RSS path-loss fit.
+"""Per-scenario data summary: inventory, quarantine, Range error, RSS path-loss fit.
 
 Reads the processed tables of every run of one scenario; returns a JSON-ready summary for
 the report, results rows for results.csv, and the pooled samples the figures need.
@@ -40,8 +40,8 @@ def summarize(runs: dict[str, dict[str, pd.DataFrame]], imu_5hz: dict[str, pd.Da
     """Summary dict, results rows and pooled samples (range errors, RSS vs distance)."""
     per_run, errors, rss_samples, quarantine = [], [], [], []
     for run, data in runs.items():
-        err = range_errors(data["ranges"], data["truth"], campaign).assign(run=run)
-        rss = rss_with_distance(data["rss"], data["truth"], campaign).assign(run=run)
+        err = range_errors(data["ranges"], data["truth"], campaign, data["anchors"]).assign(run=run)
+        rss = rss_with_distance(data["rss"], data["truth"], campaign, data["anchors"]).assign(run=run)
         errors.append(err)
         rss_samples.append(rss)
         quarantine.append(data["quarantine"].assign(run=run))
@@ -76,7 +76,7 @@ def summarize(runs: dict[str, dict[str, pd.DataFrame]], imu_5hz: dict[str, pd.Da
     common = {"experiment": EXPERIMENT, "scenario": label}
     for link in ("los", "nlos"):
         for stat, column in (("bias", "median error"), ("p95", "p95 |error|")):
-            rows.append(results.row_over_runs(per_run[f"{link}_{stat}"], table="UWB range error",
+            rows.append(results.row_over_runs(per_run[f"{link}_{stat}"], table="Range error",
                                               row=link.upper(), column=column, metric="range_error_m", **common))
     for subset in ("all", "los"):
         for key in ("P0_dBm", "n", "sigma_dB"):

@@ -19,35 +19,45 @@ def truth_at(truth: pd.DataFrame, t: np.ndarray) -> np.ndarray:
     return np.column_stack([x, y])
 
 
-def _with_geometry(frame: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign) -> pd.DataFrame:
-    """Add true distance (m) and walls crossed between the true position and the anchor."""
+def _with_geometry(frame: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign,
+                   anchors: pd.DataFrame | None = None) -> pd.DataFrame:
+    """Add true distance (m) and walls crossed between the true position and the anchor.
+
+    The distance is 3-D, sqrt(dx^2 + dy^2 + (z_anchor - h_tag)^2), when the anchor has a
+    height and the campaign gives the tag height; otherwise 2-D.
+    """
     frame = frame.copy()
     position = truth_at(truth, frame["t"].to_numpy())
     frame["true_x"], frame["true_y"] = position[:, 0], position[:, 1]
     frame = frame[np.isfinite(frame["true_x"])]
-    anchors = campaign.anchors.set_index("anchor_id")
+    anchors = (campaign.anchors if anchors is None else anchors).set_index("anchor_id")
+    tag_height = campaign.tag_height_m
     frame["true_distance_m"] = np.nan
     frame["walls"] = -1
     for anchor_id, idx in frame.groupby("anchor_id").groups.items():
         a = anchors.loc[anchor_id, ["x", "y"]].to_numpy(float)
+        z = float(anchors.loc[anchor_id, "z"]) if "z" in anchors else float("nan")
+        dz = z - tag_height if tag_height is not None and np.isfinite(z) else 0.0
         pts = frame.loc[idx, ["true_x", "true_y"]].to_numpy()
-        frame.loc[idx, "true_distance_m"] = np.hypot(pts[:, 0] - a[0], pts[:, 1] - a[1])
+        frame.loc[idx, "true_distance_m"] = np.sqrt((pts[:, 0] - a[0]) ** 2 + (pts[:, 1] - a[1]) ** 2 + dz**2)
         frame.loc[idx, "walls"] = campaign.walls_between(pts, a)
     frame["los"] = frame["walls"] == 0
     return frame
 
 
-def range_errors(ranges: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign) -> pd.DataFrame:
+def range_errors(ranges: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign,
+                 anchors: pd.DataFrame | None = None) -> pd.DataFrame:
     """Valid ranges (status 0) with error = measured - true distance (m) and a LOS flag."""
     valid = ranges[ranges["status"] == 0]
-    frame = _with_geometry(valid, truth, campaign)
+    frame = _with_geometry(valid, truth, campaign, anchors)
     frame["error_m"] = frame["range_m"] - frame["true_distance_m"]
     return frame
 
 
-def rss_with_distance(rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign) -> pd.DataFrame:
+def rss_with_distance(rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign,
+                      anchors: pd.DataFrame | None = None) -> pd.DataFrame:
     """RSS samples with the true distance (m) and walls crossed."""
-    return _with_geometry(rss, truth, campaign)
+    return _with_geometry(rss, truth, campaign, anchors)
 
 
 def fit_path_loss(rss_dbm, distance_m, d0_m: float = 1.0) -> dict[str, float]:

@@ -24,17 +24,26 @@ def to_png(fig) -> bytes:
     return buffer.getvalue()
 
 
-def floor_plan(campaign: Campaign, track: pd.DataFrame | None = None) -> bytes:
-    """Walls (doors as gaps), anchors by technology with their ids, and the path (m)."""
+def placeholder(message: str) -> bytes:
+    """A small figure saying why there is nothing to plot (e.g. no RSS in this dataset)."""
+    fig, ax = plt.subplots(figsize=(6, 1.2))
+    ax.text(0.5, 0.5, message, ha="center", va="center", fontsize=10)
+    ax.set_axis_off()
+    return to_png(fig)
+
+
+def floor_plan(campaign: Campaign, track: pd.DataFrame | None = None, anchors: pd.DataFrame | None = None) -> bytes:
+    """Walls (doors as gaps), anchors by technology with their ids, the path and a truth track (m)."""
+    anchors = campaign.anchors if anchors is None else anchors
     fig, ax = plt.subplots(figsize=(10, 5.4))
     for x1, y1, x2, y2 in campaign.walls:
         ax.plot([x1, x2], [y1, y2], color="0.25", lw=2.2, solid_capstyle="butt")
-    s = np.linspace(0, campaign.path.length, 400)
-    pose = campaign.path.evaluate(s)
-    ax.plot(pose["x"], pose["y"], color="tab:orange", lw=2.5, label=f"path ({campaign.path.length:.1f} m)")
+    if campaign.path is not None:
+        pose = campaign.path.evaluate(np.linspace(0, campaign.path.length, 400))
+        ax.plot(pose["x"], pose["y"], color="tab:orange", lw=2.5, label=f"path ({campaign.path.length:.1f} m)")
     if track is not None and len(track):
         ax.plot(track["x"], track["y"], color="k", lw=0.8, ls="--", label="truth (run 1)")
-    for tech, group in campaign.anchors.groupby("tech"):
+    for tech, group in anchors.groupby("tech"):
         color, marker = TECH_STYLE.get(tech, ("tab:gray", "D"))
         ax.scatter(group["x"], group["y"], c=color, marker=marker, s=45, label=f"{tech} ({len(group)})", zorder=3)
         for _, a in group.iterrows():
@@ -49,7 +58,7 @@ def floor_plan(campaign: Campaign, track: pd.DataFrame | None = None) -> bytes:
 
 
 def range_error_histogram(errors: pd.DataFrame, title: str) -> bytes:
-    """Histogram of UWB range error (measured - true, m), LOS and NLOS links separately."""
+    """Histogram of Range error (measured - true, m), LOS and NLOS links separately."""
     fig, ax = plt.subplots(figsize=(7, 3.6))
     bins = np.linspace(-1.0, 5.0, 121)
     for los, color, name in ((True, "tab:green", "LOS"), (False, "tab:purple", "NLOS")):
@@ -66,6 +75,8 @@ def range_error_histogram(errors: pd.DataFrame, title: str) -> bytes:
 
 def rss_vs_distance(rss: pd.DataFrame, fit: dict, configured: dict, title: str, max_points: int = 6000) -> bytes:
     """RSS (dBm) against log distance, coloured by walls crossed, with the fitted path-loss line."""
+    if len(rss) == 0:
+        return placeholder("no RSS measurements in this dataset")
     fig, ax = plt.subplots(figsize=(7, 4))
     sample = rss.iloc[:: max(1, len(rss) // max_points)]
     points = ax.scatter(sample["true_distance_m"], sample["rss_dbm"], c=sample["walls"].clip(0, 4),
@@ -88,6 +99,8 @@ def rss_vs_distance(rss: pd.DataFrame, fit: dict, configured: dict, title: str, 
 
 def imu_resampling(raw: pd.DataFrame, resampled: pd.DataFrame, title: str, window_s: float = 20.0) -> bytes:
     """Body-x specific force: raw samples, naive 5 Hz sub-sampling, and the filtered 5 Hz output."""
+    if len(raw) == 0:
+        return placeholder("no IMU in this dataset")
     fig, ax = plt.subplots(figsize=(7, 3.6))
     if len(raw):
         moving = raw["t"].iloc[0] + 5.0

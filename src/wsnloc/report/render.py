@@ -95,7 +95,7 @@ def build_context(config: dict, summaries: list[dict], results: pd.DataFrame, fi
             scenarios.append({
                 "label": label,
                 "summary": summary,
-                "range_error": results_table(results, "data", "UWB range error", label),
+                "range_error": results_table(results, "data", "Range error", label),
                 "path_loss": results_table(results, "data", "RSS path-loss fit", label),
                 "figures": {k: png_data_uri(v) for k, v in figures.get(label, {}).items()},
             })

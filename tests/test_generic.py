@@ -1,0 +1,94 @@
+"""Generic adapter on hand-written tables, and the real UWB dataset through it."""
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from wsnloc.campaign import Campaign
+from wsnloc.cli import main
+from wsnloc.errors import IngestError
+from wsnloc.io.convert import convert_cucudasluv
+from wsnloc.io.generic import ingest_run
+from wsnloc.metrics.ranging import range_errors
+
+from conftest import ROOT
+
+REAL = ROOT.parent / "shared" / "realdata" / "cucudasluv-uwb"
+CAMPAIGN = ROOT / "config" / "campaigns" / "cucudasluv.yaml"
+
+
+@pytest.fixture(scope="module")
+def generic():
+    return Campaign.load(CAMPAIGN)
+
+
+@pytest.fixture
+def run_dir(tmp_path):
+    (tmp_path / "anchors.csv").write_text("anchor_id,tech,x,y,z\nA1,uwb,0,0,1.0\nA2,uwb,10,0,1.0\nA3,uwb,0,10,\n")
+    (tmp_path / "ranges.csv").write_text(
+        "t,anchor_id,range_m\n0.0,A1,5.0\n0.1,A2,nan\n0.2,A9,3.0\n0.3,A3, 7.5\n0.25,A1,4.0\n0.4,A2,abc\n0.5,,1.0\n")
+    (tmp_path / "truth.csv").write_text("t,x,y\n0,3,4\n1,6,8\n")
+    return tmp_path
+
+
+def test_generic_tables_and_quarantine(run_dir, generic):
+    result, inventory = ingest_run(run_dir, generic)
+    ranges = result["ranges"]
+    assert ranges[["anchor_id", "range_m", "line"]].values.tolist() == [["A1", 5.0, 2], ["A3", 7.5, 5]]
+    q = result["quarantine"].set_index("line")["reason"].to_dict()
+    assert q == {3: "range_m is not a finite number", 4: "unknown anchor (not in anchors table)",
+                 6: "time goes backwards", 7: "range_m is not a finite number", 8: "anchor_id is empty"}
+    assert inventory["ranges.csv"]["quarantined"] == 5
+    assert result["truth"]["s"].tolist() == [0.0, 5.0]
+    assert np.isnan(result["anchors"]["z"].iloc[2]) and result["ranges"]["status"].tolist() == [0, 0]
+
+
+def test_generic_parquet_input(run_dir, generic):
+    pd.read_csv(run_dir / "truth.csv").to_parquet(run_dir / "truth.parquet")
+    (run_dir / "truth.csv").unlink()
+    result, _ = ingest_run(run_dir, generic)
+    assert len(result["truth"]) == 2 and result["truth"]["line"].tolist() == [1, 2]
+
+
+def test_three_d_true_range_uses_the_tag_height(run_dir, generic):
+    result, _ = ingest_run(run_dir, generic)
+    errors = range_errors(result["ranges"], result["truth"], generic, result["anchors"])
+    # A1 at height 1.0 = tag height: 3-D equals 2-D, |(3, 4)| = 5.
+    assert errors["error_m"].iloc[0] == pytest.approx(0.0)
+
+
+def test_missing_required_file_or_column(run_dir, generic):
+    (run_dir / "ranges.csv").write_text("t,anchor,range_m\n0,A1,1\n")
+    with pytest.raises(IngestError, match=r"ranges.csv: missing column\(s\) \['anchor_id'\]"):
+        ingest_run(run_dir, generic)
+    (run_dir / "ranges.csv").unlink()
+    with pytest.raises(IngestError, match="needs ranges"):
+        ingest_run(run_dir, generic)
+
+
+def test_cli_ingests_generic(run_dir, tmp_path, capsys):
+    assert main(["ingest", "--format", "generic", "--campaign", str(CAMPAIGN), str(run_dir), str(tmp_path / "out")]) == 0
+    assert "ranges.csv" in capsys.readouterr().out
+
+
+needs_real = pytest.mark.skipif(not REAL.is_dir(), reason=f"real dataset not present at {REAL} (../shared missing)")
+
+
+@needs_real
+def test_real_dataset_converts_and_ingests(tmp_path, generic):
+    runs = convert_cucudasluv(REAL, tmp_path)
+    assert {p.parent.name for p in runs} == {"los", "nlos"}
+    los = next(p for p in runs if p.parent.name == "los")
+    result, inventory = ingest_run(los, generic)
+    assert len(result["anchors"]) == 4 and len(result["ranges"]) > 5000
+    assert sum(f["quarantined"] for f in inventory.values()) == 0
+    errors = range_errors(result["ranges"], result["truth"], generic, result["anchors"])
+    assert abs(errors["error_m"].median()) < 0.2           # LOS: no bias beyond 20 cm against 3-D truth
+
+
+@needs_real
+def test_real_dataset_through_the_cli(tmp_path, capsys):
+    assert main(["convert", "cucudasluv", str(REAL), str(tmp_path)]) == 0
+    assert "los" in capsys.readouterr().out
