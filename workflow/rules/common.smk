@@ -33,6 +33,12 @@ def campaign_file(wildcards):
     return config["datasets"][wildcards.dataset]["campaign"]
 
 
+def simulated_of(fmt):
+    """Regex of the simulated datasets of one format (never matches when there are none)."""
+    names = [n for n in SIMULATED if config["datasets"][n]["format"] == fmt]
+    return "|".join(names) or "(?!x)x"
+
+
 def experiment_pairs(spec, key="scenarios"):
     """(dataset, scenario) pairs an experiment runs on; none when it is not configured."""
     return [tuple(label.split("/", 1)) for label in spec[key]] if spec else []

@@ -3,11 +3,6 @@
 # so real logs are never overwritten.
 
 
-def simulated_of(fmt):
-    """Regex of the simulated datasets of one format (never matches when there are none)."""
-    names = [n for n in SIMULATED if config["datasets"][n]["format"] == fmt]
-    return "|".join(names) or "(?!x)x"
-
 
 rule simulate_newcom:
     input:
