@@ -10,6 +10,7 @@ from wsnloc.campaign import Campaign
 from wsnloc.cli import main
 from wsnloc.errors import IngestError
 from wsnloc.io.convert import convert_cucudasluv
+from wsnloc.io import tables
 from wsnloc.io.generic import ingest_run
 from wsnloc.metrics.ranging import range_errors
 
@@ -68,9 +69,11 @@ def test_missing_required_file_or_column(run_dir, generic):
         ingest_run(run_dir, generic)
 
 
-def test_cli_ingests_generic(run_dir, tmp_path, capsys):
+def test_cli_ingests_generic_and_keeps_anchor_heights(run_dir, tmp_path, capsys):
     assert main(["ingest", "--format", "generic", "--campaign", str(CAMPAIGN), str(run_dir), str(tmp_path / "out")]) == 0
     assert "ranges.csv" in capsys.readouterr().out
+    anchors = tables.read(tmp_path / "out" / "anchors.parquet")
+    assert anchors["z"].tolist()[:2] == [1.0, 1.0] and tables.unit_of(tmp_path / "out" / "anchors.parquet", "z") == "m"
 
 
 needs_real = pytest.mark.skipif(not REAL.is_dir(), reason=f"real dataset not present at {REAL} (../shared missing)")

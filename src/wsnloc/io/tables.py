@@ -62,6 +62,7 @@ SCHEMAS: dict[str, pa.Schema] = {
         _field("tech", pa.string(), "", "technology: uwb, zigbee, cricket, ..."),
         _field("x", pa.float64(), "m", "east coordinate"),
         _field("y", pa.float64(), "m", "north coordinate"),
+        _field("z", pa.float64(), "m", "height (NaN: 2-D campaign)", nullable=True),
     ]),
     "estimates_paper_d": pa.schema([
         _field("run", pa.string(), "", "run name"),
