@@ -21,6 +21,7 @@ include: "workflow/rules/resample.smk"
 include: "workflow/rules/evaluate.smk"
 include: "workflow/rules/paper_d.smk"
 include: "workflow/rules/paper_b.smk"
+include: "workflow/rules/papers_ac.smk"
 include: "workflow/rules/report.smk"
 
 

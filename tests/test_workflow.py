@@ -35,6 +35,9 @@ def workdir(tmp_path_factory):
     config["experiments"]["paper_d"]["cost_iterations"] = 500
     config["experiments"]["paper_b"]["scenarios"] = ["newcom/constant"]
     config["experiments"]["paper_b"]["simulation_scenarios"] = []
+    config["experiments"]["paper_a"]["scenarios"] = ["newcom/constant"]
+    config["experiments"]["paper_c"]["scenarios"] = ["cricket/speed_40"]
+    config["experiments"]["paper_c"]["table_2_scenario"] = "cricket/speed_40"
     (work / "config" / "config.yaml").write_text(yaml.safe_dump(config))
     result = snakemake(work, "--cores", "2")
     assert result.returncode == 0, result.stderr[-3000:]
@@ -50,8 +53,8 @@ def test_builds_report_and_results(workdir):
     assert len(los_bias) == 1 and abs(los_bias["value"].iloc[0]) < 0.1 and los_bias["runs"].iloc[0] == 2
     html = (workdir / "reports" / "index.html").read_text()
     assert "SIMULATED campaign" in html and "data:image/png;base64," in html
-    assert 'id="paper-B"' in html and 'id="paper-D"' in html and "cricket/speed_40" in html
-    assert {"data", "B", "D"} <= set(results["experiment"])
+    assert all(f'id="paper-{p}"' in html for p in "ABCD") and "cricket/speed_40" in html
+    assert {"data", "A", "B", "C", "D"} <= set(results["experiment"])
     assert "http://" not in html and "https://" not in html.replace("https://json-schema.org", "")
 
 

@@ -12,6 +12,26 @@ rule report:
         campaigns=sorted({d["campaign"] for d in config["datasets"].values()}),
         template="workflow/templates/report.html.j2",
         papers="config/papers.yaml",
+        paper_a=(
+            [
+                "data/processed/paper_a/results.csv",
+                "data/processed/paper_a/claims.json",
+                "data/processed/paper_a/figures/error_cdf.png",
+                "data/processed/paper_a/figures/rmse_vs_anchors.png",
+            ]
+            if PAPER_A_PAIRS
+            else []
+        ),
+        paper_c=(
+            [
+                "data/processed/paper_c/results.csv",
+                "data/processed/paper_c/claims.json",
+                "data/processed/paper_c/figures/error_histogram.png",
+                "data/processed/paper_c/figures/rmse_vs_anchors.png",
+            ]
+            if PAPER_C_PAIRS
+            else []
+        ),
         paper_b=(
             [
                 "data/processed/paper_b/results.csv",
@@ -39,6 +59,8 @@ rule report:
         config=config,
         paper_d_labels=[f"{d}/{s}" for d, s in PAPER_D_PAIRS],
         paper_b_labels=[f"{d}/{s}" for d, s in PAPER_B_PAIRS],
+        paper_a_labels=[f"{d}/{s}" for d, s in PAPER_A_PAIRS],
+        paper_c_labels=[f"{d}/{s}" for d, s in PAPER_C_PAIRS],
     log:
         "logs/report/report.log",
     conda:

@@ -11,7 +11,7 @@ from wsnloc.io import tables
 from wsnloc.report import figures
 from wsnloc.config import read_yaml
 from wsnloc.report.render import build_context, png_data_uri, render
-from wsnloc.report.sections import paper_b_section, paper_d_section
+from wsnloc.report.sections import paper_a_section, paper_b_section, paper_c_section, paper_d_section
 from wsnloc.workflow import script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
@@ -19,7 +19,7 @@ log = script_logger(sm.log[0], "report")
 config = sm.params.config
 
 summaries = [json.loads(Path(p).read_text()) for p in sm.input.summaries]
-paper_outputs = list(sm.input.paper_b) + list(sm.input.paper_d)
+paper_outputs = list(sm.input.paper_a) + list(sm.input.paper_b) + list(sm.input.paper_c) + list(sm.input.paper_d)
 result_files = list(sm.input.results) + [p for p in paper_outputs if p.endswith("results.csv")]
 all_results = pd.concat([results.read(p) for p in result_files], ignore_index=True)
 results.write(all_results, sm.output.results)
@@ -46,12 +46,24 @@ def figure_uris(outputs, names):
     return {name: png_data_uri(outputs[f"{name}.png"].read_bytes()) for name in names}
 
 
+if sm.input.paper_a:
+    outputs = {Path(p).name: Path(p) for p in sm.input.paper_a}
+    context["papers"].append(paper_a_section(
+        final_results, json.loads(outputs["claims.json"].read_text()),
+        figure_uris(outputs, ("error_cdf", "rmse_vs_anchors")), papers["A"], list(sm.params.paper_a_labels),
+        config["experiments"]["paper_a"]))
 if sm.input.paper_b:
     outputs = {Path(p).name: Path(p) for p in sm.input.paper_b}
     context["papers"].append(paper_b_section(
         final_results, json.loads(outputs["claims.json"].read_text()),
         figure_uris(outputs, ("trajectories", "error_over_time")), papers["B"], list(sm.params.paper_b_labels),
         config["experiments"]["paper_b"]))
+if sm.input.paper_c:
+    outputs = {Path(p).name: Path(p) for p in sm.input.paper_c}
+    context["papers"].append(paper_c_section(
+        final_results, json.loads(outputs["claims.json"].read_text()),
+        figure_uris(outputs, ("error_histogram", "rmse_vs_anchors")), papers["C"], list(sm.params.paper_c_labels),
+        config["experiments"]["paper_c"]))
 if sm.input.paper_d:
     outputs = {Path(p).name: Path(p) for p in sm.input.paper_d}
     context["papers"].append(paper_d_section(

@@ -17,12 +17,12 @@ import pandas as pd
 from wsnloc import results
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
+from wsnloc.experiments import calibration
 from wsnloc.experiments.epochs import Epoch, build_epochs, score
 from wsnloc.filters.kalman import KalmanFilter
 from wsnloc.filters.motion_models import constant_velocity
 from wsnloc.geometry.lateration import LOCALIZERS
 from wsnloc.geometry.selection import k_smallest, rss_to_distance
-from wsnloc.metrics.ranging import fit_path_loss, rss_with_distance
 from wsnloc.metrics.stats import error_summary
 from wsnloc.tracking.velocity_bounded import VelocityBoundedTracker
 
@@ -76,13 +76,6 @@ def preliminary_filter(ranges: pd.DataFrame, max_range_m: float) -> pd.DataFrame
     r = ranges["range_m"]
     keep = (ranges["status"] == 0) & np.isfinite(r) & (r > 0) & (r <= max_range_m)
     return ranges[keep]
-
-
-def calibrate(rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign, d0_m: float) -> dict:
-    """P0 and n fitted on one run with ground truth (all links, walls included)."""
-    samples = rss_with_distance(rss, truth, campaign)
-    fit = fit_path_loss(samples["rss_dbm"], samples["true_distance_m"], d0_m)
-    return {"p0_dbm": fit["P0_dBm"], "path_loss_exponent": fit["n"], "d0_m": d0_m}
 
 
 def _subset(frame: pd.DataFrame, members: list[str]) -> pd.DataFrame:
@@ -193,20 +186,9 @@ def run_metrics(estimates: pd.DataFrame) -> pd.DataFrame:
 
 
 def rss_models_for_runs(run_tables: dict[str, dict], campaign: Campaign, settings: Settings) -> dict[str, dict]:
-    """The RSS model each run is evaluated with.
-
-    `other_run`: P0, n fitted on the next run (cyclically) with its truth, so that no run
-    is localised with a model fitted on itself; `configured`: rss_model from config.
-    With a single run `other_run` falls back to the configured model.
-    """
-    names = list(run_tables)
-    if settings.rss_calibration == "configured" or len(names) < 2:
-        return {name: dict(settings.rss_model, source="configured") for name in names}
+    """RSS model per run (see wsnloc.experiments.calibration)."""
     members = campaign.spec["subsets"][settings.narrowband_subset]
-    fitted = {name: calibrate(_subset(t["rss"], members), t["truth"], campaign, settings.rss_model["d0_m"])
-              for name, t in run_tables.items()}
-    return {name: dict(fitted[names[(i + 1) % len(names)]], source=f"fitted on {names[(i + 1) % len(names)]}")
-            for i, name in enumerate(names)}
+    return calibration.rss_models_for_runs(run_tables, campaign, members, settings.rss_calibration, settings.rss_model)
 
 
 # ---- tables, claims and cost -------------------------------------------------------------

@@ -33,13 +33,31 @@ class KalmanFilter:
             self.x = self.x + np.asarray(B, dtype=float) @ np.asarray(u, dtype=float)
         self.P = self.F @ self.P @ self.F.T + self.Q
 
-    def update(self, z, H=None, R=None) -> None:
+    def update(self, z, H=None, R=None, hx=None) -> None:
+        """Measurement update; `hx` is the predicted measurement h(x) of a linearised model
+        (default H x). The measurement size may change from call to call."""
         H = self.H if H is None else np.asarray(H, dtype=float)
         R = self.R if R is None else np.asarray(R, dtype=float)
-        self.y = np.asarray(z, dtype=float) - H @ self.x
+        predicted = H @ self.x if hx is None else np.asarray(hx, dtype=float)
+        self.y = np.asarray(z, dtype=float) - predicted
         self.S = H @ self.P @ H.T + R
         self.K = np.linalg.solve(self.S.T, (self.P @ H.T).T).T        # P H^T S^-1
         self.x = self.x + self.K @ self.y
         joseph = np.eye(len(self.x)) - self.K @ H
         self.P = joseph @ self.P @ joseph.T + self.K @ R @ self.K.T
         self.nis = float(self.y @ np.linalg.solve(self.S, self.y))
+
+
+class ExtendedKalmanFilter(KalmanFilter):
+    """EKF: linear motion model (F, Q, optional input B u), non-linear measurement z = h(x) + v.
+
+    update_nonlinear linearises at the predicted state: H = dh/dx (x), y = z - h(x), then
+    the Joseph-form update above (filterpy.kalman.ExtendedKalmanFilter.update does the same).
+    """
+
+    def __init__(self, x, P, F, Q):
+        n = len(np.asarray(x))
+        super().__init__(x, P, F, Q, np.zeros((1, n)), np.eye(1))
+
+    def update_nonlinear(self, z, h, jacobian, R) -> None:
+        self.update(z, H=jacobian(self.x), R=R, hx=h(self.x))

@@ -1,7 +1,11 @@
-"""Motion models: state transition F and process noise Q for a 2-D mobile.
+"""Motion models: state transition F, input matrix B and process noise Q for a 2-D mobile.
 
-PV (constant velocity, white acceleration), state [x, y, vx, vy]:
-  F = [[I2, dt I2], [0, I2]],  Q = G diag(sa_x^2, sa_y^2) G^T,  G = [[dt^2/2 I2], [dt I2]].
+P (random walk), state [x, y]:            F = I2, Q = diag(s_x^2, s_y^2)           (paper C)
+PV (constant velocity, white accel.), state [x, y, vx, vy]:
+  F = [[I2, dt I2], [0, I2]],  Q = G diag(sa_x^2, sa_y^2) G^T,  G = [[dt^2/2 I2], [dt I2]]   (papers A, C)
+PVA (measured acceleration as input, accelerometer bias states), state [x, y, vx, vy, bx, by]:
+  F = [[I2, dt I2, -dt^2/2 I2], [0, I2, -dt I2], [0, 0, I2]],  B = [[dt^2/2 I2], [dt I2], [0]],
+  Q = B sa^2 B^T + blockdiag(0, 0, s_b^2 dt I2)  (accelerometer noise through B, bias random walk)  (paper C)
 """
 
 from __future__ import annotations
@@ -17,3 +21,19 @@ def constant_velocity(dt: float, accel_sigma_x: float, accel_sigma_y: float | No
     G = np.vstack([dt**2 / 2.0 * eye, dt * eye])
     Q = G @ np.diag([accel_sigma_x**2, sy**2]) @ G.T
     return F, Q
+
+
+def position_only(sigma_x: float, sigma_y: float | None = None):
+    """(F, Q) of the P model; sigmas in m per step."""
+    sy = sigma_x if sigma_y is None else sigma_y
+    return np.eye(2), np.diag([sigma_x**2, sy**2])
+
+
+def pva(dt: float, accel_sigma: float, bias_walk_sigma: float):
+    """(F, B, Q) of the PVA model; accel_sigma in m/s^2, bias_walk_sigma in m/s^2/sqrt(s)."""
+    eye, zero = np.eye(2), np.zeros((2, 2))
+    F = np.block([[eye, dt * eye, -dt**2 / 2 * eye], [zero, eye, -dt * eye], [zero, zero, eye]])
+    B = np.vstack([dt**2 / 2 * eye, dt * eye, zero])
+    Q = B @ B.T * accel_sigma**2
+    Q[4:, 4:] += eye * bias_walk_sigma**2 * dt
+    return F, B, Q

@@ -64,3 +64,18 @@ def dead_reckon(imu: pd.DataFrame, x0: float, y0: float, heading0: float,
         vy[k + 1] = vy[k] + a_y * dt
         heading[k + 1] = heading[k] + gz[k] * dt
     return pd.DataFrame({"t": t, "x": x, "y": y, "vx": vx, "vy": vy, "heading": heading})
+
+
+def floor_acceleration(imu: pd.DataFrame, heading0: float, bias: ImuBias | None = None) -> pd.DataFrame:
+    """Horizontal specific force rotated into the floor frame (m/s^2), heading from the z gyro.
+
+    theta_{k+1} = theta_k + w_k dt; a_floor = R(theta_k) [ax - bx, ay - by].
+    """
+    bias = bias or ImuBias()
+    t = imu["t"].to_numpy(float)
+    gz = imu["gz"].to_numpy(float) - bias.gz
+    heading = heading0 + np.concatenate([[0.0], np.cumsum(gz[:-1] * np.diff(t))]) if len(t) else np.array([])
+    ax = imu["ax"].to_numpy(float) - bias.ax
+    ay = imu["ay"].to_numpy(float) - bias.ay
+    c, s = np.cos(heading), np.sin(heading)
+    return pd.DataFrame({"t": t, "ax": c * ax - s * ay, "ay": s * ax + c * ay})

@@ -163,3 +163,32 @@ def error_over_time(panels: dict[str, dict[str, pd.DataFrame]]) -> bytes:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="upper left")
     return to_png(fig)
+
+
+def rmse_vs_anchors(curves: dict[str, tuple[list[int], list[float]]], title: str) -> bytes:
+    """RMSE (m) against the number of anchors, one line per label."""
+    fig, ax = plt.subplots(figsize=(6.5, 3.8))
+    for label, (counts, rmse) in curves.items():
+        ax.plot(counts, rmse, marker="o", label=label)
+    ax.set_xlabel("number of anchors")
+    ax.set_ylabel("RMSE [m]")
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    return to_png(fig)
+
+
+def error_histograms(errors: dict[str, pd.Series], title: str, xmax: float = 1.5) -> bytes:
+    """Histograms of position error (m), one per label, side by side."""
+    fig, axes = plt.subplots(1, max(1, len(errors)), figsize=(4.2 * max(1, len(errors)), 3.2), squeeze=False,
+                             sharey=True)
+    bins = np.linspace(0, xmax, 31)
+    for ax, (label, e) in zip(axes[0], errors.items()):
+        e = np.asarray(e, dtype=float)
+        e = e[np.isfinite(e)]
+        ax.hist(np.clip(e, 0, xmax), bins=bins, density=True, color="tab:blue", alpha=0.75)
+        ax.set_title(f"{label}\nmedian {np.median(e):.3f} m" if len(e) else label, fontsize=9)
+        ax.set_xlabel("position error [m]")
+    axes[0][0].set_ylabel("density")
+    fig.suptitle(title, fontsize=10)
+    return to_png(fig)

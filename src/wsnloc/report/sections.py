@@ -95,3 +95,54 @@ def paper_b_section(results: pd.DataFrame, claims: dict, figures: dict[str, str]
     return {"id": "B", "title": paper["title"], "citation": paper["citation"], "published": True,
             "tables": tables, "details": details, "claims": claims["claims"], "cost": [],
             "figures": figures, "settings": settings}
+
+
+def grid_table(results: pd.DataFrame, *, experiment: str, table: str, rows: list[str], columns: list[str],
+               metric: str, title: str, scenario: str = "") -> dict:
+    """A paper table whose cells are found by (table, row, column) across scenarios."""
+    sel = results[(results["experiment"] == experiment) & (results["table"] == table)]
+    return {"title": title, "scenario": scenario, "columns": columns,
+            "rows": [{"label": r, "cells": [_cell(sel, row=r, column=c, metric=metric) for c in columns]} for r in rows]}
+
+
+def _columns(results: pd.DataFrame, experiment: str, table: str) -> list[str]:
+    sel = results[(results["experiment"] == experiment) & (results["table"] == table)]
+    return list(dict.fromkeys(sel["column"]))
+
+
+def paper_a_section(results: pd.DataFrame, claims: dict, figures: dict[str, str], paper: dict,
+                    scenarios: list[str], settings: dict) -> dict:
+    from wsnloc.experiments.paper_a import row_label
+
+    rows = [row_label(r) for r in settings["rows"]]
+    tables = [grid_table(results, experiment="A", table=t, rows=rows, columns=_columns(results, "A", t),
+                         metric="rmse_m", title=f"{t}: RMSE [m] {title}", scenario=", ".join(scenarios))
+              for t, title in (("Table I", "(plain EKF)"), ("Table II", "(with motion detection)"))]
+    details = [{"title": f"{t} detail", "metrics": ["median_m", "p95_m", "max_m"],
+                "lines": [{"label": f"{r} / {c}", "cells": [
+                    _cell(results, experiment="A", table=f"{t} detail", row=r, scenario=sc, column=m.removesuffix("_m"),
+                          metric=m) for m in ("median_m", "p95_m", "max_m")]}
+                          for r in rows for sc, c in zip(scenarios, _columns(results, "A", t))]}
+               for t in ("Table I", "Table II")]
+    return {"id": "A", "title": paper["title"], "citation": paper["citation"], "published": True, "tables": tables,
+            "details": details, "claims": claims["claims"], "cost": [], "figures": figures, "settings": settings}
+
+
+def paper_c_section(results: pd.DataFrame, claims: dict, figures: dict[str, str], paper: dict,
+                    scenarios: list[str], settings: dict) -> dict:
+    from wsnloc.experiments.paper_c import MODELS
+
+    tables = [
+        grid_table(results, experiment="C", table="Table I", rows=list(MODELS), columns=_columns(results, "C", "Table I"),
+                   metric="rmse_m", title=f"Table I: RMSE [m], beacons {settings['table_1_subset']}",
+                   scenario=", ".join(scenarios)),
+        grid_table(results, experiment="C", table="Table II", rows=list(settings["table_2_subsets"]),
+                   columns=list(MODELS), metric="rmse_m", title="Table II: RMSE [m] by beacon set",
+                   scenario=settings["table_2_scenario"]),
+    ]
+    detail_columns = _columns(results, "C", "Table I detail")
+    details = [{"title": "Table I detail (median, p95, max per speed)", "metrics": detail_columns,
+                "lines": [{"label": m, "cells": [_cell(results, experiment="C", table="Table I detail", row=m, column=c)
+                                                 for c in detail_columns]} for m in MODELS]}]
+    return {"id": "C", "title": paper["title"], "citation": paper["citation"], "published": True, "tables": tables,
+            "details": details, "claims": claims["claims"], "cost": [], "figures": figures, "settings": settings}

@@ -1,0 +1,34 @@
+"""Calibrated RSS path-loss models: fitted on another run with truth, or configured.
+
+No run is evaluated with a model fitted on its own data.
+"""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from wsnloc.campaign import Campaign
+from wsnloc.metrics.ranging import fit_path_loss, rss_with_distance
+
+
+def calibrate(rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign, d0_m: float) -> dict:
+    """P0, n and sigma fitted on one run with ground truth (all links, walls included)."""
+    samples = rss_with_distance(rss, truth, campaign)
+    fit = fit_path_loss(samples["rss_dbm"], samples["true_distance_m"], d0_m)
+    return {"p0_dbm": fit["P0_dBm"], "path_loss_exponent": fit["n"], "sigma_db": fit["sigma_dB"], "d0_m": d0_m}
+
+
+def rss_models_for_runs(run_tables: dict[str, dict], campaign: Campaign, members: list[str], method: str,
+                        configured: dict) -> dict[str, dict]:
+    """The RSS model each run is evaluated with.
+
+    `other_run`: fitted on the next run (cyclically) with its truth; `configured`: the
+    configured model. With a single run `other_run` falls back to the configured model.
+    """
+    names = list(run_tables)
+    if method == "configured" or len(names) < 2:
+        return {name: dict(configured, source="configured") for name in names}
+    fitted = {name: calibrate(t["rss"][t["rss"]["anchor_id"].isin(members)], t["truth"], campaign,
+                              configured.get("d0_m", 1.0)) for name, t in run_tables.items()}
+    return {name: dict(fitted[names[(i + 1) % len(names)]], source=f"fitted on {names[(i + 1) % len(names)]}")
+            for i, name in enumerate(names)}

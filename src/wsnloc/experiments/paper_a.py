@@ -1,0 +1,234 @@
+"""Paper A (Khan, Sottile, Spirito 2013): EKF with the PV model on UWB TOA ranges, ZigBee
+RSS, or both stacked (hybrid), without (Table I) and with (Table II) accelerometer motion
+detection, on the Newcom++ scenarios.
+
+Per run and row (measurement type + anchor subsets): epochs of `epoch_s`; UWB ranges of
+the epoch (preliminary filter applied) and the RSS per anchor averaged in dB over the
+epoch enter the measurement vector; the RSS model P0, n, sigma is calibrated on another
+run with truth. Initialisation by multilateration of the first epoch with 3 ranges
+(RSS turned into distances by inverting the calibrated model).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from wsnloc import results
+from wsnloc.campaign import Campaign
+from wsnloc.errors import ConfigError
+from wsnloc.experiments import calibration
+from wsnloc.experiments.ekf_tracking import run_ekf
+from wsnloc.experiments.epochs import Epoch, build_epochs, score
+from wsnloc.experiments.paper_d import preliminary_filter
+from wsnloc.filters.measurement_models import RangeModel, RssModel, Stacked
+from wsnloc.filters.motion_models import constant_velocity
+from wsnloc.geometry.lateration import multilateration
+from wsnloc.geometry.selection import rss_to_distance
+from wsnloc.inertial.motion_detection import static_epochs
+from wsnloc.metrics.stats import error_summary
+
+EXPERIMENT = "A"
+MEASUREMENT_LABEL = {"toa": "distance (UWB)", "rss": "RSS (ZigBee)", "hybrid": "hybrid"}
+
+
+def row_label(row: dict) -> str:
+    anchors = ", ".join(row[k] for k in ("uwb", "zigbee") if k in row)
+    return f"{MEASUREMENT_LABEL[row['measurements']]} | {anchors}"
+
+
+@dataclass
+class Settings:
+    epoch_s: float
+    rows: list
+    uwb_preliminary_filter: bool
+    max_range_m: float
+    range_sigma_m: float
+    rss_calibration: str
+    rss_model: dict
+    accel_sigma_mps2: float
+    initial_sigma_m: float
+    initial_speed_sigma_mps: float
+    motion_threshold_mps2: float
+    static_reference_s: float
+
+    @classmethod
+    def from_config(cls, spec: dict) -> "Settings":
+        return cls(**{k: spec[k] for k in cls.__dataclass_fields__})
+
+    def check_against(self, campaign: Campaign) -> None:
+        subsets = campaign.spec.get("subsets", {})
+        for i, row in enumerate(self.rows):
+            for key in ("uwb", "zigbee"):
+                if key in row and row[key] not in subsets:
+                    raise ConfigError(f"config key 'experiments.paper_a.rows.{i}.{key}': no subset {row[key]!r} "
+                                      f"in {campaign.source}")
+            needed = {"toa": ["uwb"], "rss": ["zigbee"], "hybrid": ["uwb", "zigbee"]}[row["measurements"]]
+            for key in needed:
+                if key not in row:
+                    raise ConfigError(f"config key 'experiments.paper_a.rows.{i}.{key}': required for "
+                                      f"{row['measurements']} measurements")
+
+
+class _RowMeasurements:
+    """Builds each epoch's measurement model for one table row."""
+
+    def __init__(self, row: dict, campaign: Campaign, settings: Settings, rss_model: dict):
+        subsets = campaign.spec["subsets"]
+        self.uwb = set(subsets[row["uwb"]]) if row["measurements"] in ("toa", "hybrid") else set()
+        self.zigbee = set(subsets[row["zigbee"]]) if row["measurements"] in ("rss", "hybrid") else set()
+        self.xy = {a: np.array([x, y]) for a, x, y in campaign.anchors[["anchor_id", "x", "y"]].itertuples(index=False)}
+        self.settings, self.rss = settings, rss_model
+
+    def _pick(self, ids, values, members):
+        keep = np.array([i in members for i in ids], dtype=bool)
+        ids = ids[keep]
+        return np.array([self.xy[i] for i in ids]).reshape(-1, 2), values[keep]
+
+    def measure(self, epoch: Epoch):
+        parts, z = [], []
+        uwb_xy, ranges = self._pick(epoch.range_ids, epoch.ranges, self.uwb)
+        if len(ranges):
+            parts.append(RangeModel(uwb_xy, np.full(len(ranges), self.settings.range_sigma_m)))
+            z.append(ranges)
+        rss_xy, rss = self._pick(epoch.rss_ids, epoch.rss, self.zigbee)
+        if len(rss):
+            parts.append(RssModel(rss_xy, self.rss["p0_dbm"], self.rss["path_loss_exponent"], self.rss["sigma_db"],
+                                  self.rss.get("d0_m", 1.0)))
+            z.append(rss)
+        return Stacked(parts, np.concatenate(z)) if parts else None
+
+    def initial_fix(self, epoch: Epoch):
+        uwb_xy, ranges = self._pick(epoch.range_ids, epoch.ranges, self.uwb)
+        rss_xy, rss = self._pick(epoch.rss_ids, epoch.rss, self.zigbee)
+        distances = rss_to_distance(rss, self.rss["p0_dbm"], self.rss["path_loss_exponent"], self.rss.get("d0_m", 1.0))
+        return multilateration(np.vstack([uwb_xy, rss_xy]), np.concatenate([ranges, distances]))
+
+
+def run(tables: dict, campaign: Campaign, settings: Settings, rss_model: dict) -> pd.DataFrame:
+    """Estimates of every row, without and with motion detection, scored against truth."""
+    ranges = tables["ranges"][tables["ranges"]["anchor_id"].isin(campaign.anchors_of("uwb")["anchor_id"])]
+    ranges = preliminary_filter(ranges, settings.max_range_m) if settings.uwb_preliminary_filter \
+        else ranges[np.isfinite(ranges["range_m"])]
+    rss = tables["rss"][np.isfinite(tables["rss"]["rss_dbm"])]
+    epochs = build_epochs(ranges, rss, settings.epoch_s)
+    times = np.array([e.t for e in epochs])
+    static = static_epochs(tables["imu"], times, settings.epoch_s, settings.motion_threshold_mps2,
+                           settings.static_reference_s)
+    F, Q = constant_velocity(settings.epoch_s, settings.accel_sigma_mps2)
+    P0 = np.diag([settings.initial_sigma_m**2] * 2 + [settings.initial_speed_sigma_mps**2] * 2)
+    frames = []
+    for row in settings.rows:
+        model = _RowMeasurements(row, campaign, settings, rss_model)
+        for table, flags in (("Table I", None), ("Table II", static)):
+            track = run_ekf(epochs, F, Q, P0, model.measure, model.initial_fix, static=flags)
+            frames.append(track.assign(row=row_label(row), table=table))
+    return score(pd.concat(frames, ignore_index=True), tables["truth"])
+
+
+def run_metrics(estimates: pd.DataFrame) -> pd.DataFrame:
+    rows = []
+    for (table, row), group in estimates.groupby(["table", "row"], sort=False):
+        stats = error_summary(group["error_m"])
+        rows.append({"table": table, "row": row, **{k: stats[k] for k in ("rmse", "median", "p95", "max")},
+                     "nis_mean": float(group["nis"].mean())})
+    return pd.DataFrame(rows)
+
+
+def paper_value(paper: dict, row: dict, table: str, motion: str):
+    for published in paper["rmse_m"]:
+        anchors = ", ".join(row[k] for k in ("uwb", "zigbee") if k in row)
+        if published["row"] == MEASUREMENT_LABEL[row["measurements"]] and published["anchors"] == anchors:
+            return published[f"{'I' if table == 'Table I' else 'II'}_{motion}"]
+    return None
+
+
+def results_rows(metrics: pd.DataFrame, scenario: str, motion: str, settings: Settings, paper: dict) -> list[dict]:
+    out = []
+    for table in ("Table I", "Table II"):
+        for row in settings.rows:
+            sel = metrics[(metrics["table"] == table) & (metrics["row"] == row_label(row))]
+            out.append(results.row_over_runs(sel["rmse"], experiment=EXPERIMENT, table=table, row=row_label(row),
+                                             column=motion, scenario=scenario, metric="rmse_m",
+                                             paper_value=paper_value(paper, row, table, motion)))
+            for metric in ("median", "p95", "max"):
+                out.append(results.row_over_runs(sel[metric], experiment=EXPERIMENT, table=f"{table} detail",
+                                                 row=row_label(row), column=metric, scenario=scenario,
+                                                 metric=f"{metric}_m"))
+    return out
+
+
+def claims(res: pd.DataFrame, settings: Settings) -> list[dict]:
+    sel = res[(res["experiment"] == EXPERIMENT) & (res["metric"] == "rmse_m") & res["table"].isin(["Table I", "Table II"])]
+    value = {(r.table, r.row, r.column): r.value for r in sel.itertuples()}
+    motions = sorted(sel["column"].unique())
+    labels = [row_label(r) for r in settings.rows]
+    by_kind = {kind: [row_label(r) for r in settings.rows if r["measurements"] == kind] for kind in MEASUREMENT_LABEL}
+    out = []
+
+    def check(text, cases):
+        out.append({"claim": text, "holds": bool(cases) and all(ok for ok, _ in cases),
+                    "evidence": "; ".join(e for _, e in cases)})
+
+    cases = []
+    for table in ("Table I", "Table II"):
+        for motion in motions:
+            for hybrid, toa, rss in zip(by_kind["hybrid"], by_kind["toa"], by_kind["rss"]):
+                h, t, r = (value.get((table, x, motion), np.nan) for x in (hybrid, toa, rss))
+                cases.append((h < t < r, f"{table} {motion}: hybrid {h:.3f} < TOA {t:.3f} < RSS {r:.3f}?"))
+    check("Hybrid beats TOA-only, which beats RSS-only", cases)
+
+    cases = []
+    for table in ("Table I", "Table II"):
+        for motion in motions:
+            for kind, rows in by_kind.items():
+                if len(rows) == 2:
+                    more, fewer = (value.get((table, x, motion), np.nan) for x in rows)
+                    cases.append((more < fewer, f"{table} {motion} {kind}: {rows[0]} {more:.3f} vs {rows[1]} {fewer:.3f}"))
+    check("More anchors give a lower RMSE", cases)
+
+    cases = []
+    if {"constant", "variable"} <= set(motions):
+        for table in ("Table I", "Table II"):
+            for label in labels:
+                c, v = value.get((table, label, "constant"), np.nan), value.get((table, label, "variable"), np.nan)
+                cases.append((c < v, f"{table} {label}: constant {c:.3f} vs variable {v:.3f}"))
+    check("Constant speed is tracked better than variable speed", cases)
+
+    cases = []
+    for motion in motions:
+        for label in labels:
+            plain, md = value.get(("Table I", label, motion), np.nan), value.get(("Table II", label, motion), np.nan)
+            cases.append((md < plain, f"{motion} {label}: {plain:.3f} -> {md:.3f} with motion detection"))
+    check("Motion detection improves every row", cases)
+    return out
+
+
+def cdf_panels(estimates: dict[str, pd.DataFrame]) -> dict:
+    """Error samples (all runs) per scenario: each row of Table I and the hybrid row of Table II."""
+    panels = {}
+    for label, est in estimates.items():
+        curves = {f"{row} (I)": est[(est["table"] == "Table I") & (est["row"] == row)]["error_m"].to_numpy()
+                  for row in est["row"].unique()}
+        first_hybrid = next((r for r in est["row"].unique() if r.startswith("hybrid")), None)
+        if first_hybrid:
+            curves[f"{first_hybrid} (II, motion detection)"] = est[(est["table"] == "Table II")
+                                                                   & (est["row"] == first_hybrid)]["error_m"].to_numpy()
+        panels[label] = curves
+    return panels
+
+
+def anchor_curves(res: pd.DataFrame, settings: Settings) -> dict:
+    """Table I RMSE against the number of anchors, per measurement type and scenario."""
+    sel = res[(res["experiment"] == EXPERIMENT) & (res["table"] == "Table I") & (res["metric"] == "rmse_m")]
+    curves = {}
+    for row in settings.rows:
+        count = sum(int(row[k].split("=")[1]) for k in ("uwb", "zigbee") if k in row)
+        for r in sel[sel["row"] == row_label(row)].itertuples():
+            key = f"{MEASUREMENT_LABEL[row['measurements']]}, {r.column}"
+            curves.setdefault(key, ([], []))
+            curves[key][0].append(count)
+            curves[key][1].append(r.value)
+    return {k: tuple(map(list, zip(*sorted(zip(*v))))) for k, v in curves.items()}

@@ -1,0 +1,86 @@
+"""Measurement models h(x) and their Jacobians H = dh/dx for range and RSS observations.
+
+Anchors a_i = (x_i, y_i); the position occupies the first two state entries;
+d_i = ||p - a_i|| (floored at 1 mm to keep the Jacobian finite).
+- TOA range (paper A eq. for h_TOA):   h_i = d_i,  H_i = [(x - x_i)/d_i, (y - y_i)/d_i, 0 ...]
+- RSS (log-normal shadowing):          h_i = P0 - 10 n log10(d_i / d0)
+                                       H_i = [-10 n / ln10 (x - x_i)/d_i^2, -10 n / ln10 (y - y_i)/d_i^2, 0 ...]
+- hybrid: the two stacked, R = blockdiag(R_TOA, R_RSS).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+MIN_DISTANCE = 1e-3
+
+
+def _geometry(x, anchors):
+    diff = np.asarray(x, dtype=float)[None, :2] - anchors
+    d = np.maximum(np.hypot(diff[:, 0], diff[:, 1]), MIN_DISTANCE)
+    return diff, d
+
+
+@dataclass
+class RangeModel:
+    anchors: np.ndarray        # (m, 2)
+    sigma_m: np.ndarray        # (m,) range noise std
+
+    def h(self, x) -> np.ndarray:
+        return _geometry(x, self.anchors)[1]
+
+    def jacobian(self, x) -> np.ndarray:
+        diff, d = _geometry(x, self.anchors)
+        H = np.zeros((len(self.anchors), len(x)))
+        H[:, :2] = diff / d[:, None]
+        return H
+
+    def R(self) -> np.ndarray:
+        return np.diag(np.broadcast_to(self.sigma_m, len(self.anchors)) ** 2)
+
+
+@dataclass
+class RssModel:
+    anchors: np.ndarray        # (m, 2)
+    p0_dbm: float
+    exponent: float
+    sigma_db: float
+    d0_m: float = 1.0
+
+    def h(self, x) -> np.ndarray:
+        return self.p0_dbm - 10.0 * self.exponent * np.log10(_geometry(x, self.anchors)[1] / self.d0_m)
+
+    def jacobian(self, x) -> np.ndarray:
+        diff, d = _geometry(x, self.anchors)
+        H = np.zeros((len(self.anchors), len(x)))
+        H[:, :2] = -10.0 * self.exponent / np.log(10.0) * diff / (d**2)[:, None]
+        return H
+
+    def R(self) -> np.ndarray:
+        return np.eye(len(self.anchors)) * self.sigma_db**2
+
+
+@dataclass
+class Stacked:
+    """Several models observed at once: z = [z_1; z_2; ...], with the measured vector z."""
+
+    parts: list
+    z: np.ndarray
+
+    def h(self, x) -> np.ndarray:
+        return np.concatenate([p.h(x) for p in self.parts])
+
+    def jacobian(self, x) -> np.ndarray:
+        return np.vstack([p.jacobian(x) for p in self.parts])
+
+    def R(self) -> np.ndarray:
+        blocks = [p.R() for p in self.parts]
+        n = sum(len(b) for b in blocks)
+        out = np.zeros((n, n))
+        k = 0
+        for b in blocks:
+            out[k:k + len(b), k:k + len(b)] = b
+            k += len(b)
+        return out

@@ -1,0 +1,170 @@
+"""EKF family: Jacobians against numerical differentiation, agreement with filterpy,
+convergence on noise-free ranges, motion models, motion detection on simulated data."""
+
+import numpy as np
+import pandas as pd
+import pytest
+from filterpy.kalman import ExtendedKalmanFilter as FilterpyEKF
+
+from wsnloc.experiments import paper_a, paper_c
+from wsnloc.experiments.ekf_tracking import run_ekf
+from wsnloc.experiments.epochs import Epoch, build_epochs
+from wsnloc.filters.kalman import ExtendedKalmanFilter
+from wsnloc.filters.measurement_models import RangeModel, RssModel, Stacked
+from wsnloc.filters.motion_models import constant_velocity, position_only, pva
+from wsnloc.inertial.motion_detection import static_epochs
+from wsnloc.io.newcom import ingest_run
+
+ANCHORS = np.array([[0.0, 0.0], [8.0, 1.0], [3.0, 7.0], [9.0, 9.0]])
+
+
+def numerical_jacobian(f, x, eps=1e-6):
+    x = np.asarray(x, dtype=float)
+    cols = []
+    for i in range(len(x)):
+        step = np.zeros_like(x)
+        step[i] = eps
+        cols.append((f(x + step) - f(x - step)) / (2 * eps))
+    return np.column_stack(cols)
+
+
+@pytest.mark.parametrize("state", [[2.0, 3.0], [2.0, 3.0, 0.3, -0.1], [5.5, 1.2, 0.0, 0.2, 0.01, -0.02]])
+@pytest.mark.parametrize("model", [
+    RangeModel(ANCHORS, np.full(4, 0.3)),
+    RssModel(ANCHORS, -45.0, 2.8, 4.0),
+    Stacked([RangeModel(ANCHORS[:2], np.full(2, 0.3)), RssModel(ANCHORS[2:], -45.0, 2.8, 4.0)], np.zeros(4)),
+])
+def test_jacobians_match_numerical_differentiation(model, state):
+    np.testing.assert_allclose(model.jacobian(np.array(state)), numerical_jacobian(model.h, state), atol=1e-7)
+
+
+def test_stacked_noise_is_block_diagonal():
+    model = Stacked([RangeModel(ANCHORS[:2], np.array([0.1, 0.2])), RssModel(ANCHORS[2:], -45.0, 2.8, 4.0)], np.zeros(4))
+    np.testing.assert_allclose(model.R(), np.diag([0.01, 0.04, 16.0, 16.0]))
+
+
+def test_ekf_equals_filterpy_on_identical_inputs():
+    rng = np.random.default_rng(4)
+    F, Q = constant_velocity(0.5, 0.3)
+    x0, P0 = np.array([1.0, 1.0, 0.0, 0.0]), np.diag([1.0, 1.0, 0.1, 0.1])
+    ours = ExtendedKalmanFilter(x0, P0, F, Q)
+    ref = FilterpyEKF(dim_x=4, dim_z=4)
+    ref.x, ref.P, ref.F, ref.Q = x0.copy(), P0.copy(), F, Q
+    for k in range(120):
+        truth = np.array([1.0 + 0.1 * k, 1.0 + 0.05 * k])
+        n = 2 + k % 3                                   # the measurement vector's size changes
+        model = Stacked([RangeModel(ANCHORS[:n], np.full(n, 0.3))], np.zeros(n))
+        z = np.hypot(*(truth - ANCHORS[:n]).T) + rng.normal(0, 0.3, n)
+        ours.predict()
+        ref.predict()
+        ours.update_nonlinear(z, model.h, model.jacobian, model.R())
+        ref.update(z, HJacobian=model.jacobian, Hx=model.h, R=model.R())
+        np.testing.assert_allclose(ours.x, ref.x, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(ours.P, ref.P, rtol=0, atol=1e-9)
+    assert np.isfinite(ours.nis) and ours.y.shape == (n,)
+
+
+def _epochs_static(target, n=200):
+    ranges = np.hypot(*(np.asarray(target) - ANCHORS).T)
+    ids = np.array([f"A{i}" for i in range(len(ANCHORS))], dtype=object)
+    return [Epoch(0.5 * k, ids, ranges, np.array([], dtype=object), np.array([])) for k in range(1, n)]
+
+
+def test_p_model_converges_to_a_static_target_with_noise_free_ranges():
+    target = np.array([4.0, 3.0])
+    epochs = _epochs_static(target)
+    F, Q = position_only(0.05)
+    measure = lambda e: Stacked([RangeModel(ANCHORS, np.full(4, 0.1))], e.ranges)   # noqa: E731
+    start = lambda e: np.array([6.0, 6.0])                                          # 3.6 m off  # noqa: E731
+    track = run_ekf(epochs, F, Q, np.eye(2) * 4.0, measure, start)
+    final = track[["x", "y"]].to_numpy()[-1]
+    assert np.linalg.norm(final - target) < 1e-6
+    assert np.linalg.norm(track[["x", "y"]].to_numpy()[1] - target) < 1.0
+
+
+def test_static_epochs_skip_the_prediction():
+    """With every epoch static the PV model never moves the state: only updates run."""
+    target = np.array([4.0, 3.0])
+    epochs = _epochs_static(target, 20)
+    F, Q = constant_velocity(0.5, 0.3)
+    no_measurement = lambda e: None  # noqa: E731
+    track = run_ekf(epochs, F, Q, np.eye(4), no_measurement, lambda e: target, static=np.ones(len(epochs), bool))
+    assert np.allclose(track[["x", "y"]].to_numpy(), target)
+
+
+def test_pva_model_integrates_the_input_and_the_bias():
+    F, B, Q = pva(0.5, 0.1, 0.01)
+    x = np.array([0.0, 0.0, 1.0, 0.0, 0.1, 0.0])                # bias 0.1 m/s^2 on x
+    u = np.array([0.3, 0.0])                                     # measured acceleration
+    nxt = F @ x + B @ u
+    a = 0.3 - 0.1                                                # true acceleration = measured - bias
+    assert nxt[:4] == pytest.approx([0.5 + 0.5 * a * 0.25, 0.0, 1.0 + a * 0.5, 0.0])
+    assert nxt[4:] == pytest.approx([0.1, 0.0])
+    assert Q[4, 4] == pytest.approx(0.01**2 * 0.5) and np.allclose(Q, Q.T)
+
+
+def test_motion_detection_labels_static_segments(campaign, simulated_run):
+    tables, _ = ingest_run(simulated_run, campaign)
+    ranges, rss = tables["ranges"], tables["rss"]
+    epochs = build_epochs(ranges, rss, 0.5)
+    times = np.array([e.t for e in epochs])
+    labels = static_epochs(tables["imu"], times, 0.5, 0.05, 4.0)
+    truth = tables["truth"]
+    s_now = np.interp(times, truth["t"], truth["s"])
+    s_before = np.interp(times - 0.5, truth["t"], truth["s"])
+    truly_static = np.abs(s_now - s_before) < 1e-3
+    assert truly_static.sum() > 10 and (~truly_static).sum() > 100
+    assert (labels == truly_static).mean() >= 0.95
+
+
+SETTINGS_A = dict(epoch_s=0.5, rows=[{"measurements": "toa", "uwb": "UWB=12"}, {"measurements": "rss", "zigbee": "ZigBee=21"},
+                                     {"measurements": "hybrid", "uwb": "UWB=12", "zigbee": "ZigBee=21"}],
+                  uwb_preliminary_filter=True, max_range_m=50.0, range_sigma_m=0.3, rss_calibration="configured",
+                  rss_model={"p0_dbm": -50.0, "path_loss_exponent": 3.0, "sigma_db": 5.0, "d0_m": 1.0},
+                  accel_sigma_mps2=0.3, initial_sigma_m=1.0, initial_speed_sigma_mps=0.3, motion_threshold_mps2=0.05,
+                  static_reference_s=4.0)
+
+
+def test_paper_a_on_a_simulated_run(campaign, simulated_run):
+    tables, _ = ingest_run(simulated_run, campaign)
+    settings = paper_a.Settings.from_config(SETTINGS_A)
+    settings.check_against(campaign)
+    metrics = paper_a.run_metrics(paper_a.run(tables, campaign, settings, SETTINGS_A["rss_model"]))
+    rmse = metrics.set_index(["table", "row"])["rmse"]
+    assert rmse[("Table I", "distance (UWB) | UWB=12")] < 0.6
+    assert rmse[("Table I", "RSS (ZigBee) | ZigBee=21")] < 2.5
+    paper = {"rmse_m": [{"row": "distance (UWB)", "anchors": "UWB=12", "I_constant": 0.464, "I_variable": 0.479,
+                         "II_constant": 0.377, "II_variable": 0.445}]}
+    rows = paper_a.results_rows(metrics.assign(run="r"), "newcom/constant", "constant", settings, paper)
+    assert rows[0]["paper_value"] == 0.464 and rows[0]["column"] == "constant"
+
+
+def test_paper_a_rejects_a_row_without_its_subset(campaign):
+    settings = paper_a.Settings.from_config({**SETTINGS_A, "rows": [{"measurements": "hybrid", "uwb": "UWB=12"}]})
+    with pytest.raises(Exception, match=r"experiments.paper_a.rows.0.zigbee"):
+        settings.check_against(campaign)
+
+
+def test_paper_c_models_on_a_simulated_cricket_run(tmp_path):
+    from wsnloc.campaign import Campaign
+    from wsnloc.io.cricket import ingest_run as ingest_cricket
+    from wsnloc.signal.resample import resample_imu
+    from wsnloc.sim.cricket import simulate_run
+    from wsnloc.sim.seeding import run_seed_sequence
+
+    from conftest import ROOT
+
+    cricket = Campaign.load(ROOT / "config" / "campaigns" / "cricket.yaml")
+    run = simulate_run(cricket, "speed_40", run_seed_sequence(5, "cricket", "speed_40", 1), tmp_path / "run")
+    tables, _ = ingest_cricket(run, cricket)
+    imu = resample_imu(tables["imu"], 5.0, 500.0, 0.1, 8.0)
+    settings = paper_c.Settings(epoch_s=0.5, table_1_subset="6: B1..B6", table_2_subsets=["3: B1,B3,B4", "6: B1..B6"],
+                                table_2_scenario="cricket/speed_40", range_sigma_m=0.05, max_range_m=12.0,
+                                p_sigma_m=0.15, pv_accel_sigma_mps2=0.3, pva_accel_sigma_mps2=0.1,
+                                pva_bias_walk_sigma=0.01, initial_sigma_m=0.5, initial_speed_sigma_mps=0.3,
+                                initial_bias_sigma_mps2=0.05, static_bias_s=4.0)
+    metrics = paper_c.run_metrics(paper_c.run(tables, imu, cricket, settings, settings.table_2_subsets))
+    assert set(metrics["model"]) == {"P", "PV", "PVA"} and len(metrics) == 6
+    assert metrics["rmse"].max() < 1.0
+    inputs = paper_c.epoch_inputs(imu, cricket, np.arange(10.5, 30.0, 0.5), settings)
+    assert inputs.shape == (39, 2) and np.isfinite(inputs).all()

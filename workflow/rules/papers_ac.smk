@@ -1,0 +1,50 @@
+# Papers A and C: the EKF family (one job per paper: every scenario and run inside it).
+PAPER_A = config["experiments"].get("paper_a")
+PAPER_C = config["experiments"].get("paper_c")
+PAPER_A_PAIRS = experiment_pairs(PAPER_A)
+PAPER_C_PAIRS = experiment_pairs(PAPER_C)
+
+
+rule paper_a:
+    input:
+        tables=[f"data/processed/{d}/{s}/tables" for d, s in PAPER_A_PAIRS],
+        campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_A_PAIRS}),
+        papers="config/papers.yaml",
+    output:
+        results="data/processed/paper_a/results.csv",
+        claims="data/processed/paper_a/claims.json",
+        cdf="data/processed/paper_a/figures/error_cdf.png",
+        anchors="data/processed/paper_a/figures/rmse_vs_anchors.png",
+    params:
+        settings=PAPER_A,
+        labels=[f"{d}/{s}" for d, s in PAPER_A_PAIRS],
+        campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in PAPER_A_PAIRS},
+    log:
+        "logs/paper_a/paper_a.log",
+    conda:
+        ENV
+    script:
+        "../scripts/paper_a.py"
+
+
+rule paper_c:
+    input:
+        tables=[f"data/processed/{d}/{s}/tables" for d, s in PAPER_C_PAIRS],
+        imu_5hz=[f"data/processed/{d}/{s}/imu_5hz" for d, s in PAPER_C_PAIRS],
+        campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_C_PAIRS}),
+        papers="config/papers.yaml",
+    output:
+        results="data/processed/paper_c/results.csv",
+        claims="data/processed/paper_c/claims.json",
+        histogram="data/processed/paper_c/figures/error_histogram.png",
+        anchors="data/processed/paper_c/figures/rmse_vs_anchors.png",
+    params:
+        settings=PAPER_C,
+        labels=[f"{d}/{s}" for d, s in PAPER_C_PAIRS],
+        campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in PAPER_C_PAIRS},
+    log:
+        "logs/paper_c/paper_c.log",
+    conda:
+        ENV
+    script:
+        "../scripts/paper_c.py"
