@@ -31,6 +31,7 @@ def numerical_jacobian(f, x, eps=1e-6):
 @pytest.mark.parametrize("state", [[2.0, 3.0], [2.0, 3.0, 0.3, -0.1], [5.5, 1.2, 0.0, 0.2, 0.01, -0.02]])
 @pytest.mark.parametrize("model", [
     RangeModel(ANCHORS, np.full(4, 0.3)),
+    RangeModel(ANCHORS, np.full(4, 0.3), dz_m=np.array([0.97, -0.5, 0.5, 0.0])),
     RssModel(ANCHORS, -45.0, 2.8, 4.0),
     Stacked([RangeModel(ANCHORS[:2], np.full(2, 0.3)), RssModel(ANCHORS[2:], -45.0, 2.8, 4.0)], np.zeros(4)),
 ])

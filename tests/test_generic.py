@@ -95,3 +95,42 @@ def test_real_dataset_converts_and_ingests(tmp_path, generic):
 def test_real_dataset_through_the_cli(tmp_path, capsys):
     assert main(["convert", "cucudasluv", str(REAL), str(tmp_path)]) == 0
     assert "los" in capsys.readouterr().out
+
+
+def test_generic_ekf_on_noise_free_ranges(tmp_path, generic):
+    from wsnloc.experiments import generic_ekf
+
+    anchors = np.array([[0.0, 0.0, 2.0], [20.0, 0.0, 0.5], [0.0, 20.0, 2.0], [20.0, 20.0, 0.5]])
+    (tmp_path / "anchors.csv").write_text("anchor_id,tech,x,y,z\n" + "".join(
+        f"A{i},uwb,{x},{y},{z}\n" for i, (x, y, z) in enumerate(anchors)))
+    t = np.arange(0.0, 60.0, 0.1)
+    path = np.column_stack([5 + 0.1 * t, 5 + 0.05 * t])
+    rows = []
+    for k, tk in enumerate(t):
+        i = k % 4
+        d = np.sqrt(np.sum((path[k] - anchors[i, :2]) ** 2) + (anchors[i, 2] - 1.0) ** 2)   # tag at 1.0 m
+        rows.append(f"{tk:.2f},A{i},{d:.6f}\n")
+    (tmp_path / "ranges.csv").write_text("t,anchor_id,range_m\n" + "".join(rows))
+    (tmp_path / "truth.csv").write_text("t,x,y\n" + "".join(f"{a:.2f},{x},{y}\n" for a, (x, y) in zip(t, path)))
+    tables, _ = ingest_run(tmp_path, generic)
+    spec = dict(epoch_s=0.5, max_range_m=100.0, range_sigma_m=0.05, accel_sigma_mps2=0.05, initial_sigma_m=1.0,
+                initial_speed_sigma_mps=0.2, rss_model={"p0_dbm": -60.0, "path_loss_exponent": 2.0, "sigma_db": 4.0})
+    metrics = generic_ekf.run_metrics(generic_ekf.run(tables, generic, spec, spec["rss_model"]))
+    assert list(metrics["variant"]) == ["PV EKF, ranges"]        # no RSS in this dataset
+    assert metrics["median"].iloc[0] < 0.05
+
+
+@needs_real
+def test_generic_ekf_on_the_real_dataset(tmp_path, generic):
+    from wsnloc.experiments import generic_ekf
+
+    runs = {}
+    for run_dir in convert_cucudasluv(REAL, tmp_path):
+        tables, _ = ingest_run(run_dir, generic)
+        runs[run_dir.parent.name] = (tables, generic)
+    spec = dict(epoch_s=0.5, max_range_m=100.0, range_sigma_m=0.3, accel_sigma_mps2=1.0, initial_sigma_m=1.0,
+                initial_speed_sigma_mps=1.0, rss_model={"p0_dbm": -60.0, "path_loss_exponent": 2.0, "sigma_db": 4.0})
+    models = generic_ekf.calibrations(runs, spec["rss_model"])
+    assert models["los"]["source"] == "fitted on nlos"
+    metrics = generic_ekf.run_metrics(generic_ekf.run(*runs["nlos"], spec, models["nlos"]))
+    assert len(metrics) == 2 and metrics["median"].max() < 1.5

@@ -1,8 +1,10 @@
-# Papers A and C: the EKF family (one job per paper: every scenario and run inside it).
+# Papers A and C, and the same EKF on other datasets (one job each: every scenario and run inside it).
 PAPER_A = config["experiments"].get("paper_a")
 PAPER_C = config["experiments"].get("paper_c")
 PAPER_A_PAIRS = experiment_pairs(PAPER_A)
 PAPER_C_PAIRS = experiment_pairs(PAPER_C)
+GENERIC_EKF = config["experiments"].get("generic_ekf")
+GENERIC_EKF_PAIRS = experiment_pairs(GENERIC_EKF)
 
 
 rule paper_a:
@@ -48,3 +50,21 @@ rule paper_c:
         ENV
     script:
         "../scripts/paper_c.py"
+
+
+rule generic_ekf:
+    input:
+        tables=[f"data/processed/{d}/{s}/tables" for d, s in GENERIC_EKF_PAIRS],
+        campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in GENERIC_EKF_PAIRS}),
+    output:
+        results="data/processed/generic_ekf/results.csv",
+    params:
+        settings=GENERIC_EKF,
+        labels=[f"{d}/{s}" for d, s in GENERIC_EKF_PAIRS],
+        campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in GENERIC_EKF_PAIRS},
+    log:
+        "logs/generic_ekf/generic_ekf.log",
+    conda:
+        ENV
+    script:
+        "../scripts/generic_ekf.py"

@@ -32,6 +32,7 @@ rule report:
             if PAPER_C_PAIRS
             else []
         ),
+        generic_ekf=["data/processed/generic_ekf/results.csv"] if GENERIC_EKF_PAIRS else [],
         paper_b=(
             [
                 "data/processed/paper_b/results.csv",

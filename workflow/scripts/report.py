@@ -19,7 +19,7 @@ log = script_logger(sm.log[0], "report")
 config = sm.params.config
 
 summaries = [json.loads(Path(p).read_text()) for p in sm.input.summaries]
-paper_outputs = list(sm.input.paper_a) + list(sm.input.paper_b) + list(sm.input.paper_c) + list(sm.input.paper_d)
+paper_outputs = list(sm.input.generic_ekf) + list(sm.input.paper_a) + list(sm.input.paper_b) + list(sm.input.paper_c) + list(sm.input.paper_d)
 result_files = list(sm.input.results) + [p for p in paper_outputs if p.endswith("results.csv")]
 all_results = pd.concat([results.read(p) for p in result_files], ignore_index=True)
 results.write(all_results, sm.output.results)
@@ -40,6 +40,7 @@ final_results = results.read(sm.output.results)
 context = build_context(config, summaries, final_results, scenario_figures, floor_plans)
 papers = read_yaml(sm.input.papers)
 context["papers"] = []
+context["generic_ekf"] = final_results[final_results["experiment"] == "generic"].to_dict(orient="records")
 
 
 def figure_uris(outputs, names):

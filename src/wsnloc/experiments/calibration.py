@@ -11,9 +11,13 @@ from wsnloc.campaign import Campaign
 from wsnloc.metrics.ranging import fit_path_loss, rss_with_distance
 
 
-def calibrate(rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign, d0_m: float) -> dict:
-    """P0, n and sigma fitted on one run with ground truth (all links, walls included)."""
-    samples = rss_with_distance(rss, truth, campaign)
+def calibrate(rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign, d0_m: float,
+              anchors: pd.DataFrame | None = None) -> dict:
+    """P0, n and sigma fitted on one run with ground truth (all links, walls included).
+
+    `anchors`: the run's own anchors table (generic datasets); default the campaign's.
+    """
+    samples = rss_with_distance(rss, truth, campaign, anchors)
     fit = fit_path_loss(samples["rss_dbm"], samples["true_distance_m"], d0_m)
     return {"p0_dbm": fit["P0_dBm"], "path_loss_exponent": fit["n"], "sigma_db": fit["sigma_dB"], "d0_m": d0_m}
 

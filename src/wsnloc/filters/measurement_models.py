@@ -3,6 +3,8 @@
 Anchors a_i = (x_i, y_i); the position occupies the first two state entries;
 d_i = ||p - a_i|| (floored at 1 mm to keep the Jacobian finite).
 - TOA range (paper A eq. for h_TOA):   h_i = d_i,  H_i = [(x - x_i)/d_i, (y - y_i)/d_i, 0 ...]
+  with a known height difference dz_i between anchor and tag (3-D ranges, 2-D state):
+  h_i = sqrt(d_i^2 + dz_i^2),  H_i = [(x - x_i)/h_i, (y - y_i)/h_i, 0 ...]
 - RSS (log-normal shadowing):          h_i = P0 - 10 n log10(d_i / d0)
                                        H_i = [-10 n / ln10 (x - x_i)/d_i^2, -10 n / ln10 (y - y_i)/d_i^2, 0 ...]
 - hybrid: the two stacked, R = blockdiag(R_TOA, R_RSS).
@@ -27,14 +29,16 @@ def _geometry(x, anchors):
 class RangeModel:
     anchors: np.ndarray        # (m, 2)
     sigma_m: np.ndarray        # (m,) range noise std
+    dz_m: np.ndarray | None = None   # (m,) anchor height - tag height; None: 2-D ranges
 
     def h(self, x) -> np.ndarray:
-        return _geometry(x, self.anchors)[1]
+        d = _geometry(x, self.anchors)[1]
+        return d if self.dz_m is None else np.sqrt(d**2 + self.dz_m**2)
 
     def jacobian(self, x) -> np.ndarray:
-        diff, d = _geometry(x, self.anchors)
+        diff, _ = _geometry(x, self.anchors)
         H = np.zeros((len(self.anchors), len(x)))
-        H[:, :2] = diff / d[:, None]
+        H[:, :2] = diff / np.maximum(self.h(x), MIN_DISTANCE)[:, None]
         return H
 
     def R(self) -> np.ndarray:
