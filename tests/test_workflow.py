@@ -85,3 +85,14 @@ def test_bad_config_stops_before_any_job(workdir, override, key):
     assert result.returncode != 0
     assert f"config key {key}" in output
     assert "Building DAG" not in output
+
+
+def test_report_in_a_headless_browser(workdir):
+    from wsnloc.report.browser_check import browser_available, check_report
+
+    reason = browser_available()
+    if reason:
+        pytest.skip(f"headless browser check unavailable: {reason}")
+    outcome = check_report(workdir / "reports" / "index.html", workdir / "reports" / "screenshot.png")
+    assert outcome["problems"] == [] and outcome["images"] > 10
+    assert (workdir / "reports" / "screenshot.png").stat().st_size > 10_000

@@ -31,6 +31,7 @@ rule paper_b_summary:
         claims="data/processed/paper_b/claims.json",
         tracks="data/processed/paper_b/figures/trajectories.png",
         errors="data/processed/paper_b/figures/error_over_time.png",
+        cdf="data/processed/paper_b/figures/error_cdf.png",
     params:
         labels=[f"{d}/{s}" for d, s in PAPER_B_PAIRS],
         simulated=[f"{d}/{s}" for d, s in experiment_pairs(PAPER_B, "simulation_scenarios")],

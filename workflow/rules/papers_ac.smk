@@ -16,6 +16,7 @@ rule paper_a:
         results="data/processed/paper_a/results.csv",
         claims="data/processed/paper_a/claims.json",
         cdf="data/processed/paper_a/figures/error_cdf.png",
+        tracks="data/processed/paper_a/figures/trajectories.png",
         anchors="data/processed/paper_a/figures/rmse_vs_anchors.png",
     params:
         settings=PAPER_A,
@@ -39,6 +40,8 @@ rule paper_c:
         results="data/processed/paper_c/results.csv",
         claims="data/processed/paper_c/claims.json",
         histogram="data/processed/paper_c/figures/error_histogram.png",
+        cdf="data/processed/paper_c/figures/error_cdf.png",
+        tracks="data/processed/paper_c/figures/trajectories.png",
         anchors="data/processed/paper_c/figures/rmse_vs_anchors.png",
     params:
         settings=PAPER_C,

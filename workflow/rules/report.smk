@@ -17,6 +17,7 @@ rule report:
                 "data/processed/paper_a/results.csv",
                 "data/processed/paper_a/claims.json",
                 "data/processed/paper_a/figures/error_cdf.png",
+                "data/processed/paper_a/figures/trajectories.png",
                 "data/processed/paper_a/figures/rmse_vs_anchors.png",
             ]
             if PAPER_A_PAIRS
@@ -27,6 +28,8 @@ rule report:
                 "data/processed/paper_c/results.csv",
                 "data/processed/paper_c/claims.json",
                 "data/processed/paper_c/figures/error_histogram.png",
+                "data/processed/paper_c/figures/error_cdf.png",
+                "data/processed/paper_c/figures/trajectories.png",
                 "data/processed/paper_c/figures/rmse_vs_anchors.png",
             ]
             if PAPER_C_PAIRS
@@ -39,6 +42,7 @@ rule report:
                 "data/processed/paper_b/claims.json",
                 "data/processed/paper_b/figures/trajectories.png",
                 "data/processed/paper_b/figures/error_over_time.png",
+                "data/processed/paper_b/figures/error_cdf.png",
             ]
             if PAPER_B_PAIRS
             else []

@@ -37,5 +37,6 @@ results.write(rows, sm.output.results)
 res = results.read(sm.output.results)
 Path(sm.output.claims).write_text(json.dumps({"claims": paper_a.claims(res, settings)}, indent=1))
 Path(sm.output.cdf).write_bytes(figures.error_cdf(paper_a.cdf_panels(estimates)))
+Path(sm.output.tracks).write_bytes(figures.trajectories(paper_a.trajectory_panels(estimates)))
 Path(sm.output.anchors).write_bytes(figures.rmse_vs_anchors(paper_a.anchor_curves(res, settings),
                                                              "Paper A: RMSE against the number of anchors"))

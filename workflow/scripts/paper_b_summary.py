@@ -25,5 +25,6 @@ Path(sm.output.claims).write_text(json.dumps({"claims": claims}, indent=1))
 
 estimates = {label: tables.read(p) for label, p in zip(labels, sm.input.estimates)}
 Path(sm.output.tracks).write_bytes(figures.trajectories(paper_b.trajectory_panels(estimates)))
+Path(sm.output.cdf).write_bytes(figures.error_cdf(paper_b.cdf_panels(estimates), xmax=5.0))
 Path(sm.output.errors).write_bytes(figures.error_over_time(paper_b.error_panels(estimates)))
 log.info("paper B summary over %s", labels)

@@ -3,6 +3,7 @@
 import json
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from wsnloc import results
@@ -18,7 +19,7 @@ sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "paper_c")
 settings = paper_c.Settings.from_config(sm.params.settings)
 paper = read_yaml(sm.input.papers)["C"]
-rows, speeds, histogram = [], [], {}
+rows, speeds, histogram, cdf, tracks = [], [], {}, {}, {}
 for label, tables_dir, imu_dir in zip(sm.params.labels, sm.input.tables, sm.input.imu_5hz):
     campaign = Campaign.load(sm.params.campaign_of[label])
     settings.check_against(campaign)
@@ -29,6 +30,14 @@ for label, tables_dir, imu_dir in zip(sm.params.labels, sm.input.tables, sm.inpu
         imu = tables.read(Path(imu_dir) / f"{name}.parquet")
         est = paper_c.run(run_tables, imu, campaign, settings, subsets)
         metrics.append(paper_c.run_metrics(est).assign(run=name))
+        for model in paper_c.MODELS:
+            sel = est[(est["model"] == model) & (est["subset"] == settings.table_1_subset)]
+            cdf.setdefault(label, {}).setdefault(model, []).append(sel["error_m"].to_numpy())
+        if label == settings.table_2_scenario and not tracks:
+            tracks[f"{label}, {name}"] = (
+                est[(est["model"] == "P") & (est["subset"] == settings.table_1_subset)][["true_x", "true_y"]]
+                .rename(columns={"true_x": "x", "true_y": "y"}),
+                {m: est[(est["model"] == m) & (est["subset"] == settings.table_1_subset)] for m in paper_c.MODELS})
         if label == settings.table_2_scenario:
             for model in paper_c.MODELS:
                 sel = est[(est["model"] == model) & (est["subset"] == settings.table_1_subset)]
@@ -43,5 +52,8 @@ Path(sm.output.claims).write_text(json.dumps({"claims": paper_c.claims(res, spee
 Path(sm.output.histogram).write_bytes(figures.error_histograms(
     {k: pd.Series(dtype=float) if not v else pd.concat(map(pd.Series, v)) for k, v in histogram.items()},
     "Paper C: position error per model, all runs (their Fig. 4b)"))
+Path(sm.output.cdf).write_bytes(figures.error_cdf(
+    {label: {m: np.concatenate(v) for m, v in models.items()} for label, models in cdf.items()}, xmax=1.5))
+Path(sm.output.tracks).write_bytes(figures.trajectories(tracks))
 Path(sm.output.anchors).write_bytes(figures.rmse_vs_anchors(paper_c.anchor_curves(res, settings),
                                                              "Paper C: RMSE against the number of beacons"))

@@ -51,19 +51,19 @@ if sm.input.paper_a:
     outputs = {Path(p).name: Path(p) for p in sm.input.paper_a}
     context["papers"].append(paper_a_section(
         final_results, json.loads(outputs["claims.json"].read_text()),
-        figure_uris(outputs, ("error_cdf", "rmse_vs_anchors")), papers["A"], list(sm.params.paper_a_labels),
+        figure_uris(outputs, ("error_cdf", "trajectories", "rmse_vs_anchors")), papers["A"], list(sm.params.paper_a_labels),
         config["experiments"]["paper_a"]))
 if sm.input.paper_b:
     outputs = {Path(p).name: Path(p) for p in sm.input.paper_b}
     context["papers"].append(paper_b_section(
         final_results, json.loads(outputs["claims.json"].read_text()),
-        figure_uris(outputs, ("trajectories", "error_over_time")), papers["B"], list(sm.params.paper_b_labels),
+        figure_uris(outputs, ("trajectories", "error_over_time", "error_cdf")), papers["B"], list(sm.params.paper_b_labels),
         config["experiments"]["paper_b"]))
 if sm.input.paper_c:
     outputs = {Path(p).name: Path(p) for p in sm.input.paper_c}
     context["papers"].append(paper_c_section(
         final_results, json.loads(outputs["claims.json"].read_text()),
-        figure_uris(outputs, ("error_histogram", "rmse_vs_anchors")), papers["C"], list(sm.params.paper_c_labels),
+        figure_uris(outputs, ("error_histogram", "error_cdf", "trajectories", "rmse_vs_anchors")), papers["C"], list(sm.params.paper_c_labels),
         config["experiments"]["paper_c"]))
 if sm.input.paper_d:
     outputs = {Path(p).name: Path(p) for p in sm.input.paper_d}

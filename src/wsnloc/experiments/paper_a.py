@@ -232,3 +232,18 @@ def anchor_curves(res: pd.DataFrame, settings: Settings) -> dict:
             curves[key][0].append(count)
             curves[key][1].append(r.value)
     return {k: tuple(map(list, zip(*sorted(zip(*v))))) for k, v in curves.items()}
+
+
+def trajectory_panels(estimates: dict[str, pd.DataFrame]) -> dict:
+    """First run of each scenario: truth and the first TOA, RSS and hybrid rows (Table I), hybrid (Table II)."""
+    panels = {}
+    for label, est in estimates.items():
+        first = est[est["run"] == est["run"].iloc[0]]
+        rows = list(dict.fromkeys(first["row"]))
+        picks = [(r, "Table I") for r in (next((x for x in rows if x.startswith(k)), None)
+                                          for k in ("distance", "RSS", "hybrid")) if r]
+        picks += [(next((x for x in rows if x.startswith("hybrid")), rows[0]), "Table II")]
+        tracks = {f"{r} ({t[6:]})": first[(first["row"] == r) & (first["table"] == t)] for r, t in picks}
+        truth = next(iter(tracks.values()))[["true_x", "true_y"]].rename(columns={"true_x": "x", "true_y": "y"})
+        panels[f"{label}, {first['run'].iloc[0]}"] = (truth, tracks)
+    return panels

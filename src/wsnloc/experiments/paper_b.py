@@ -182,3 +182,9 @@ def error_panels(estimates: dict[str, pd.DataFrame]) -> dict:
     return {f"{label}, {_first_run(est)['run'].iloc[0]}":
             {METHODS[m]: _first_run(est)[_first_run(est)["method"] == m][["t", "error_m"]] for m in FIGURE_METHODS}
             for label, est in estimates.items()}
+
+
+def cdf_panels(estimates: dict[str, pd.DataFrame]) -> dict:
+    """Error samples (all runs) per scenario and method."""
+    return {label: {METHODS[m]: est.loc[est["method"] == m, "error_m"].to_numpy() for m in METHODS}
+            for label, est in estimates.items()}
