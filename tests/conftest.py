@@ -1,8 +1,12 @@
 """Shared fixtures: the repository paths, the Newcom++ campaign, one simulated run."""
 
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
+import yaml
 
 from wsnloc.campaign import Campaign
 from wsnloc.sim.newcom import simulate_run
@@ -22,3 +26,30 @@ def simulated_run(campaign, tmp_path_factory) -> Path:
     """One simulated run of the constant-speed scenario (read-only for tests)."""
     out = tmp_path_factory.mktemp("sim") / "run-01"
     return simulate_run(campaign, "constant", run_seed_sequence(7, "newcom", "constant", 1), out)
+
+
+def small_workflow(target: Path) -> Path:
+    """A copy of the workflow with a small configuration: 2 runs, one scenario per dataset."""
+    target.mkdir(parents=True, exist_ok=True)
+    shutil.copy(ROOT / "Snakefile", target)
+    shutil.copytree(ROOT / "workflow", target / "workflow")
+    shutil.copytree(ROOT / "config", target / "config")
+    config = yaml.safe_load((target / "config" / "config.yaml").read_text())
+    config["runs"] = 2
+    config["datasets"]["newcom"]["scenarios"] = ["constant"]
+    config["datasets"]["cricket"]["scenarios"] = ["speed_40"]
+    experiments = config["experiments"]
+    experiments["paper_d"]["scenarios"] = ["newcom/constant"]
+    experiments["paper_d"]["cost_iterations"] = 500
+    experiments["paper_b"]["scenarios"] = ["newcom/constant"]
+    experiments["paper_b"]["simulation_scenarios"] = []
+    experiments["paper_a"]["scenarios"] = ["newcom/constant"]
+    experiments["paper_c"]["scenarios"] = ["cricket/speed_40"]
+    experiments["paper_c"]["table_2_scenario"] = "cricket/speed_40"
+    (target / "config" / "config.yaml").write_text(yaml.safe_dump(config))
+    return target
+
+
+def snakemake(cwd, *args, timeout=900):
+    return subprocess.run([sys.executable, "-m", "snakemake", *args], cwd=cwd, capture_output=True, text=True,
+                          timeout=timeout)

@@ -5,40 +5,15 @@ nothing to do, a damaged raw line ends up in quarantine and is counted in the re
 and a bad config value stops the run before any job with the key named.
 """
 
-import shutil
-import subprocess
-import sys
-
 import pandas as pd
 import pytest
-import yaml
 
-from conftest import ROOT
-
-
-def snakemake(cwd, *args):
-    return subprocess.run([sys.executable, "-m", "snakemake", *args], cwd=cwd, capture_output=True, text=True,
-                          timeout=600)
+from conftest import small_workflow, snakemake
 
 
 @pytest.fixture(scope="module")
 def workdir(tmp_path_factory):
-    work = tmp_path_factory.mktemp("workflow")
-    shutil.copy(ROOT / "Snakefile", work)
-    shutil.copytree(ROOT / "workflow", work / "workflow")
-    shutil.copytree(ROOT / "config", work / "config")
-    config = yaml.safe_load((work / "config" / "config.yaml").read_text())
-    config["runs"] = 2
-    config["datasets"]["newcom"]["scenarios"] = ["constant"]
-    config["datasets"]["cricket"]["scenarios"] = ["speed_40"]
-    config["experiments"]["paper_d"]["scenarios"] = ["newcom/constant"]
-    config["experiments"]["paper_d"]["cost_iterations"] = 500
-    config["experiments"]["paper_b"]["scenarios"] = ["newcom/constant"]
-    config["experiments"]["paper_b"]["simulation_scenarios"] = []
-    config["experiments"]["paper_a"]["scenarios"] = ["newcom/constant"]
-    config["experiments"]["paper_c"]["scenarios"] = ["cricket/speed_40"]
-    config["experiments"]["paper_c"]["table_2_scenario"] = "cricket/speed_40"
-    (work / "config" / "config.yaml").write_text(yaml.safe_dump(config))
+    work = small_workflow(tmp_path_factory.mktemp("workflow"))
     result = snakemake(work, "--cores", "2")
     assert result.returncode == 0, result.stderr[-3000:]
     return work

@@ -28,6 +28,7 @@ rule paper_d_summary:
     output:
         results="data/processed/paper_d/results.csv",
         claims="data/processed/paper_d/claims.json",
+        cost="data/processed/paper_d/cost.json",
         cdf="data/processed/paper_d/figures/error_cdf.png",
         tracks="data/processed/paper_d/figures/trajectories.png",
     params:

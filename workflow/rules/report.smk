@@ -51,6 +51,7 @@ rule report:
             [
                 "data/processed/paper_d/results.csv",
                 "data/processed/paper_d/claims.json",
+                "data/processed/paper_d/cost.json",
                 "data/processed/paper_d/figures/error_cdf.png",
                 "data/processed/paper_d/figures/trajectories.png",
             ]

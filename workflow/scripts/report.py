@@ -67,8 +67,10 @@ if sm.input.paper_c:
         config["experiments"]["paper_c"]))
 if sm.input.paper_d:
     outputs = {Path(p).name: Path(p) for p in sm.input.paper_d}
+    claims = json.loads(outputs["claims.json"].read_text())
+    claims["claims"] += json.loads(outputs["cost.json"].read_text())["claims"]
     context["papers"].append(paper_d_section(
-        final_results, json.loads(outputs["claims.json"].read_text()),
+        final_results, claims,
         figure_uris(outputs, ("error_cdf", "trajectories")),
         papers["D"], list(sm.params.paper_d_labels), config["experiments"]["paper_d"]))
 html = render(sm.input.template, context)
