@@ -26,26 +26,28 @@ class KalmanFilter:
         self.S = np.eye(self.H.shape[0])
         self.K = np.zeros((len(self.x), self.H.shape[0]))
         self.nis = float("nan")
+        self._eye = np.eye(len(self.x))
 
     def predict(self, u=None, B=None) -> None:
         self.x = self.F @ self.x
         if u is not None:
-            self.x = self.x + np.asarray(B, dtype=float) @ np.asarray(u, dtype=float)
+            self.x = self.x + B @ u
         self.P = self.F @ self.P @ self.F.T + self.Q
 
     def update(self, z, H=None, R=None, hx=None) -> None:
         """Measurement update; `hx` is the predicted measurement h(x) of a linearised model
         (default H x). The measurement size may change from call to call."""
-        H = self.H if H is None else np.asarray(H, dtype=float)
-        R = self.R if R is None else np.asarray(R, dtype=float)
-        predicted = H @ self.x if hx is None else np.asarray(hx, dtype=float)
-        self.y = np.asarray(z, dtype=float) - predicted
-        self.S = H @ self.P @ H.T + R
-        self.K = np.linalg.solve(self.S.T, (self.P @ H.T).T).T        # P H^T S^-1
+        H = self.H if H is None else H
+        R = self.R if R is None else R
+        self.y = z - (H @ self.x if hx is None else hx)
+        PHt = self.P @ H.T
+        self.S = H @ PHt + R
+        S_inv = np.linalg.inv(self.S)
+        self.K = PHt @ S_inv
         self.x = self.x + self.K @ self.y
-        joseph = np.eye(len(self.x)) - self.K @ H
+        joseph = self._eye - self.K @ H
         self.P = joseph @ self.P @ joseph.T + self.K @ R @ self.K.T
-        self.nis = float(self.y @ np.linalg.solve(self.S, self.y))
+        self.nis = float(self.y @ S_inv @ self.y)
 
 
 class ExtendedKalmanFilter(KalmanFilter):
