@@ -39,40 +39,26 @@ for name, spec in config["datasets"].items():
 final_results = results.read(sm.output.results)
 context = build_context(config, summaries, final_results, scenario_figures, floor_plans)
 papers = read_yaml(sm.input.papers)
-context["papers"] = []
 context["generic_ekf"] = final_results[final_results["experiment"] == "generic"].to_dict(orient="records")
 
-
-def figure_uris(outputs, names):
-    return {name: png_data_uri(outputs[f"{name}.png"].read_bytes()) for name in names}
-
-
-if sm.input.paper_a:
-    outputs = {Path(p).name: Path(p) for p in sm.input.paper_a}
-    context["papers"].append(paper_a_section(
-        final_results, json.loads(outputs["claims.json"].read_text()),
-        figure_uris(outputs, ("error_cdf", "trajectories", "rmse_vs_anchors")), papers["A"], list(sm.params.paper_a_labels),
-        config["experiments"]["paper_a"]))
-if sm.input.paper_b:
-    outputs = {Path(p).name: Path(p) for p in sm.input.paper_b}
-    context["papers"].append(paper_b_section(
-        final_results, json.loads(outputs["claims.json"].read_text()),
-        figure_uris(outputs, ("trajectories", "error_over_time", "error_cdf")), papers["B"], list(sm.params.paper_b_labels),
-        config["experiments"]["paper_b"]))
-if sm.input.paper_c:
-    outputs = {Path(p).name: Path(p) for p in sm.input.paper_c}
-    context["papers"].append(paper_c_section(
-        final_results, json.loads(outputs["claims.json"].read_text()),
-        figure_uris(outputs, ("error_histogram", "error_cdf", "trajectories", "rmse_vs_anchors")), papers["C"], list(sm.params.paper_c_labels),
-        config["experiments"]["paper_c"]))
-if sm.input.paper_d:
-    outputs = {Path(p).name: Path(p) for p in sm.input.paper_d}
+SECTIONS = {   # paper: (section builder, figure names, labels)
+    "A": (paper_a_section, ("error_cdf", "trajectories", "rmse_vs_anchors"), sm.params.paper_a_labels),
+    "B": (paper_b_section, ("trajectories", "error_over_time", "error_cdf"), sm.params.paper_b_labels),
+    "C": (paper_c_section, ("error_histogram", "error_cdf", "trajectories", "rmse_vs_anchors"), sm.params.paper_c_labels),
+    "D": (paper_d_section, ("error_cdf", "trajectories"), sm.params.paper_d_labels),
+}
+context["papers"] = []
+for paper, (builder, figure_names, labels) in SECTIONS.items():
+    files = getattr(sm.input, f"paper_{paper.lower()}")
+    if not files:
+        continue
+    outputs = {Path(p).name: Path(p) for p in files}
     claims = json.loads(outputs["claims.json"].read_text())
-    claims["claims"] += json.loads(outputs["cost.json"].read_text())["claims"]
-    context["papers"].append(paper_d_section(
-        final_results, claims,
-        figure_uris(outputs, ("error_cdf", "trajectories")),
-        papers["D"], list(sm.params.paper_d_labels), config["experiments"]["paper_d"]))
+    if "cost.json" in outputs:                       # paper D's wall-clock cost claim
+        claims["claims"] += json.loads(outputs["cost.json"].read_text())["claims"]
+    figures_uri = {name: png_data_uri(outputs[f"{name}.png"].read_bytes()) for name in figure_names}
+    context["papers"].append(builder(final_results, claims, figures_uri, papers[paper], list(labels),
+                                     config["experiments"][f"paper_{paper.lower()}"]))
 html = render(sm.input.template, context)
 Path(sm.output.html).write_text(html, encoding="utf-8")
 log.info("report: %d bytes, %d results rows", len(html), len(all_results))

@@ -19,6 +19,14 @@ def _field(name: str, kind: pa.DataType, unit: str, description: str, nullable: 
 
 _LINE = _field("line", pa.int32(), "1", "line number in the raw file (1-based), for traceability")
 
+_ESTIMATE = [   # position estimate and its error, shared by the estimate tables
+    _field("x", pa.float64(), "m", "estimated east coordinate (NaN: no fix)", nullable=True),
+    _field("y", pa.float64(), "m", "estimated north coordinate (NaN: no fix)", nullable=True),
+    _field("true_x", pa.float64(), "m", "truth at t", nullable=True),
+    _field("true_y", pa.float64(), "m", "truth at t", nullable=True),
+    _field("error_m", pa.float64(), "m", "Euclidean position error", nullable=True),
+]
+
 SCHEMAS: dict[str, pa.Schema] = {
     "ranges": pa.schema([
         _field("t", pa.float64(), "s", "receive time on the logger clock"),
@@ -70,21 +78,13 @@ SCHEMAS: dict[str, pa.Schema] = {
         _field("localizer", pa.string(), "", "minmax | multilateration"),
         _field("technique", pa.string(), "", "narrowband | uwb | pmix | fmix"),
         _field("stage", pa.string(), "", "raw fix | velocity tracker | kalman filter"),
-        _field("x", pa.float64(), "m", "estimated east coordinate (NaN: no fix)", nullable=True),
-        _field("y", pa.float64(), "m", "estimated north coordinate (NaN: no fix)", nullable=True),
-        _field("true_x", pa.float64(), "m", "truth at t", nullable=True),
-        _field("true_y", pa.float64(), "m", "truth at t", nullable=True),
-        _field("error_m", pa.float64(), "m", "Euclidean position error", nullable=True),
+        *_ESTIMATE,
     ]),
     "estimates_paper_b": pa.schema([
         _field("run", pa.string(), "", "run name"),
         _field("t", pa.float64(), "s", "estimate time"),
         _field("method", pa.string(), "", "uwb | imu | sskf | kf"),
-        _field("x", pa.float64(), "m", "estimated east coordinate (NaN: no fix)", nullable=True),
-        _field("y", pa.float64(), "m", "estimated north coordinate (NaN: no fix)", nullable=True),
-        _field("true_x", pa.float64(), "m", "truth at t", nullable=True),
-        _field("true_y", pa.float64(), "m", "truth at t", nullable=True),
-        _field("error_m", pa.float64(), "m", "Euclidean position error", nullable=True),
+        *_ESTIMATE,
     ]),
     "quarantine": pa.schema([
         _field("file", pa.string(), "", "raw file the line came from"),
