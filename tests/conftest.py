@@ -28,14 +28,16 @@ def simulated_run(campaign, tmp_path_factory) -> Path:
     return simulate_run(campaign, "constant", run_seed_sequence(7, "newcom", "constant", 1), out)
 
 
-def small_workflow(target: Path) -> Path:
+def small_workflow(target: Path, shards: int = 1) -> Path:
     """A copy of the workflow with a small configuration: 2 runs, one scenario per dataset."""
     target.mkdir(parents=True, exist_ok=True)
     shutil.copy(ROOT / "Snakefile", target)
     shutil.copytree(ROOT / "workflow", target / "workflow")
     shutil.copytree(ROOT / "config", target / "config")
+    shutil.copytree(ROOT / "profiles", target / "profiles")
     config = yaml.safe_load((target / "config" / "config.yaml").read_text())
     config["runs"] = 2
+    config["shards"] = shards
     config["datasets"]["newcom"]["scenarios"] = ["constant"]
     config["datasets"]["cricket"]["scenarios"] = ["speed_40"]
     experiments = config["experiments"]

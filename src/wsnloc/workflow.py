@@ -42,6 +42,33 @@ def raw_run_dir(config: dict, dataset: str, scenario: str, run: str) -> str:
     return f"{raw_root(config, dataset)}/{scenario}/{run}"
 
 
+def shards_of(config: dict, dataset: str, scenario: str) -> dict[str, list[str]]:
+    """The scenario's runs split into `config['shards']` contiguous groups (no empty group).
+
+    Each group is one simulate / ingest / resample job: 1 shard on a laptop, many on a
+    cluster. Shard names are shard-1, shard-2, ...
+    """
+    if config["datasets"][dataset]["source"] == "simulate":
+        return simulated_shards(config)
+    runs = dataset_runs(config, dataset, scenario)
+    count = max(1, min(config.get("shards", 1), len(runs)))
+    bounds = [round(i * len(runs) / count) for i in range(count + 1)]
+    return {f"shard-{k + 1}": runs[bounds[k]:bounds[k + 1]] for k in range(count)}
+
+
+def simulated_shards(config: dict) -> dict[str, list[str]]:
+    """Shards of a simulated scenario (all simulated scenarios have the same runs)."""
+    runs = simulated_runs(config)
+    count = max(1, min(config.get("shards", 1), len(runs)))
+    bounds = [round(i * len(runs) / count) for i in range(count + 1)]
+    return {f"shard-{k + 1}": runs[bounds[k]:bounds[k + 1]] for k in range(count)}
+
+
+def processed_dirs(config: dict, dataset: str, scenario: str, stage: str) -> list[str]:
+    """Per-shard folders of one stage ('tables' or 'imu_5hz') of a scenario."""
+    return [f"data/processed/{dataset}/{scenario}/{stage}/{shard}" for shard in shards_of(config, dataset, scenario)]
+
+
 def scenario_pairs(config: dict) -> list[tuple[str, str]]:
     return [(d, s) for d, spec in config["datasets"].items() for s in spec["scenarios"]]
 

@@ -2,7 +2,15 @@
 from pathlib import Path
 
 
-from wsnloc.workflow import dataset_runs, raw_run_dir, scenario_pairs, simulated_runs
+from wsnloc.workflow import (
+    dataset_runs,
+    processed_dirs,
+    raw_run_dir,
+    scenario_pairs,
+    shards_of,
+    simulated_runs,
+    simulated_shards,
+)
 
 ENV = "../envs/wsnloc.yaml"
 RAW_FILES = {"newcom": ["uwb.log", "zigbee.log", "imu.log", "truth.log"],
@@ -14,13 +22,27 @@ PAIRS = scenario_pairs(config)
 wildcard_constraints:
     dataset="|".join(config["datasets"]) or "^$",
     scenario=r"[A-Za-z0-9_-]+",
+    shard=r"shard-\d+",
+
+
+def shard_runs(wildcards):
+    """The runs of one shard of a scenario."""
+    return shards_of(config, wildcards.dataset, wildcards.scenario)[wildcards.shard]
+
+
+def tables_of(dataset, scenario):
+    return processed_dirs(config, dataset, scenario, "tables")
+
+
+def imu_of(dataset, scenario):
+    return processed_dirs(config, dataset, scenario, "imu_5hz")
 
 
 def raw_inputs(wildcards):
-    """Raw files of every run of one scenario (simulated or real; generic: what is there)."""
+    """Raw files of the runs of one shard (simulated or real; generic: what is there)."""
     dataset = config["datasets"][wildcards.dataset]
     files = []
-    for run in dataset_runs(config, wildcards.dataset, wildcards.scenario):
+    for run in shard_runs(wildcards):
         run_dir = raw_run_dir(config, wildcards.dataset, wildcards.scenario, run)
         if dataset["format"] == "generic":
             files += sorted(str(p) for p in Path(run_dir).iterdir() if p.suffix in (".csv", ".parquet"))
@@ -47,3 +69,7 @@ def experiment_pairs(spec, key="scenarios"):
 def scenario_outputs(pattern):
     """Expand a per-scenario path pattern over every (dataset, scenario) pair."""
     return [pattern.format(dataset=d, scenario=s) for d, s in PAIRS]
+
+
+def all_tables(pairs):
+    return [p for d, s in pairs for p in tables_of(d, s)]

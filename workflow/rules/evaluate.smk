@@ -3,8 +3,8 @@
 
 rule summarize_data:
     input:
-        tables="data/processed/{dataset}/{scenario}/tables",
-        imu_5hz="data/processed/{dataset}/{scenario}/imu_5hz",
+        tables=lambda w: tables_of(w.dataset, w.scenario),
+        imu_5hz=lambda w: imu_of(w.dataset, w.scenario),
         campaign=campaign_file,
     output:
         summary="data/processed/{dataset}/{scenario}/data_summary.json",

@@ -1,4 +1,5 @@
-# Raw logs -> one Parquet file per run and table, with a quarantine of unusable lines.
+# Raw logs -> one Parquet file per run and table, with a quarantine of unusable lines;
+# one job per shard of the scenario's runs.
 
 
 rule ingest:
@@ -6,17 +7,14 @@ rule ingest:
         raw=raw_inputs,
         campaign=campaign_file,
     output:
-        tables=directory("data/processed/{dataset}/{scenario}/tables"),
+        tables=directory("data/processed/{dataset}/{scenario}/tables/{shard}"),
     params:
         format=lambda w: config["datasets"][w.dataset]["format"],
-        runs=lambda w: dataset_runs(config, w.dataset, w.scenario),
-        raw_dirs=lambda w: [
-            raw_run_dir(config, w.dataset, w.scenario, r)
-            for r in dataset_runs(config, w.dataset, w.scenario)
-        ],
+        runs=lambda w: shard_runs(w),
+        raw_dirs=lambda w: [raw_run_dir(config, w.dataset, w.scenario, r) for r in shard_runs(w)],
         max_quarantine_share=config["ingest"]["max_quarantine_share"],
     log:
-        "logs/ingest/{dataset}-{scenario}.log",
+        "logs/ingest/{dataset}-{scenario}-{shard}.log",
     conda:
         ENV
     script:

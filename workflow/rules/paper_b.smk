@@ -5,8 +5,8 @@ PAPER_B_PAIRS = experiment_pairs(PAPER_B) + experiment_pairs(PAPER_B, "simulatio
 
 rule paper_b:
     input:
-        tables="data/processed/{dataset}/{scenario}/tables",
-        imu_5hz="data/processed/{dataset}/{scenario}/imu_5hz",
+        tables=lambda w: tables_of(w.dataset, w.scenario),
+        imu_5hz=lambda w: imu_of(w.dataset, w.scenario),
         campaign=campaign_file,
     output:
         estimates="data/processed/{dataset}/{scenario}/paper_b/estimates.parquet",

@@ -5,7 +5,7 @@ PAPER_D_PAIRS = experiment_pairs(PAPER_D)
 
 rule paper_d:
     input:
-        tables="data/processed/{dataset}/{scenario}/tables",
+        tables=lambda w: tables_of(w.dataset, w.scenario),
         campaign=campaign_file,
     output:
         estimates="data/processed/{dataset}/{scenario}/paper_d/estimates.parquet",

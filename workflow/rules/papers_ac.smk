@@ -9,7 +9,7 @@ GENERIC_EKF_PAIRS = experiment_pairs(GENERIC_EKF)
 
 rule paper_a:
     input:
-        tables=[f"data/processed/{d}/{s}/tables" for d, s in PAPER_A_PAIRS],
+        tables=all_tables(PAPER_A_PAIRS),
         campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_A_PAIRS}),
         papers="config/papers.yaml",
     output:
@@ -22,6 +22,7 @@ rule paper_a:
         settings=PAPER_A,
         labels=[f"{d}/{s}" for d, s in PAPER_A_PAIRS],
         campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in PAPER_A_PAIRS},
+        tables_of={f"{d}/{s}": tables_of(d, s) for d, s in PAPER_A_PAIRS},
     log:
         "logs/paper_a/paper_a.log",
     conda:
@@ -32,8 +33,8 @@ rule paper_a:
 
 rule paper_c:
     input:
-        tables=[f"data/processed/{d}/{s}/tables" for d, s in PAPER_C_PAIRS],
-        imu_5hz=[f"data/processed/{d}/{s}/imu_5hz" for d, s in PAPER_C_PAIRS],
+        tables=all_tables(PAPER_C_PAIRS),
+        imu_5hz=[p for d, s in PAPER_C_PAIRS for p in imu_of(d, s)],
         campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_C_PAIRS}),
         papers="config/papers.yaml",
     output:
@@ -47,6 +48,8 @@ rule paper_c:
         settings=PAPER_C,
         labels=[f"{d}/{s}" for d, s in PAPER_C_PAIRS],
         campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in PAPER_C_PAIRS},
+        tables_of={f"{d}/{s}": tables_of(d, s) for d, s in PAPER_C_PAIRS},
+        imu_of={f"{d}/{s}": imu_of(d, s) for d, s in PAPER_C_PAIRS},
     log:
         "logs/paper_c/paper_c.log",
     conda:
@@ -57,7 +60,7 @@ rule paper_c:
 
 rule generic_ekf:
     input:
-        tables=[f"data/processed/{d}/{s}/tables" for d, s in GENERIC_EKF_PAIRS],
+        tables=all_tables(GENERIC_EKF_PAIRS),
         campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in GENERIC_EKF_PAIRS}),
     output:
         results="data/processed/generic_ekf/results.csv",
@@ -65,6 +68,7 @@ rule generic_ekf:
         settings=GENERIC_EKF,
         labels=[f"{d}/{s}" for d, s in GENERIC_EKF_PAIRS],
         campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in GENERIC_EKF_PAIRS},
+        tables_of={f"{d}/{s}": tables_of(d, s) for d, s in GENERIC_EKF_PAIRS},
     log:
         "logs/generic_ekf/generic_ekf.log",
     conda:

@@ -8,7 +8,7 @@ rule report:
         figures=scenario_outputs("data/processed/{dataset}/{scenario}/figures/range_error.png")
         + scenario_outputs("data/processed/{dataset}/{scenario}/figures/rss_distance.png")
         + scenario_outputs("data/processed/{dataset}/{scenario}/figures/imu_resampling.png"),
-        tables=scenario_outputs("data/processed/{dataset}/{scenario}/tables"),
+        tables=all_tables(PAIRS),
         campaigns=sorted({d["campaign"] for d in config["datasets"].values()}),
         template="workflow/templates/report.html.j2",
         papers="config/papers.yaml",

@@ -1,15 +1,15 @@
-# IMU: ~500 Hz raw samples -> uniform grid -> anti-aliasing low-pass -> 5 Hz.
+# IMU: ~500 Hz raw samples -> uniform grid -> anti-aliasing low-pass -> 5 Hz (per shard).
 
 
 rule resample:
     input:
-        tables="data/processed/{dataset}/{scenario}/tables",
+        tables="data/processed/{dataset}/{scenario}/tables/{shard}",
     output:
-        imu_5hz=directory("data/processed/{dataset}/{scenario}/imu_5hz"),
+        imu_5hz=directory("data/processed/{dataset}/{scenario}/imu_5hz/{shard}"),
     params:
         **config["resample"],
     log:
-        "logs/resample/{dataset}-{scenario}.log",
+        "logs/resample/{dataset}-{scenario}-{shard}.log",
     conda:
         ENV
     script:

@@ -1,50 +1,31 @@
-# The campaign simulators write raw logs, exactly as a testbed logger would; one rule per
-# format because the files differ. Only datasets with `source: simulate` match these rules,
-# so real logs are never overwritten.
+# The campaign simulators write raw logs, exactly as a testbed logger would. One rule per
+# format (their files differ) and per shard of the Monte Carlo runs (config `shards`).
+# Only datasets with `source: simulate` match these rules, so real logs are never overwritten.
 
+for _format in ("newcom", "cricket"):
+    for _shard, _runs in simulated_shards(config).items():
 
-
-rule simulate_newcom:
-    input:
-        campaign=campaign_file,
-    output:
-        expand(
-            "data/raw/{{dataset}}/{{scenario}}/{run}/{file}",
-            run=simulated_runs(config),
-            file=RAW_FILES["newcom"] + ["meta.yaml"],
-        ),
-    params:
-        runs=config["runs"],
-        seed=config["seed"],
-        root="data/raw/{dataset}/{scenario}",
-    wildcard_constraints:
-        dataset=simulated_of("newcom"),
-    log:
-        "logs/simulate/{dataset}-{scenario}.log",
-    conda:
-        ENV
-    script:
-        "../scripts/simulate.py"
-
-
-rule simulate_cricket:
-    input:
-        campaign=campaign_file,
-    output:
-        expand(
-            "data/raw/{{dataset}}/{{scenario}}/{run}/{file}",
-            run=simulated_runs(config),
-            file=RAW_FILES["cricket"] + ["meta.yaml"],
-        ),
-    params:
-        runs=config["runs"],
-        seed=config["seed"],
-        root="data/raw/{dataset}/{scenario}",
-    wildcard_constraints:
-        dataset=simulated_of("cricket"),
-    log:
-        "logs/simulate/{dataset}-{scenario}.log",
-    conda:
-        ENV
-    script:
-        "../scripts/simulate.py"
+        rule:
+            name:
+                f"simulate_{_format}_{_shard.replace('-', '')}"
+            input:
+                campaign=campaign_file,
+            output:
+                expand(
+                    "data/raw/{{dataset}}/{{scenario}}/{run}/{file}",
+                    run=_runs,
+                    file=RAW_FILES[_format] + ["meta.yaml"],
+                ),
+            params:
+                runs=_runs,
+                total=config["runs"],
+                seed=config["seed"],
+                root="data/raw/{dataset}/{scenario}",
+            wildcard_constraints:
+                dataset=simulated_of(_format),
+            log:
+                f"logs/simulate/{{dataset}}-{{scenario}}-{_shard}.log",
+            conda:
+                ENV
+            script:
+                "../scripts/simulate.py"

@@ -14,9 +14,9 @@ sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "generic_ekf")
 spec = sm.params.settings
 runs, label_of = {}, {}
-for label, tables_dir in zip(sm.params.labels, sm.input.tables):
+for label in sm.params.labels:
     campaign = Campaign.load(sm.params.campaign_of[label])
-    for name, run_tables in load_runs(Path(tables_dir)).items():
+    for name, run_tables in load_runs(sm.params.tables_of[label]).items():
         runs[f"{label}/{name}"] = (run_tables, campaign)
         label_of[f"{label}/{name}"] = label
 models = generic_ekf.calibrations(runs, spec["rss_model"])

@@ -18,10 +18,10 @@ log = script_logger(sm.log[0], "paper_a")
 settings = paper_a.Settings.from_config(sm.params.settings)
 paper = read_yaml(sm.input.papers)["A"]
 rows, estimates = [], {}
-for label, tables_dir in zip(sm.params.labels, sm.input.tables):
+for label in sm.params.labels:
     campaign = Campaign.load(sm.params.campaign_of[label])
     settings.check_against(campaign)
-    runs = load_runs(Path(tables_dir))
+    runs = load_runs(sm.params.tables_of[label])
     zigbee = [a for a in campaign.anchors_of("zigbee")["anchor_id"]]
     models = calibration.rss_models_for_runs(runs, campaign, zigbee, settings.rss_calibration, settings.rss_model)
     metrics, scenario_estimates = [], []

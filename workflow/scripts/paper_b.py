@@ -7,7 +7,7 @@ import pandas as pd
 from wsnloc.campaign import Campaign
 from wsnloc.experiments import paper_b
 from wsnloc.io import tables
-from wsnloc.metrics.data_quality import load_runs
+from wsnloc.metrics.data_quality import imu_files, load_runs
 from wsnloc.workflow import script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
@@ -16,8 +16,9 @@ campaign = Campaign.load(sm.input.campaign)
 settings = paper_b.Settings.from_config(sm.params.settings)
 settings.check_against(campaign)
 estimates, metrics = [], []
-for name, run_tables in load_runs(Path(sm.input.tables)).items():
-    imu = tables.read(Path(sm.input.imu_5hz) / f"{name}.parquet")
+imu_paths = imu_files(sm.input.imu_5hz)
+for name, run_tables in load_runs(sm.input.tables).items():
+    imu = tables.read(imu_paths[name])
     est = paper_b.run(run_tables, imu, campaign, settings).assign(run=name)
     estimates.append(est)
     metrics.append(paper_b.run_metrics(est).assign(run=name))

@@ -11,7 +11,7 @@ from wsnloc.campaign import Campaign
 from wsnloc.config import read_yaml
 from wsnloc.experiments import paper_c
 from wsnloc.io import tables
-from wsnloc.metrics.data_quality import load_runs
+from wsnloc.metrics.data_quality import imu_files, load_runs
 from wsnloc.report import figures
 from wsnloc.workflow import script_logger
 
@@ -20,14 +20,15 @@ log = script_logger(sm.log[0], "paper_c")
 settings = paper_c.Settings.from_config(sm.params.settings)
 paper = read_yaml(sm.input.papers)["C"]
 rows, speeds, histogram, cdf, tracks = [], [], {}, {}, {}
-for label, tables_dir, imu_dir in zip(sm.params.labels, sm.input.tables, sm.input.imu_5hz):
+for label in sm.params.labels:
+    imu_paths = imu_files(sm.params.imu_of[label])
     campaign = Campaign.load(sm.params.campaign_of[label])
     settings.check_against(campaign)
     subsets = settings.table_2_subsets if label == settings.table_2_scenario else [settings.table_1_subset]
     subsets = list(dict.fromkeys(subsets + [settings.table_1_subset]))
     metrics = []
-    for name, run_tables in load_runs(Path(tables_dir)).items():
-        imu = tables.read(Path(imu_dir) / f"{name}.parquet")
+    for name, run_tables in load_runs(sm.params.tables_of[label]).items():
+        imu = tables.read(imu_paths[name])
         est = paper_c.run(run_tables, imu, campaign, settings, subsets)
         metrics.append(paper_c.run_metrics(est).assign(run=name))
         for model in paper_c.MODELS:

@@ -31,8 +31,8 @@ for path in map(Path, sm.input.figures):
 
 floor_plans = {}
 for name, spec in config["datasets"].items():
-    tables_dir = next(Path(p) for p in sm.input.tables if Path(p).parents[1].name == name)
-    first_run = sorted(p for p in tables_dir.iterdir() if p.is_dir())[0]
+    shard_dirs = sorted(Path(p) for p in sm.input.tables if Path(p).parents[2].name == name)
+    first_run = sorted(p for d in shard_dirs for p in d.iterdir() if p.is_dir())[0]
     floor_plans[name] = figures.floor_plan(Campaign.load(spec["campaign"]), tables.read(first_run / "truth.parquet"),
                                            tables.read(first_run / "anchors.parquet"))
 

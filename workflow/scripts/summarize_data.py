@@ -6,7 +6,7 @@ from pathlib import Path
 from wsnloc import results
 from wsnloc.campaign import Campaign
 from wsnloc.io import tables
-from wsnloc.metrics.data_quality import load_runs, summarize
+from wsnloc.metrics.data_quality import imu_files, load_inventory, load_runs, summarize
 from wsnloc.metrics.ranging import fit_path_loss
 from wsnloc.report import figures
 from wsnloc.workflow import script_logger
@@ -14,10 +14,10 @@ from wsnloc.workflow import script_logger
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "summarize_data")
 campaign = Campaign.load(sm.input.campaign)
-runs = load_runs(Path(sm.input.tables))
-imu_5hz = {p.stem: tables.read(p) for p in sorted(Path(sm.input.imu_5hz).glob("*.parquet"))}
+runs = load_runs(sm.input.tables)
+imu_5hz = {run: tables.read(path) for run, path in imu_files(sm.input.imu_5hz).items()}
 summary, rows, samples = summarize(runs, imu_5hz, campaign, sm.params.label)
-summary["inventory"] = json.loads((Path(sm.input.tables) / "inventory.json").read_text())
+summary["inventory"] = load_inventory(sm.input.tables)
 
 Path(sm.output.summary).write_text(json.dumps(summary, indent=1, default=float))
 results.write(rows, sm.output.results)

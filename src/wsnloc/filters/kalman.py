@@ -25,7 +25,7 @@ class KalmanFilter:
         self.y = np.zeros(self.H.shape[0])
         self.S = np.eye(self.H.shape[0])
         self.K = np.zeros((len(self.x), self.H.shape[0]))
-        self.nis = float("nan")
+        self._S_inv = None
         self._eye = np.eye(len(self.x))
 
     def predict(self, u=None, B=None) -> None:
@@ -47,7 +47,12 @@ class KalmanFilter:
         self.x = self.x + self.K @ self.y
         joseph = self._eye - self.K @ H
         self.P = joseph @ self.P @ joseph.T + self.K @ R @ self.K.T
-        self.nis = float(self.y @ S_inv @ self.y)
+        self._S_inv = S_inv
+
+    @property
+    def nis(self) -> float:
+        """Normalised innovation squared y^T S^-1 y of the last update (NaN before any)."""
+        return float("nan") if self._S_inv is None else float(self.y @ self._S_inv @ self.y)
 
 
 class ExtendedKalmanFilter(KalmanFilter):

@@ -6,6 +6,7 @@ the report, results rows for results.csv, and the pooled samples the figures nee
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -27,12 +28,26 @@ def reason_category(reason: str) -> str:
     return re.sub(r"-?\d+(\.\d+)?(e-?\d+)?", "N", text)
 
 
-def load_runs(tables_dir: Path) -> dict[str, dict[str, pd.DataFrame]]:
-    """{run: {table: DataFrame}} for every run directory under `tables_dir`."""
-    runs = {}
-    for run_dir in sorted(p for p in Path(tables_dir).iterdir() if p.is_dir()):
-        runs[run_dir.name] = {name: tables.read(run_dir / f"{name}.parquet") for name in tables.RAW_TABLES}
-    return runs
+def load_runs(tables_dirs) -> dict[str, dict[str, pd.DataFrame]]:
+    """{run: {table: DataFrame}} for every run directory under the (shard) folder(s), in run order."""
+    dirs = [tables_dirs] if isinstance(tables_dirs, (str, Path)) else list(tables_dirs)
+    run_dirs = sorted((p for d in dirs for p in Path(d).iterdir() if p.is_dir()), key=lambda p: p.name)
+    return {p.name: {name: tables.read(p / f"{name}.parquet") for name in tables.RAW_TABLES} for p in run_dirs}
+
+
+def load_inventory(tables_dirs) -> dict:
+    """Raw-file inventory (checksums, lines, quarantine) of every run, merged over shards."""
+    dirs = [tables_dirs] if isinstance(tables_dirs, (str, Path)) else list(tables_dirs)
+    merged = {}
+    for d in dirs:
+        merged.update(json.loads((Path(d) / "inventory.json").read_text()))
+    return dict(sorted(merged.items()))
+
+
+def imu_files(imu_dirs) -> dict[str, Path]:
+    """{run: resampled IMU Parquet} over the (shard) folder(s)."""
+    dirs = [imu_dirs] if isinstance(imu_dirs, (str, Path)) else list(imu_dirs)
+    return dict(sorted((p.stem, p) for d in dirs for p in Path(d).glob("*.parquet")))
 
 
 def summarize(runs: dict[str, dict[str, pd.DataFrame]], imu_5hz: dict[str, pd.DataFrame],
