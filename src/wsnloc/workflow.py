@@ -48,18 +48,17 @@ def shards_of(config: dict, dataset: str, scenario: str) -> dict[str, list[str]]
     Each group is one simulate / ingest / resample job: 1 shard on a laptop, many on a
     cluster. Shard names are shard-1, shard-2, ...
     """
-    if config["datasets"][dataset]["source"] == "simulate":
-        return simulated_shards(config)
-    runs = dataset_runs(config, dataset, scenario)
-    count = max(1, min(config.get("shards", 1), len(runs)))
-    bounds = [round(i * len(runs) / count) for i in range(count + 1)]
-    return {f"shard-{k + 1}": runs[bounds[k]:bounds[k + 1]] for k in range(count)}
+    return split_runs(dataset_runs(config, dataset, scenario), config.get("shards", 1))
 
 
 def simulated_shards(config: dict) -> dict[str, list[str]]:
     """Shards of a simulated scenario (all simulated scenarios have the same runs)."""
-    runs = simulated_runs(config)
-    count = max(1, min(config.get("shards", 1), len(runs)))
+    return split_runs(simulated_runs(config), config.get("shards", 1))
+
+
+def split_runs(runs: list[str], shards: int) -> dict[str, list[str]]:
+    """Contiguous groups shard-1 .. shard-N of about equal size, never empty."""
+    count = max(1, min(shards, len(runs)))
     bounds = [round(i * len(runs) / count) for i in range(count + 1)]
     return {f"shard-{k + 1}": runs[bounds[k]:bounds[k + 1]] for k in range(count)}
 
