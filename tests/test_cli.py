@@ -1,6 +1,5 @@
 """The wsnloc command line: exit codes and what it prints."""
 
-import pytest
 
 from wsnloc.cli import main
 

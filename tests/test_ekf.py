@@ -2,7 +2,6 @@
 convergence on noise-free ranges, motion models, motion detection on simulated data."""
 
 import numpy as np
-import pandas as pd
 import pytest
 from filterpy.kalman import ExtendedKalmanFilter as FilterpyEKF
 
@@ -167,5 +166,5 @@ def test_paper_c_models_on_a_simulated_cricket_run(tmp_path):
     metrics = paper_c.run_metrics(paper_c.run(tables, imu, cricket, settings, settings.table_2_subsets))
     assert set(metrics["model"]) == {"P", "PV", "PVA"} and len(metrics) == 6
     assert metrics["rmse"].max() < 1.0
-    inputs = paper_c.epoch_inputs(imu, cricket, np.arange(10.5, 30.0, 0.5), settings)
+    inputs = paper_c.epoch_inputs(paper_c.floor_input(imu, cricket, settings), np.arange(10.5, 30.0, 0.5))
     assert inputs.shape == (39, 2) and np.isfinite(inputs).all()

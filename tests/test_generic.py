@@ -1,6 +1,5 @@
 """Generic adapter on hand-written tables, and the real UWB dataset through it."""
 
-from pathlib import Path
 
 import numpy as np
 import pandas as pd

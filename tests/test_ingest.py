@@ -1,7 +1,6 @@
 """Raw-log parsers on hand-written fixtures, including the damage real logs carry."""
 
 import numpy as np
-import pandas as pd
 import pytest
 
 from wsnloc.errors import IngestError

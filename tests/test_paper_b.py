@@ -7,7 +7,7 @@ import pytest
 from wsnloc import results
 from wsnloc.experiments import paper_b
 from wsnloc.filters.steady_state import fuse, steady_state_gain
-from wsnloc.inertial.dead_reckoning import ImuBias, dead_reckon, static_bias
+from wsnloc.inertial.dead_reckoning import dead_reckon, static_bias
 
 DT = 0.2
 

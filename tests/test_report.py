@@ -1,6 +1,5 @@
 """The report: values from logs and config are escaped; the browser check catches problems."""
 
-import pandas as pd
 import pytest
 
 from wsnloc import results

@@ -5,7 +5,6 @@ huge measurements never crash an estimator."""
 import shutil
 
 import numpy as np
-import pandas as pd
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st

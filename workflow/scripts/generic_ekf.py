@@ -1,6 +1,5 @@
 """Snakemake adapter: the PV EKF on every run of the declared (generic) datasets."""
 
-from pathlib import Path
 
 import pandas as pd
 

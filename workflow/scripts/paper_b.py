@@ -1,6 +1,5 @@
 """Snakemake adapter: paper B estimators on every run of one scenario."""
 
-from pathlib import Path
 
 import pandas as pd
 

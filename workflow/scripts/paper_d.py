@@ -1,7 +1,6 @@
 """Snakemake adapter: paper D estimators on every run of one scenario."""
 
 import json
-from pathlib import Path
 
 import pandas as pd
 

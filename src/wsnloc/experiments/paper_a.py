@@ -19,7 +19,6 @@ import pandas as pd
 from wsnloc import results
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
-from wsnloc.experiments import calibration
 from wsnloc.experiments.ekf_tracking import run_ekf
 from wsnloc.experiments.epochs import Epoch, build_epochs, score
 from wsnloc.experiments.paper_d import preliminary_filter

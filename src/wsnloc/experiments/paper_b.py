@@ -22,6 +22,7 @@ from wsnloc.filters.steady_state import fuse, steady_state_gain
 from wsnloc.geometry.lateration import min_max
 from wsnloc.geometry.selection import k_smallest
 from wsnloc.inertial.dead_reckoning import dead_reckon, static_bias
+from wsnloc.io.tables import empty as empty_table
 from wsnloc.metrics.stats import error_summary
 
 EXPERIMENT = "B"
@@ -57,11 +58,9 @@ def uwb_fixes(ranges: pd.DataFrame, campaign: Campaign, settings: Settings) -> p
     ranges = ranges[ranges["anchor_id"].isin(members)]
     ranges = preliminary_filter(ranges, settings.max_range_m) if settings.uwb_preliminary_filter \
         else ranges[np.isfinite(ranges["range_m"])]
-    empty_rss = pd.DataFrame({"t": pd.Series(dtype=float), "anchor_id": pd.Series(dtype=object),
-                              "rss_dbm": pd.Series(dtype=float)})
     xy = {a: (x, y) for a, x, y in campaign.anchors[["anchor_id", "x", "y"]].itertuples(index=False)}
     rows = []
-    for epoch in build_epochs(ranges, empty_rss, settings.epoch_s):
+    for epoch in build_epochs(ranges, empty_table("rss"), settings.epoch_s):
         keep = k_smallest(epoch.ranges, settings.k_smallest or len(epoch.ranges))
         anchors = np.array([xy[a] for a in epoch.range_ids[keep]]).reshape(-1, 2)
         fix = min_max(anchors, epoch.ranges[keep])

@@ -26,6 +26,7 @@ from wsnloc.filters.measurement_models import RangeModel, Stacked
 from wsnloc.filters.motion_models import constant_velocity, position_only, pva
 from wsnloc.geometry.lateration import multilateration
 from wsnloc.inertial.dead_reckoning import floor_acceleration, static_bias
+from wsnloc.io.tables import empty as empty_table
 from wsnloc.metrics.stats import error_summary
 
 EXPERIMENT = "C"
@@ -77,12 +78,15 @@ def model_matrices(name: str, settings: Settings):
     raise ValueError(f"unknown motion model {name!r} (expected P, PV or PVA)")
 
 
-def epoch_inputs(imu_5hz: pd.DataFrame, campaign: Campaign, times: np.ndarray, settings: Settings) -> np.ndarray:
-    """(len(times), 2) mean floor-frame acceleration over each period; NaN without IMU samples."""
+def floor_input(imu_5hz: pd.DataFrame, campaign: Campaign, settings: Settings) -> pd.DataFrame:
+    """Floor-frame acceleration (t, ax, ay) of a run: bias at rest removed, gyro heading from the start pose."""
     if len(imu_5hz) == 0:
-        return np.full((len(times), 2), np.nan)
-    heading0 = campaign.path.start_pose()[2]
-    acc = floor_acceleration(imu_5hz, heading0, static_bias(imu_5hz, settings.static_bias_s))
+        return pd.DataFrame({"t": [], "ax": [], "ay": []})
+    return floor_acceleration(imu_5hz, campaign.path.start_pose()[2], static_bias(imu_5hz, settings.static_bias_s))
+
+
+def epoch_inputs(acc: pd.DataFrame, times: np.ndarray) -> np.ndarray:
+    """(len(times), 2) mean floor-frame acceleration over each period; NaN without IMU samples."""
     index = np.searchsorted(times, acc["t"].to_numpy(), side="left")
     valid = index < len(times)
     out = np.full((len(times), 2), np.nan)
@@ -99,14 +103,14 @@ def run(tables: dict, imu_5hz: pd.DataFrame, campaign: Campaign, settings: Setti
     ranges = tables["ranges"]
     ranges = ranges[(ranges["status"] == 0) & np.isfinite(ranges["range_m"]) & (ranges["range_m"] > 0)
                     & (ranges["range_m"] <= settings.max_range_m)]
-    no_rss = pd.DataFrame({"t": pd.Series(dtype=float), "anchor_id": pd.Series(dtype=object),
-                           "rss_dbm": pd.Series(dtype=float)})
+    no_rss = empty_table("rss")
+    acc = floor_input(imu_5hz, campaign, settings)
     xy = {a: np.array([x, y]) for a, x, y in campaign.anchors[["anchor_id", "x", "y"]].itertuples(index=False)}
     frames = []
     for subset in subsets:
         members = set(campaign.spec["subsets"][subset])
         epochs = build_epochs(ranges[ranges["anchor_id"].isin(members)], no_rss, settings.epoch_s)
-        inputs = epoch_inputs(imu_5hz, campaign, np.array([e.t for e in epochs]), settings)
+        inputs = epoch_inputs(acc, np.array([e.t for e in epochs]))
 
         def measure(epoch: Epoch):
             if len(epoch.ranges) == 0:

@@ -19,6 +19,13 @@ def _field(name: str, kind: pa.DataType, unit: str, description: str, nullable: 
 
 _LINE = _field("line", pa.int32(), "1", "line number in the raw file (1-based), for traceability")
 
+_IMU = [   # accelerometer and z gyro in SI units, body frame (x forward, y left, z up)
+    _field("ax", pa.float64(), "m/s^2", "specific force, body x (forward)"),
+    _field("ay", pa.float64(), "m/s^2", "specific force, body y (left)"),
+    _field("az", pa.float64(), "m/s^2", "specific force, body z (up)"),
+    _field("gz", pa.float64(), "rad/s", "angular rate about body z"),
+]
+
 _ESTIMATE = [   # position estimate and its error, shared by the estimate tables
     _field("x", pa.float64(), "m", "estimated east coordinate (NaN: no fix)", nullable=True),
     _field("y", pa.float64(), "m", "estimated north coordinate (NaN: no fix)", nullable=True),
@@ -44,18 +51,12 @@ SCHEMAS: dict[str, pa.Schema] = {
     ]),
     "imu": pa.schema([
         _field("t", pa.float64(), "s", "sample time on the sensor clock"),
-        _field("ax", pa.float64(), "m/s^2", "specific force, body x (forward)"),
-        _field("ay", pa.float64(), "m/s^2", "specific force, body y (left)"),
-        _field("az", pa.float64(), "m/s^2", "specific force, body z (up)"),
-        _field("gz", pa.float64(), "rad/s", "angular rate about body z"),
+        *_IMU,
         _LINE,
     ]),
     "imu_5hz": pa.schema([
-        _field("t", pa.float64(), "s", "sample time of the resampled uniform grid"),
-        _field("ax", pa.float64(), "m/s^2", "low-pass filtered specific force, body x"),
-        _field("ay", pa.float64(), "m/s^2", "low-pass filtered specific force, body y"),
-        _field("az", pa.float64(), "m/s^2", "low-pass filtered specific force, body z"),
-        _field("gz", pa.float64(), "rad/s", "low-pass filtered angular rate about body z"),
+        _field("t", pa.float64(), "s", "sample time of the resampled uniform grid (low-pass filtered values)"),
+        *_IMU,
         _field("in_gap", pa.bool_(), "", "true where the raw stream had a hole longer than max_gap_s"),
     ]),
     "truth": pa.schema([

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import base64
 import datetime as dt
-import math
 import subprocess
 from importlib import metadata
 from pathlib import Path
