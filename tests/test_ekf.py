@@ -74,9 +74,9 @@ def test_p_model_converges_to_a_static_target_with_noise_free_ranges():
     target = np.array([4.0, 3.0])
     epochs = _epochs_static(target)
     F, Q = position_only(0.05)
-    measure = lambda e: Stacked([RangeModel(ANCHORS, np.full(4, 0.1))], e.ranges)   # noqa: E731
+    measurements = [Stacked([RangeModel(ANCHORS, np.full(4, 0.1))], e.ranges) for e in epochs]
     start = lambda e: np.array([6.0, 6.0])                                          # 3.6 m off  # noqa: E731
-    track = run_ekf(epochs, F, Q, np.eye(2) * 4.0, measure, start)
+    track = run_ekf(epochs, F, Q, np.eye(2) * 4.0, measurements, start)
     final = track[["x", "y"]].to_numpy()[-1]
     assert np.linalg.norm(final - target) < 1e-6
     assert np.linalg.norm(track[["x", "y"]].to_numpy()[1] - target) < 1.0
@@ -87,8 +87,8 @@ def test_static_epochs_skip_the_prediction():
     target = np.array([4.0, 3.0])
     epochs = _epochs_static(target, 20)
     F, Q = constant_velocity(0.5, 0.3)
-    no_measurement = lambda e: None  # noqa: E731
-    track = run_ekf(epochs, F, Q, np.eye(4), no_measurement, lambda e: target, static=np.ones(len(epochs), bool))
+    track = run_ekf(epochs, F, Q, np.eye(4), [None] * len(epochs), lambda e: target,
+                    static=np.ones(len(epochs), bool))
     assert np.allclose(track[["x", "y"]].to_numpy(), target)
 
 

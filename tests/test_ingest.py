@@ -2,11 +2,16 @@
 
 import numpy as np
 import pytest
+from conftest import ROOT
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
+from wsnloc.campaign import Campaign
 from wsnloc.errors import IngestError
 from wsnloc.io import tables
 from wsnloc.io.ingest import ingest_one, ingest_scenario
-from wsnloc.io.newcom import ingest_run
+from wsnloc.io.newcom import ingest_run, parse_imu
+from wsnloc.io.rawlines import Quarantine, read_raw
 
 UWB = """# newcom-uwb v1
 # t_ms anchor tw_toa_ps status
@@ -202,3 +207,55 @@ def test_damaged_line_in_a_simulated_log(simulated_run, campaign, tmp_path):
     q = result["quarantine"]
     assert q[["file", "line", "text"]].values.tolist() == [["uwb.log", len(lines) + 1, "999999 U0"]]
     assert len(result["ranges"]) == len(lines) - 2
+
+
+def _imu_line_by_line(lines):
+    """Reference for parse_imu: the spec applied one line at a time (5 fields, finite t_ms,
+    integer counts, time strictly increasing over accepted lines)."""
+    accepted, refused, last = [], [], -np.inf
+    for number, text in enumerate(lines, start=4):
+        fields = text.split()
+        try:
+            t_ms = float(fields[0])
+            counts = [int(f) for f in fields[1:]]
+            usable = len(fields) == 5 and np.isfinite(t_ms) and t_ms > last
+        except (ValueError, IndexError):
+            usable = False
+        if usable:
+            last = t_ms
+            accepted.append((number, t_ms, *counts))
+        else:
+            refused.append(number)
+    return accepted, refused
+
+
+imu_numbers = st.sampled_from(["0", "7", "-12", "1021", "+5", "007", "1.5", "x", "", "nan", "1e3", "99999"])
+imu_lines = st.lists(st.tuples(st.floats(0, 50, allow_nan=False).map(lambda t: f"{12500 + t:.3f}"),
+                               st.lists(imu_numbers, min_size=3, max_size=5), st.sampled_from([" ", "  ", "\t"]))
+                     .map(lambda p: p[2].join([p[0], *p[1]])), max_size=40)
+
+
+@settings(max_examples=60, deadline=None)
+@given(lines=imu_lines)
+def test_bulk_imu_parsing_equals_line_by_line(lines, tmp_path_factory):
+    """Regular lines are converted in bulk, the others one by one: the table and the
+    quarantine are those of applying the format line by line, in file order."""
+    folder = tmp_path_factory.mktemp("imu")
+    (folder / "imu.log").write_text(IMU.splitlines(keepends=True)[0] + IMU.splitlines(keepends=True)[1]
+                                    + "# t_ms ax ay az gz\n" + "".join(line + "\n" for line in lines))
+    quarantine = Quarantine()
+    imu = parse_imu(read_raw(folder / "imu.log", quarantine), Campaign.load(ROOT / "config" / "campaigns" / "newcom.yaml"),
+                    quarantine)
+    accepted, refused = _imu_line_by_line(lines)
+    assert imu["line"].tolist() == [a[0] for a in accepted]
+    assert imu["t"].tolist() == [a[1] / 1000.0 for a in accepted]
+    g = 9.80665
+    assert imu["ax"].tolist() == [a[2] / 1024 * g for a in accepted]
+    assert imu["gz"].tolist() == [np.deg2rad(a[5] / 131.072) for a in accepted]
+    assert quarantine.frame()["line"].tolist() == refused
+
+
+def test_an_imu_count_beyond_any_adc_is_quarantined(run_dir, campaign):
+    (run_dir / "imu.log").write_text(IMU + "12510.000 1 1 1 " + "9" * 400 + "\n")
+    result, _ = ingest_run(run_dir, campaign)
+    assert "beyond" in _reasons(result["quarantine"], "imu.log")[10]

@@ -74,6 +74,21 @@ def test_gauss_newton_improves_on_the_linear_solution():
     assert cost(multilateration(anchors, d)) <= cost(multilateration(anchors, d, refine=False))
 
 
+def test_gauss_newton_reaches_the_least_squares_minimum_scipy_finds():
+    """Noisy ranges from anchors around the target: our Gauss-Newton (Cramer's-rule steps)
+    ends where scipy.optimize.least_squares (Levenberg-Marquardt) does."""
+    from scipy.optimize import least_squares
+    rng = np.random.default_rng(2013)
+    anchors = np.array([[0, 0], [20, 0], [20, 12], [0, 12], [10, 6.5], [5, 11]], dtype=float)
+    for _ in range(50):
+        target = rng.uniform([2, 2], [18, 10])
+        n = int(rng.integers(4, 7))
+        d = _ranges(anchors[:n], target) + rng.normal(0, 0.1, n)
+        reference = least_squares(lambda p, a=anchors[:n], d=d: _ranges(a, p) - d, target, method="lm",
+                                  xtol=1e-15, ftol=1e-15, gtol=1e-15).x
+        assert multilateration(anchors[:n], d) == pytest.approx(reference, abs=1e-6)
+
+
 def test_k_smallest_pools_technologies():
     uwb = np.array([7.0, 1.5, 9.0, 4.0])
     narrowband = np.array([2.0, 12.0, 0.5, np.nan, 3.0])

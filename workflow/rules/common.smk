@@ -13,6 +13,11 @@ from wsnloc.workflow import (
 )
 
 ENV = "../envs/wsnloc.yaml"
+# Job order on few cores (higher first among ready jobs): the long estimator jobs start as
+# soon as their inputs exist and the Newcom++ chain that feeds most of them goes first;
+# the short per-scenario summaries (priority 0) fill the cores at the end, so that no long
+# job runs alone before the report.
+PRIORITY = {"estimator": 3, "simulate_newcom": 2, "ingest": 1, "simulate_cricket": 1, "summary": 1}
 RAW_FILES = {"newcom": ["uwb.log", "zigbee.log", "imu.log", "truth.log"],
              "cricket": ["listener.log", "imu.log", "truth.log"]}
 SIMULATED = [name for name, d in config["datasets"].items() if d["source"] == "simulate"]

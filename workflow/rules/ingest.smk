@@ -13,6 +13,7 @@ rule ingest:
         runs=lambda w: shard_runs(w),
         raw_dirs=lambda w: [raw_run_dir(config, w.dataset, w.scenario, r) for r in shard_runs(w)],
         max_quarantine_share=config["ingest"]["max_quarantine_share"],
+    priority: PRIORITY["ingest"]
     log:
         "logs/ingest/{dataset}-{scenario}-{shard}.log",
     conda:

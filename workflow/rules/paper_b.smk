@@ -13,6 +13,7 @@ rule paper_b:
         metrics="data/processed/{dataset}/{scenario}/paper_b/metrics.csv",
     params:
         settings=PAPER_B,
+    priority: PRIORITY["summary"]
     log:
         "logs/paper_b/{dataset}-{scenario}.log",
     conda:
@@ -35,6 +36,7 @@ rule paper_b_summary:
     params:
         labels=[f"{d}/{s}" for d, s in PAPER_B_PAIRS],
         simulated=[f"{d}/{s}" for d, s in experiment_pairs(PAPER_B, "simulation_scenarios")],
+    priority: PRIORITY["summary"]
     log:
         "logs/paper_b/summary.log",
     conda:

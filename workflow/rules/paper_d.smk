@@ -12,6 +12,7 @@ rule paper_d:
         metrics="data/processed/{dataset}/{scenario}/paper_d/metrics.csv",
     params:
         settings=PAPER_D,
+    priority: PRIORITY["estimator"]
     log:
         "logs/paper_d/{dataset}-{scenario}.log",
     conda:
@@ -34,6 +35,7 @@ rule paper_d_summary:
     params:
         settings=PAPER_D,
         labels=[f"{d}/{s}" for d, s in PAPER_D_PAIRS],
+    priority: PRIORITY["summary"]
     log:
         "logs/paper_d/summary.log",
     conda:

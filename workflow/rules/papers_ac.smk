@@ -23,6 +23,7 @@ rule paper_a:
         labels=[f"{d}/{s}" for d, s in PAPER_A_PAIRS],
         campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in PAPER_A_PAIRS},
         tables_of={f"{d}/{s}": tables_of(d, s) for d, s in PAPER_A_PAIRS},
+    priority: PRIORITY["estimator"]
     log:
         "logs/paper_a/paper_a.log",
     conda:
@@ -50,6 +51,7 @@ rule paper_c:
         campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in PAPER_C_PAIRS},
         tables_of={f"{d}/{s}": tables_of(d, s) for d, s in PAPER_C_PAIRS},
         imu_of={f"{d}/{s}": imu_of(d, s) for d, s in PAPER_C_PAIRS},
+    priority: PRIORITY["estimator"]
     log:
         "logs/paper_c/paper_c.log",
     conda:

@@ -8,6 +8,7 @@ rule resample:
         imu_5hz=directory("data/processed/{dataset}/{scenario}/imu_5hz/{shard}"),
     params:
         **config["resample"],
+    priority: PRIORITY["ingest"]
     log:
         "logs/resample/{dataset}-{scenario}-{shard}.log",
     conda:

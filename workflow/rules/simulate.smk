@@ -21,6 +21,7 @@ for _format in ("newcom", "cricket"):
                 total=config["runs"],
                 seed=config["seed"],
                 root="data/raw/{dataset}/{scenario}",
+            priority: PRIORITY[f"simulate_{_format}"]
             wildcard_constraints:
                 dataset=simulated_of(_format),
             log:

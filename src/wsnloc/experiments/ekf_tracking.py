@@ -9,7 +9,7 @@ Per-epoch diagnostics: number of measurements and NIS of the update.
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 import pandas as pd
@@ -19,17 +19,18 @@ from wsnloc.filters.kalman import ExtendedKalmanFilter
 
 
 def run_ekf(epochs: list[Epoch], F: np.ndarray, Q: np.ndarray, P0: np.ndarray,
-            measure: Callable[[Epoch], object | None], initial_fix: Callable[[Epoch], np.ndarray | None],
+            measurements: Sequence[object | None], initial_fix: Callable[[Epoch], np.ndarray | None],
             static: np.ndarray | None = None, B: np.ndarray | None = None,
             inputs: np.ndarray | None = None) -> pd.DataFrame:
     """Track through the epochs; returns t, x, y, n_meas, nis for every epoch after the start.
 
-    measure(epoch) gives a measurement model with h, jacobian, R and the vector `z`, or None.
+    measurements[k]: epoch k's measurement model with h, jacobian, R and the vector `z`,
+    or None. It depends only on the epoch, so variants of the filter share one list.
     inputs: (len(epochs), k) control input per epoch (PVA acceleration), used with B.
     """
     ekf = None
     rows = []
-    for k, epoch in enumerate(epochs):
+    for k, (epoch, model) in enumerate(zip(epochs, measurements, strict=True)):
         if ekf is None:
             fix = initial_fix(epoch)
             if fix is None:
@@ -44,7 +45,6 @@ def run_ekf(epochs: list[Epoch], F: np.ndarray, Q: np.ndarray, P0: np.ndarray,
                 ekf.predict(u=inputs[k], B=B)
             else:
                 ekf.predict()
-        model = measure(epoch)
         nis = np.nan
         if model is not None:
             ekf.update_nonlinear(model.z, model.h, model.jacobian, model.R())

@@ -41,9 +41,15 @@ def _per_anchor_mean(frame: pd.DataFrame, value: str, times, period) -> list[tup
         return out
     frame = frame.assign(epoch=_assign(frame["t"].to_numpy(), times, period))
     frame = frame[frame["epoch"] >= 0]
+    if len(frame) == 0:
+        return out
     means = frame.groupby(["epoch", "anchor_id"], sort=True)[value].mean()
-    for k, group in means.groupby(level=0):
-        out[k] = (group.index.get_level_values(1).to_numpy(dtype=object), group.to_numpy(dtype=float))
+    epochs = means.index.get_level_values(0).to_numpy()
+    ids = means.index.get_level_values(1).to_numpy(dtype=object)
+    values = means.to_numpy(dtype=float)
+    starts = np.flatnonzero(np.r_[True, epochs[1:] != epochs[:-1]])      # first row of each epoch
+    for k, a, b in zip(epochs[starts], starts, np.r_[starts[1:], len(epochs)]):
+        out[k] = (ids[a:b], values[a:b])
     return out
 
 

@@ -80,7 +80,7 @@ def run(tables: dict, campaign: Campaign, spec: dict, rss_model: dict) -> pd.Dat
         with_rss = variant == "ranges+rss"
         if with_rss and len(tables["rss"]) == 0:
             continue
-        track = run_ekf(epochs, F, Q, P0, lambda e, w=with_rss: measure(e, w), initial_fix)
+        track = run_ekf(epochs, F, Q, P0, [measure(epoch, with_rss) for epoch in epochs], initial_fix)
         frames.append(track.assign(variant=VARIANTS[variant]))
     return score(pd.concat(frames, ignore_index=True), tables["truth"]) if frames else pd.DataFrame()
 

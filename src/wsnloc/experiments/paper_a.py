@@ -82,9 +82,8 @@ class _RowMeasurements:
         self.settings, self.rss = settings, rss_model
 
     def _pick(self, ids, values, members):
-        keep = np.array([i in members for i in ids], dtype=bool)
-        ids = ids[keep]
-        return np.array([self.xy[i] for i in ids]).reshape(-1, 2), values[keep]
+        keep = [k for k, i in enumerate(ids) if i in members]
+        return np.array([self.xy[ids[k]] for k in keep]).reshape(-1, 2), values[keep]
 
     def measure(self, epoch: Epoch):
         parts, z = [], []
@@ -121,8 +120,9 @@ def run(tables: dict, campaign: Campaign, settings: Settings, rss_model: dict) -
     frames = []
     for row in settings.rows:
         model = _RowMeasurements(row, campaign, settings, rss_model)
+        measurements = [model.measure(epoch) for epoch in epochs]
         for table, flags in (("Table I", None), ("Table II", static)):
-            track = run_ekf(epochs, F, Q, P0, model.measure, model.initial_fix, static=flags)
+            track = run_ekf(epochs, F, Q, P0, measurements, model.initial_fix, static=flags)
             frames.append(track.assign(row=row_label(row), table=table))
     return score(pd.concat(frames, ignore_index=True), tables["truth"])
 

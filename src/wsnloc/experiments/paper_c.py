@@ -121,9 +121,10 @@ def run(tables: dict, imu_5hz: pd.DataFrame, campaign: Campaign, settings: Setti
         def initial_fix(epoch: Epoch):
             return multilateration(np.array([xy[a] for a in epoch.range_ids]).reshape(-1, 2), epoch.ranges)
 
+        measurements = [measure(epoch) for epoch in epochs]
         for model in MODELS:
             F, Q, P0, B = model_matrices(model, settings)
-            track = run_ekf(epochs, F, Q, P0, measure, initial_fix, B=B, inputs=inputs if B is not None else None)
+            track = run_ekf(epochs, F, Q, P0, measurements, initial_fix, B=B, inputs=inputs if B is not None else None)
             frames.append(track.assign(model=model, subset=subset))
     return score(pd.concat(frames, ignore_index=True), tables["truth"])
 

@@ -36,9 +36,10 @@ class RangeModel:
         return d if self.dz_m is None else np.sqrt(d**2 + self.dz_m**2)
 
     def jacobian(self, x) -> np.ndarray:
-        diff, _ = _geometry(x, self.anchors)
+        diff, d = _geometry(x, self.anchors)
+        h = d if self.dz_m is None else np.sqrt(d**2 + self.dz_m**2)
         H = np.zeros((len(self.anchors), len(x)))
-        H[:, :2] = diff / np.maximum(self.h(x), MIN_DISTANCE)[:, None]
+        H[:, :2] = diff / np.maximum(h, MIN_DISTANCE)[:, None]
         return H
 
     def R(self) -> np.ndarray:
@@ -73,6 +74,9 @@ class Stacked:
     parts: list
     z: np.ndarray
 
+    def __post_init__(self):
+        self._R = None
+
     def h(self, x) -> np.ndarray:
         return np.concatenate([p.h(x) for p in self.parts])
 
@@ -80,11 +84,15 @@ class Stacked:
         return np.vstack([p.jacobian(x) for p in self.parts])
 
     def R(self) -> np.ndarray:
-        blocks = [p.R() for p in self.parts]
-        n = sum(len(b) for b in blocks)
-        out = np.zeros((n, n))
-        k = 0
-        for b in blocks:
-            out[k:k + len(b), k:k + len(b)] = b
-            k += len(b)
-        return out
+        """blockdiag(R_1, R_2, ...); built once (it does not depend on the state), so filter
+        variants run on the same epochs share it. Read-only."""
+        if self._R is None:
+            blocks = [p.R() for p in self.parts]
+            n = sum(len(b) for b in blocks)
+            self._R = np.zeros((n, n))
+            k = 0
+            for b in blocks:
+                self._R[k:k + len(b), k:k + len(b)] = b
+                k += len(b)
+            self._R.flags.writeable = False
+        return self._R

@@ -55,7 +55,8 @@ def multilateration(anchors, ranges, refine: bool = True) -> np.ndarray | None:
     """Linearised least squares, then Gauss-Newton on sum_i (||p - a_i|| - d_i)^2.
 
     Gauss-Newton: J_i = (p - a_i)^T / ||p - a_i||, p <- p - (J^T J)^-1 J^T r with
-    r_i = ||p - a_i|| - d_i; a step that does not lower the cost is not taken.
+    r_i = ||p - a_i|| - d_i; the 2 x 2 normal equations are solved by Cramer's rule (a
+    singular J^T J ends the iterations); a step that does not lower the cost is not taken.
     Returns None for fewer than 3 ranges or (nearly) collinear anchors.
     """
     a, d = _usable(anchors, ranges)
@@ -65,25 +66,26 @@ def multilateration(anchors, ranges, refine: bool = True) -> np.ndarray | None:
     if p is None or not refine:
         return p
 
-    def cost(point):
-        return float(np.sum((np.hypot(*(point[None, :] - a).T) - d) ** 2))
-
-    current = cost(p)
+    diff = p - a
+    dist = np.hypot(diff[:, 0], diff[:, 1])
+    current = float(np.sum((dist - d) ** 2))
     for _ in range(GAUSS_NEWTON_STEPS):
-        diff = p[None, :] - a
-        dist = np.maximum(np.hypot(diff[:, 0], diff[:, 1]), 1e-9)
-        jac = diff / dist[:, None]
-        residual = dist - d
-        try:
-            step = np.linalg.solve(jac.T @ jac, jac.T @ residual)
-        except np.linalg.LinAlgError:
+        safe = np.maximum(dist, 1e-9)
+        jac = diff / safe[:, None]
+        (jxx, jxy), (_, jyy) = jac.T @ jac
+        gx, gy = jac.T @ (safe - d)
+        det = jxx * jyy - jxy * jxy
+        if not (np.isfinite(det) and det != 0.0):
             break
+        step = np.array([(jyy * gx - jxy * gy) / det, (jxx * gy - jxy * gx) / det])
         candidate = p - step
-        new = cost(candidate)
+        candidate_diff = candidate - a
+        candidate_dist = np.hypot(candidate_diff[:, 0], candidate_diff[:, 1])
+        new = float(np.sum((candidate_dist - d) ** 2))
         if not new < current:
             break
-        p, current = candidate, new
-        if np.linalg.norm(step) < 1e-9:
+        p, current, diff, dist = candidate, new, candidate_diff, candidate_dist
+        if np.hypot(step[0], step[1]) < 1e-9:
             break
     return p
 

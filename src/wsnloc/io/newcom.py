@@ -9,6 +9,7 @@ estimators can apply the preliminary filter.
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -145,38 +146,97 @@ def imu_scales(raw: RawFile) -> tuple[float, float]:
     return scales[0], scales[1]
 
 
+# A well-formed imu.log line (single spaces, plain decimal numbers): these are parsed in
+# bulk; any other line goes through the per-line checks, which give the quarantine reason.
+_REGULAR_IMU_LINE = re.compile(r"-?\d{1,15}(?:\.\d{1,9})?(?: (?:0|-?[1-9]\d{0,8})){4}")
+_IMU_FIELDS = ("ax", "ay", "az", "gz")
+MAX_COUNT = 2**31          # raw counts come from ADCs of at most 32 bits
+
+
+def _imu_line(fields: list[str]) -> tuple[float, list[int]]:
+    if len(fields) != 5:
+        raise _LineError(f"expected 5 fields 't_ms ax ay az gz', found {len(fields)}")
+    t_ms = _finite(fields[0], "t_ms")
+    counts = [_integer(f, name) for f, name in zip(fields[1:], _IMU_FIELDS)]
+    if any(abs(count) > MAX_COUNT for count in counts):
+        raise _LineError(f"a count is beyond {MAX_COUNT:g} (no ADC gives that): {' '.join(fields[1:])[:60]}")
+    return t_ms, counts
+
+
 def parse_imu(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.DataFrame:
-    """imu.log: `t_ms ax ay az gz` raw counts; a = counts / lsb_per_g * g, w = counts / lsb_per_dps (deg/s -> rad/s)."""
+    """imu.log: `t_ms ax ay az gz` raw counts; a = counts / lsb_per_g * g, w = counts / lsb_per_dps (deg/s -> rad/s).
+
+    Time must increase strictly from one accepted line to the next.
+    """
     check_magic(raw, "-imu")
     accel_lsb, gyro_lsb = imu_scales(raw)
-    clock = _Clock(strict=True)
-    times, counts, numbers = [], [], []
-    for number, text, fields in iter_fields(raw):
-        try:
-            if len(fields) != 5:
-                raise _LineError(f"expected 5 fields 't_ms ax ay az gz', found {len(fields)}")
-            t_ms = _finite(fields[0], "t_ms")
-            values = [_integer(f, name) for f, name in zip(fields[1:], ("ax", "ay", "az", "gz"))]
-            clock.check(t_ms)
-        except _LineError as reason:
-            quarantine.add(raw.name, number, text, str(reason))
-            continue
-        clock.accept(t_ms)
-        times.append(t_ms)
-        counts.append(values)
-        numbers.append(number)
-    if not times:
+    numbers, values, rejected = _imu_candidates(raw)
+    accepted, clock_reasons = _strictly_increasing(values[:, 0])
+    texts = dict(raw.lines) if clock_reasons else {}
+    rejected += [(int(numbers[i]), texts[int(numbers[i])], reason) for i, reason in clock_reasons]
+    for number, text, reason in sorted(rejected):
+        quarantine.add(raw.name, number, text, reason)
+    if not accepted.any():
         return tables.empty("imu")
     g = campaign.spec["gravity_mps2"]
-    c = np.asarray(counts, dtype=float)
+    t_ms, c = values[accepted, 0], values[accepted, 1:]
     return pd.DataFrame({
-        "t": np.asarray(times) / 1000.0,
+        "t": t_ms / 1000.0,
         "ax": c[:, 0] / accel_lsb * g,
         "ay": c[:, 1] / accel_lsb * g,
         "az": c[:, 2] / accel_lsb * g,
         "gz": np.deg2rad(c[:, 3] / gyro_lsb),
-        "line": np.asarray(numbers, dtype=np.int32),
+        "line": numbers[accepted].astype(np.int32),
     })
+
+
+def _imu_candidates(raw: RawFile) -> tuple[np.ndarray, np.ndarray, list[tuple[int, str, str]]]:
+    """Line numbers and (t_ms, ax, ay, az, gz) of the lines that parse, in file order, and
+    the (line, text, reason) of those that do not (time order is checked afterwards).
+
+    Regular lines are converted in bulk by numpy; the same numbers as float() / int() line
+    by line, since both round each decimal string to the nearest double.
+    """
+    regular = [(number, text) for number, text in raw.lines if _REGULAR_IMU_LINE.fullmatch(text)]
+    numbers = np.array([number for number, _ in regular], dtype=np.int64)
+    values = np.fromstring(" ".join(text for _, text in regular), dtype=float, sep=" ").reshape(-1, 5)
+    if len(regular) == len(raw.lines):
+        return numbers, values, []
+    regular_numbers = set(numbers.tolist())
+    other_numbers, other_values, rejected = [], [], []
+    for number, text in raw.lines:
+        if number in regular_numbers:
+            continue
+        try:
+            t_ms, counts = _imu_line(text.split())
+        except _LineError as reason:
+            rejected.append((number, text, str(reason)))
+            continue
+        other_numbers.append(number)
+        other_values.append([t_ms, *counts])
+    numbers = np.concatenate([numbers, np.array(other_numbers, dtype=np.int64)])
+    values = np.vstack([values, np.array(other_values, dtype=float).reshape(-1, 5)])
+    order = np.argsort(numbers, kind="stable")
+    return numbers[order], values[order], rejected
+
+
+def _strictly_increasing(t_ms: np.ndarray) -> tuple[np.ndarray, list[tuple[int, str]]]:
+    """Which samples a strict clock accepts (each later than the last accepted one), and why
+    the others were refused: (index, reason)."""
+    if np.all(np.diff(t_ms) > 0):
+        return np.ones(len(t_ms), dtype=bool), []
+    clock = _Clock(strict=True)
+    accepted = np.zeros(len(t_ms), dtype=bool)
+    reasons = []
+    for i, t in enumerate(t_ms.tolist()):
+        try:
+            clock.check(t)
+        except _LineError as reason:
+            reasons.append((i, str(reason)))
+            continue
+        clock.accept(t)
+        accepted[i] = True
+    return accepted, reasons
 
 
 def parse_truth(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.DataFrame:

@@ -54,28 +54,39 @@ def read_raw(path: str | Path, quarantine: Quarantine) -> RawFile:
         data = path.read_bytes()
     except OSError as exc:
         raise IngestError(f"{path}: cannot read ({exc.strerror or exc})") from exc
+    texts = _decode_lines(data, path.name, quarantine)
     header: list[str] = []
     lines: list[tuple[int, str]] = []
-    raw_lines = data.split(b"\n")
-    if raw_lines and raw_lines[-1] == b"":
-        raw_lines.pop()
     n_records = 0
+    for number, text in enumerate(texts, start=1):
+        if text is None:                    # not ASCII: already quarantined
+            n_records += 1
+        elif text and text[0] != "#":
+            n_records += 1
+            lines.append((number, text))
+        elif text and not lines:
+            header.append(text)
+    return RawFile(path, header, lines, hashlib.sha256(data).hexdigest(), len(texts), n_records)
+
+
+def _decode_lines(data: bytes, name: str, quarantine: Quarantine) -> list[str | None]:
+    """The file's lines, right-stripped; None for a line that is not ASCII (quarantined here)."""
+    if data.isascii():                      # the usual case: decode the whole file at once
+        texts = data.decode("ascii").split("\n")
+        if texts[-1] == "":
+            texts.pop()
+        return [text.rstrip() for text in texts]
+    raw_lines = data.split(b"\n")
+    if raw_lines[-1] == b"":
+        raw_lines.pop()
+    texts: list[str | None] = []
     for number, raw in enumerate(raw_lines, start=1):
         try:
-            text = raw.decode("ascii").rstrip()
+            texts.append(raw.decode("ascii").rstrip())
         except UnicodeDecodeError:
-            n_records += 1
-            quarantine.add(path.name, number, raw.decode("ascii", "replace").rstrip(), "not ASCII text")
-            continue
-        if not text:
-            continue
-        if text.startswith("#"):
-            if not lines:
-                header.append(text)
-            continue
-        n_records += 1
-        lines.append((number, text))
-    return RawFile(path, header, lines, hashlib.sha256(data).hexdigest(), len(raw_lines), n_records)
+            quarantine.add(name, number, raw.decode("ascii", "replace").rstrip(), "not ASCII text")
+            texts.append(None)
+    return texts
 
 
 def header_value(raw: RawFile, key: str) -> str | None:

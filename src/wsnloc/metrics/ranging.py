@@ -30,17 +30,22 @@ def _with_geometry(frame: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign,
     position = truth_at(truth, frame["t"].to_numpy())
     frame["true_x"], frame["true_y"] = position[:, 0], position[:, 1]
     frame = frame[np.isfinite(frame["true_x"])]
-    anchors = (campaign.anchors if anchors is None else anchors).set_index("anchor_id")
+    anchors = campaign.anchors if anchors is None else anchors
+    heights = anchors["z"] if "z" in anchors else np.full(len(anchors), np.nan)
+    position_of = {a: (np.array([x, y], dtype=float), float(z))
+                   for a, x, y, z in zip(anchors["anchor_id"], anchors["x"], anchors["y"], heights)}
     tag_height = campaign.tag_height_m
-    frame["true_distance_m"] = np.nan
-    frame["walls"] = -1
-    for anchor_id, idx in frame.groupby("anchor_id").groups.items():
-        a = anchors.loc[anchor_id, ["x", "y"]].to_numpy(float)
-        z = float(anchors.loc[anchor_id, "z"]) if "z" in anchors else float("nan")
+    points = frame[["true_x", "true_y"]].to_numpy()
+    distance = np.full(len(frame), np.nan)
+    walls = np.full(len(frame), -1)
+    for anchor_id, rows in frame.groupby("anchor_id").indices.items():
+        a, z = position_of[anchor_id]
         dz = z - tag_height if tag_height is not None and np.isfinite(z) else 0.0
-        pts = frame.loc[idx, ["true_x", "true_y"]].to_numpy()
-        frame.loc[idx, "true_distance_m"] = np.sqrt((pts[:, 0] - a[0]) ** 2 + (pts[:, 1] - a[1]) ** 2 + dz**2)
-        frame.loc[idx, "walls"] = campaign.walls_between(pts, a)
+        pts = points[rows]
+        distance[rows] = np.sqrt((pts[:, 0] - a[0]) ** 2 + (pts[:, 1] - a[1]) ** 2 + dz**2)
+        walls[rows] = campaign.walls_between(pts, a)
+    frame["true_distance_m"] = distance
+    frame["walls"] = walls
     frame["los"] = frame["walls"] == 0
     return frame
 

@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy import stats
+from scipy.special import stdtrit
 
 
 def mean_ci95(values) -> tuple[float, float, float]:
     """Mean and two-sided 95% Student-t interval of the mean: m +- t_{0.975, n-1} s / sqrt(n).
 
     NaN values are ignored. With a single value the interval is (nan, nan).
+    t_{q, dof} = stdtrit(dof, q), the Student-t quantile (what scipy.stats.t.ppf evaluates;
+    scipy.special alone imports in a fraction of scipy.stats' time, paid by every job).
     """
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
@@ -18,7 +20,7 @@ def mean_ci95(values) -> tuple[float, float, float]:
     mean = float(v.mean())
     if len(v) < 2:
         return mean, float("nan"), float("nan")
-    half = float(stats.t.ppf(0.975, len(v) - 1) * v.std(ddof=1) / np.sqrt(len(v)))
+    half = float(stdtrit(len(v) - 1, 0.975) * v.std(ddof=1) / np.sqrt(len(v)))
     return mean, mean - half, mean + half
 
 
