@@ -16,7 +16,7 @@ settings = paper_b.Settings.from_config(sm.params.settings)
 settings.check_against(campaign)
 estimates, metrics = [], []
 imu_paths = imu_files(sm.input.imu_5hz)
-for name, run_tables in load_runs(sm.input.tables).items():
+for name, run_tables in load_runs(sm.input.tables, paper_b.INPUT_TABLES).items():
     imu = tables.read(imu_paths[name])
     est = paper_b.run(run_tables, imu, campaign, settings).assign(run=name)
     estimates.append(est)

@@ -27,7 +27,7 @@ for label in sm.params.labels:
     subsets = settings.table_2_subsets if label == settings.table_2_scenario else [settings.table_1_subset]
     subsets = list(dict.fromkeys(subsets + [settings.table_1_subset]))
     metrics = []
-    for name, run_tables in load_runs(sm.params.tables_of[label]).items():
+    for name, run_tables in load_runs(sm.params.tables_of[label], paper_c.INPUT_TABLES).items():
         imu = tables.read(imu_paths[name])
         est = paper_c.run(run_tables, imu, campaign, settings, subsets)
         metrics.append(paper_c.run_metrics(est).assign(run=name))

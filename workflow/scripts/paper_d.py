@@ -15,7 +15,7 @@ log = script_logger(sm.log[0], "paper_d")
 campaign = Campaign.load(sm.input.campaign)
 settings = paper_d.Settings.from_config(sm.params.settings)
 settings.check_against(campaign)
-runs = load_runs(sm.input.tables)
+runs = load_runs(sm.input.tables, paper_d.INPUT_TABLES)
 models = paper_d.rss_models_for_runs(runs, campaign, settings)
 estimates, metrics = [], []
 for name, run_tables in runs.items():

@@ -26,6 +26,7 @@ from wsnloc.io.tables import empty as empty_table
 from wsnloc.metrics.stats import error_summary
 
 EXPERIMENT = "B"
+INPUT_TABLES = ("ranges", "truth")   # the processed tables a run needs (see load_runs)
 METHODS = {"uwb": "UWB only (Min-Max)", "imu": "IMU only (dead reckoning)",
            "sskf": "steady-state KF fusion", "kf": "classical KF fusion"}
 

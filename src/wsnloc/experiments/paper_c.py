@@ -30,6 +30,7 @@ from wsnloc.io.tables import empty as empty_table
 from wsnloc.metrics.stats import error_summary
 
 EXPERIMENT = "C"
+INPUT_TABLES = ("ranges", "truth")   # the processed tables a run needs (see load_runs)
 MODELS = ("P", "PV", "PVA")
 
 

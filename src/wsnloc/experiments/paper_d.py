@@ -27,6 +27,7 @@ from wsnloc.metrics.stats import error_summary
 from wsnloc.tracking.velocity_bounded import VelocityBoundedTracker
 
 EXPERIMENT = "D"
+INPUT_TABLES = ("ranges", "rss", "truth")   # the processed tables a run needs (see load_runs)
 TECHNIQUES = ("narrowband", "uwb", "pmix", "fmix")
 LOCALIZER_LABEL = {"minmax": "Min-Max", "multilateration": "Multilateration"}
 TECHNIQUE_LABEL = {"narrowband": "narrowband", "uwb": "UWB", "pmix": "P-mix", "fmix": "F-mix"}
