@@ -241,15 +241,15 @@ def test_bulk_imu_parsing_equals_line_by_line(lines, tmp_path_factory):
     """Regular lines are converted in bulk, the others one by one: the table and the
     quarantine are those of applying the format line by line, in file order."""
     folder = tmp_path_factory.mktemp("imu")
-    (folder / "imu.log").write_text(IMU.splitlines(keepends=True)[0] + IMU.splitlines(keepends=True)[1]
-                                    + "# t_ms ax ay az gz\n" + "".join(line + "\n" for line in lines))
+    header = "".join(IMU.splitlines(keepends=True)[:3])       # format, scale factors, columns
+    (folder / "imu.log").write_text(header + "".join(line + "\n" for line in lines))
+    campaign = Campaign.load(ROOT / "config" / "campaigns" / "newcom.yaml")
     quarantine = Quarantine()
-    imu = parse_imu(read_raw(folder / "imu.log", quarantine), Campaign.load(ROOT / "config" / "campaigns" / "newcom.yaml"),
-                    quarantine)
+    imu = parse_imu(read_raw(folder / "imu.log", quarantine), campaign, quarantine)
     accepted, refused = _imu_line_by_line(lines)
     assert imu["line"].tolist() == [a[0] for a in accepted]
     assert imu["t"].tolist() == [a[1] / 1000.0 for a in accepted]
-    g = 9.80665
+    g = campaign.spec["gravity_mps2"]
     assert imu["ax"].tolist() == [a[2] / 1024 * g for a in accepted]
     assert imu["gz"].tolist() == [np.deg2rad(a[5] / 131.072) for a in accepted]
     assert quarantine.frame()["line"].tolist() == refused
