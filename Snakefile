@@ -3,6 +3,7 @@
 from snakemake.utils import min_version
 
 from wsnloc.config import validate_config
+from wsnloc.studies import validate_studies
 
 min_version("8.20")
 
@@ -12,6 +13,7 @@ configfile: "config/config.yaml"
 
 # Validated (and defaults filled in) before any job is planned; errors name the key.
 validate_config(config, "config/schema.yaml")
+validate_studies(config)
 
 
 include: "workflow/rules/common.smk"
@@ -22,6 +24,7 @@ include: "workflow/rules/evaluate.smk"
 include: "workflow/rules/paper_d.smk"
 include: "workflow/rules/paper_b.smk"
 include: "workflow/rules/papers_ac.smk"
+include: "workflow/rules/studies.smk"
 include: "workflow/rules/report.smk"
 
 

@@ -5,12 +5,13 @@ import numpy as np
 import pytest
 from filterpy.kalman import ExtendedKalmanFilter as FilterpyEKF
 
+from wsnloc.estimators.epochs import build_epochs
+from wsnloc.estimators.inertial import epoch_inputs, floor_input
+from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import paper_a, paper_c
-from wsnloc.experiments.ekf_tracking import run_ekf
-from wsnloc.experiments.epochs import Epoch, build_epochs
 from wsnloc.filters.kalman import ExtendedKalmanFilter
 from wsnloc.filters.measurement_models import RangeModel, RssModel, Stacked
-from wsnloc.filters.motion_models import constant_velocity, position_only, pva
+from wsnloc.filters.motion_models import constant_velocity, pva
 from wsnloc.inertial.motion_detection import static_epochs
 from wsnloc.io.newcom import ingest_run
 
@@ -64,34 +65,6 @@ def test_ekf_equals_filterpy_on_identical_inputs():
     assert np.isfinite(ours.nis) and ours.y.shape == (n,)
 
 
-def _epochs_static(target, n=200):
-    ranges = np.hypot(*(np.asarray(target) - ANCHORS).T)
-    ids = np.array([f"A{i}" for i in range(len(ANCHORS))], dtype=object)
-    return [Epoch(0.5 * k, ids, ranges, np.array([], dtype=object), np.array([])) for k in range(1, n)]
-
-
-def test_p_model_converges_to_a_static_target_with_noise_free_ranges():
-    target = np.array([4.0, 3.0])
-    epochs = _epochs_static(target)
-    F, Q = position_only(0.05)
-    measurements = [Stacked([RangeModel(ANCHORS, np.full(4, 0.1))], e.ranges) for e in epochs]
-    start = lambda e: np.array([6.0, 6.0])                                          # 3.6 m off  # noqa: E731
-    track = run_ekf(epochs, F, Q, np.eye(2) * 4.0, measurements, start)
-    final = track[["x", "y"]].to_numpy()[-1]
-    assert np.linalg.norm(final - target) < 1e-6
-    assert np.linalg.norm(track[["x", "y"]].to_numpy()[1] - target) < 1.0
-
-
-def test_static_epochs_skip_the_prediction():
-    """With every epoch static the PV model never moves the state: only updates run."""
-    target = np.array([4.0, 3.0])
-    epochs = _epochs_static(target, 20)
-    F, Q = constant_velocity(0.5, 0.3)
-    track = run_ekf(epochs, F, Q, np.eye(4), [None] * len(epochs), lambda e: target,
-                    static=np.ones(len(epochs), bool))
-    assert np.allclose(track[["x", "y"]].to_numpy(), target)
-
-
 def test_pva_model_integrates_the_input_and_the_bias():
     F, B, Q = pva(0.5, 0.1, 0.01)
     x = np.array([0.0, 0.0, 1.0, 0.0, 0.1, 0.0])                # bias 0.1 m/s^2 on x
@@ -129,7 +102,8 @@ def test_paper_a_on_a_simulated_run(campaign, simulated_run):
     tables, _ = ingest_run(simulated_run, campaign)
     settings = paper_a.Settings.from_config(SETTINGS_A)
     settings.check_against(campaign)
-    metrics = paper_a.run_metrics(paper_a.run(tables, campaign, settings, SETTINGS_A["rss_model"]))
+    metrics = paper_a.run_metrics(paper_a.run(RunData(tables, campaign, SETTINGS_A["rss_model"]), settings),
+                                  tables["truth"])
     rmse = metrics.set_index(["table", "row"])["rmse"]
     assert rmse[("Table I", "distance (UWB) | UWB=12")] < 0.6
     assert rmse[("Table I", "RSS (ZigBee) | ZigBee=21")] < 2.5
@@ -163,8 +137,9 @@ def test_paper_c_models_on_a_simulated_cricket_run(tmp_path):
                                 p_sigma_m=0.15, pv_accel_sigma_mps2=0.3, pva_accel_sigma_mps2=0.1,
                                 pva_bias_walk_sigma=0.01, initial_sigma_m=0.5, initial_speed_sigma_mps=0.3,
                                 initial_bias_sigma_mps2=0.05, static_bias_s=4.0)
-    metrics = paper_c.run_metrics(paper_c.run(tables, imu, cricket, settings, settings.table_2_subsets))
+    data = RunData(dict(tables, imu_5hz=imu), cricket)
+    metrics = paper_c.run_metrics(paper_c.run(data, settings, settings.table_2_subsets), tables["truth"])
     assert set(metrics["model"]) == {"P", "PV", "PVA"} and len(metrics) == 6
     assert metrics["rmse"].max() < 1.0
-    inputs = paper_c.epoch_inputs(paper_c.floor_input(imu, cricket, settings), np.arange(10.5, 30.0, 0.5))
+    inputs = epoch_inputs(floor_input(data, settings.static_bias_s), np.arange(10.5, 30.0, 0.5))
     assert inputs.shape == (39, 2) and np.isfinite(inputs).all()

@@ -8,10 +8,14 @@ import pytest
 from wsnloc.campaign import Campaign
 from wsnloc.cli import main
 from wsnloc.errors import IngestError
+from wsnloc.estimators import registry
+from wsnloc.estimators.run_data import RunData
 from wsnloc.io.convert import convert_cucudasluv
 from wsnloc.io import tables
 from wsnloc.io.generic import ingest_run
 from wsnloc.metrics.ranging import range_errors
+from wsnloc.metrics.tracking import score
+from wsnloc.studies import run_cell
 
 from conftest import ROOT
 
@@ -96,9 +100,7 @@ def test_real_dataset_through_the_cli(tmp_path, capsys):
     assert "los" in capsys.readouterr().out
 
 
-def test_generic_ekf_on_noise_free_ranges(tmp_path, generic):
-    from wsnloc.experiments import generic_ekf
-
+def test_estimators_on_noise_free_3d_ranges_one_anchor_at_a_time(tmp_path, generic):
     anchors = np.array([[0.0, 0.0, 2.0], [20.0, 0.0, 0.5], [0.0, 20.0, 2.0], [20.0, 20.0, 0.5]])
     (tmp_path / "anchors.csv").write_text("anchor_id,tech,x,y,z\n" + "".join(
         f"A{i},uwb,{x},{y},{z}\n" for i, (x, y, z) in enumerate(anchors)))
@@ -112,24 +114,24 @@ def test_generic_ekf_on_noise_free_ranges(tmp_path, generic):
     (tmp_path / "ranges.csv").write_text("t,anchor_id,range_m\n" + "".join(rows))
     (tmp_path / "truth.csv").write_text("t,x,y\n" + "".join(f"{a:.2f},{x},{y}\n" for a, (x, y) in zip(t, path)))
     tables, _ = ingest_run(tmp_path, generic)
-    spec = dict(epoch_s=0.5, max_range_m=100.0, range_sigma_m=0.05, accel_sigma_mps2=0.05, initial_sigma_m=1.0,
-                initial_speed_sigma_mps=0.2, rss_model={"p0_dbm": -60.0, "path_loss_exponent": 2.0, "sigma_db": 4.0})
-    metrics = generic_ekf.run_metrics(generic_ekf.run(tables, generic, spec, spec["rss_model"]))
-    assert list(metrics["variant"]) == ["PV EKF, ranges"]        # no RSS in this dataset
-    assert metrics["median"].iloc[0] < 0.05
+    data = RunData(tables, generic)
+    for name, params in (("tracker", {"range_sigma_m": 0.05, "accel_sigma_mps2": 0.05}),
+                         ("multilateration", {}), ("ekf", {"range_sigma_m": 0.05, "accel_sigma_mps2": 0.05})):
+        scored = score(registry.run(name, data, params), tables["truth"])
+        assert np.nanmedian(scored["error_m"]) < 0.06, name
 
 
 @needs_real
-def test_generic_ekf_on_the_real_dataset(tmp_path, generic):
-    from wsnloc.experiments import generic_ekf
-
+def test_study_cells_on_the_real_dataset(tmp_path, generic):
     runs = {}
     for run_dir in convert_cucudasluv(REAL, tmp_path):
         tables, _ = ingest_run(run_dir, generic)
-        runs[run_dir.parent.name] = (tables, generic)
-    spec = dict(epoch_s=0.5, max_range_m=100.0, range_sigma_m=0.3, accel_sigma_mps2=1.0, initial_sigma_m=1.0,
-                initial_speed_sigma_mps=1.0, rss_model={"p0_dbm": -60.0, "path_loss_exponent": 2.0, "sigma_db": 4.0})
-    models = generic_ekf.calibrations(runs, spec["rss_model"])
-    assert models["los"]["source"] == "fitted on nlos"
-    metrics = generic_ekf.run_metrics(generic_ekf.run(*runs["nlos"], spec, models["nlos"]))
-    assert len(metrics) == 2 and metrics["median"].max() < 1.5
+        runs[run_dir.parent.name] = tables
+    p = registry.get("ekf").resolve({"measurements": "hybrid", "max_range_m": 100.0, "accel_sigma_mps2": 1.0})
+    estimates, metrics = run_cell("cucudasluv/nlos", "hybrid", "ekf", p, ["all"], {"nlos": runs["nlos"]}, generic,
+                                  donors={"los": runs["los"]})
+    assert metrics["rss_model"].iloc[0] == "fitted on los"          # a donor of the same dataset
+    assert metrics["median"].iloc[0] < 1.5 and metrics["availability"].iloc[0] > 0.9
+    p = registry.get("tracker").resolve({"max_range_m": 100.0})
+    _, metrics = run_cell("cucudasluv/nlos", "tracker", "tracker", p, ["all"], {"nlos": runs["nlos"]}, generic)
+    assert metrics["median"].iloc[0] < 1.5 and metrics["availability"].iloc[0] > 0.9

@@ -4,6 +4,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from wsnloc.estimators.inertial import align_fixes
+from wsnloc.estimators.run_data import RunData
 from wsnloc import results
 from wsnloc.experiments import paper_b
 from wsnloc.filters.steady_state import fuse, steady_state_gain
@@ -114,7 +116,7 @@ def test_classical_filter_converges_to_the_steady_state_filter():
 def test_fixes_are_aligned_to_the_step_they_arrive_in():
     steps = np.array([0.0, 0.2, 0.4, 0.6])
     fixes = pd.DataFrame({"t": [0.2, 0.5, 0.9], "x": [1.0, 2.0, 3.0], "y": [0.0, np.nan, 0.0]})
-    aligned = paper_b.align_fixes(steps, fixes)
+    aligned = align_fixes(steps, fixes)
     assert aligned[0].tolist() == [1.0, 0.0] and np.isnan(aligned[1:]).all()
 
 
@@ -126,7 +128,8 @@ def test_paper_b_on_a_simulated_run(campaign, simulated_run):
     imu = resample_imu(tables["imu"], 5.0, 500.0, 0.1, 8.0)
     settings = paper_b.Settings(epoch_s=0.5, uwb_subset="UWB=10", k_smallest=0, uwb_preliminary_filter=True,
                                 max_range_m=50.0, static_bias_s=4.0, process_sigma_m=0.05, fix_sigma_m=1.0)
-    metrics = paper_b.run_metrics(paper_b.run(tables, imu, campaign, settings)).set_index("method")
+    estimates = paper_b.run(RunData(dict(tables, imu_5hz=imu), campaign), settings)
+    metrics = paper_b.run_metrics(estimates, tables["truth"]).set_index("method")
     assert set(metrics.index) == {"uwb", "imu", "sskf", "kf"}
     assert metrics.loc["sskf", "rmse"] < metrics.loc["uwb", "rmse"] < 2.0
     paper = {"rmse_m": [{"row": "UWB only (Min-Max)", "simulation": 3.21, "real": 3.25, "max_real": "> 5"}]}

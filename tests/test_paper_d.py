@@ -7,7 +7,9 @@ from filterpy.kalman import KalmanFilter as FilterpyKF
 
 from wsnloc import results
 from wsnloc.experiments import paper_d
-from wsnloc.experiments.epochs import Epoch, build_epochs
+from wsnloc.estimators.epochs import build_epochs
+from wsnloc.estimators.fixes import epoch_fixes
+from wsnloc.estimators.run_data import RunData, preliminary_filter
 from wsnloc.filters.kalman import KalmanFilter
 from wsnloc.filters.motion_models import constant_velocity
 from wsnloc.geometry.lateration import min_max, multilateration
@@ -98,24 +100,33 @@ def test_k_smallest_pools_technologies():
     assert len(k_smallest(pooled, 20)) == 8
 
 
+def _one_epoch(campaign, uwb_ids, uwb_r, nb_ids, rss):
+    ranges = pd.DataFrame({"t": 1.0, "anchor_id": uwb_ids, "range_m": uwb_r, "status": 0, "line": 1})
+    rss = pd.DataFrame({"t": 1.0, "seq": 0, "anchor_id": nb_ids, "rss_dbm": rss, "line": 1})
+    return RunData({"ranges": ranges, "rss": rss, "anchors": campaign.anchors}, campaign)
+
+
 def test_fmix_localises_the_six_smallest_pooled_ranges(campaign):
     settings = paper_d.Settings.from_config(SETTINGS)
-    anchors = paper_d._Anchors(campaign)
     target = np.array([10.0, 7.5])
     uwb_ids = np.array(["U01", "U02", "U03", "U04", "U05"], dtype=object)
     nb_ids = np.array(["Z03", "Z04", "Z05", "Z06"], dtype=object)
-    uwb_r = _ranges(anchors.positions(uwb_ids), target)
-    nb_r = _ranges(anchors.positions(nb_ids), target)
-    rss = -50.0 - 30.0 * np.log10(nb_r)                       # exact inverse of the model
-    epoch = Epoch(1.0, uwb_ids, uwb_r, nb_ids, rss)
-    fixes = paper_d.localize_epoch(epoch, anchors, "multilateration", settings, SETTINGS["rss_model"])
-    assert fixes["fmix"] == pytest.approx(target, abs=1e-6)
+    data = _one_epoch(campaign, uwb_ids, np.zeros(5), nb_ids, np.zeros(4))
+    uwb_r = _ranges(data.positions(uwb_ids), target)
+    nb_r = _ranges(data.positions(nb_ids), target)
+    data = _one_epoch(campaign, uwb_ids, uwb_r, nb_ids, -50.0 - 30.0 * np.log10(nb_r))   # exact inverse of the model
+    params = paper_d.estimator_params(settings)
+    fix = {}
+    for solver in ("multilateration", "minmax"):
+        for technique in ("toa", "rss", "pmix", "fmix"):
+            p = {**params, "solver": solver, "rss_calibration": "configured", "sigma_db": 4.0}
+            fix[solver, technique] = epoch_fixes(data, p, technique)[["x", "y"]].to_numpy()[0]
+    assert fix["multilateration", "fmix"] == pytest.approx(target, abs=1e-6)
     ids = np.concatenate([nb_ids, uwb_ids])
     pooled = np.concatenate([nb_r, uwb_r])
     keep = k_smallest(pooled, 6)
-    assert min_max(anchors.positions(ids[keep]), pooled[keep]) == pytest.approx(
-        paper_d.localize_epoch(epoch, anchors, "minmax", settings, SETTINGS["rss_model"])["fmix"])
-    assert fixes["pmix"] == pytest.approx((fixes["uwb"] + fixes["narrowband"]) / 2)
+    assert min_max(data.positions(ids[keep]), pooled[keep]) == pytest.approx(fix["minmax", "fmix"])
+    assert fix["minmax", "pmix"] == pytest.approx((fix["minmax", "toa"] + fix["minmax", "rss"]) / 2)
 
 
 def test_rss_to_distance_inverts_the_path_loss_model():
@@ -126,7 +137,7 @@ def test_rss_to_distance_inverts_the_path_loss_model():
 def test_preliminary_filter():
     ranges = pd.DataFrame({"t": [0, 1, 2, 3, 4], "anchor_id": ["U01"] * 5, "range_m": [3.0, 3.0, -1.0, 80.0, np.nan],
                            "status": [0, 7, 0, 0, 0], "line": [1, 2, 3, 4, 5]})
-    assert paper_d.preliminary_filter(ranges, 50.0)["line"].tolist() == [1]
+    assert preliminary_filter(ranges, 50.0)["line"].tolist() == [1]
 
 
 class TestVelocityTracker:
@@ -202,7 +213,7 @@ def test_epochs_group_measurements():
                            "status": 0, "line": 1})
     rss = pd.DataFrame({"t": [0.05, 0.3, 0.6], "anchor_id": ["Z01", "Z01", "Z01"], "rss_dbm": [-60.0, -62.0, -70.0],
                         "seq": 0, "line": 1})
-    epochs = build_epochs(ranges, rss, 0.5, start=0.0, end=1.0)
+    epochs = build_epochs(ranges, rss, 0.5, times=np.array([0.5, 1.0]))
     assert [e.t for e in epochs] == [0.5, 1.0]
     assert epochs[0].range_ids.tolist() == ["U01"] and epochs[0].ranges.tolist() == [2.0]
     assert epochs[0].rss.tolist() == [-61.0] and epochs[1].rss.tolist() == [-70.0]
@@ -213,8 +224,8 @@ def test_paper_d_on_a_simulated_run(campaign, simulated_run):
 
     tables, _ = ingest_run(simulated_run, campaign)
     settings = paper_d.Settings.from_config(SETTINGS)
-    estimates = paper_d.run(tables, campaign, settings, SETTINGS["rss_model"])
-    metrics = paper_d.run_metrics(estimates)
+    estimates = paper_d.run(RunData(tables, campaign, SETTINGS["rss_model"]), settings)
+    metrics = paper_d.run_metrics(estimates, tables["truth"])
     assert set(metrics["stage"]) == {"raw", "velocity", "kalman"} and len(metrics) == 2 * 4 * 3
     uwb = metrics[(metrics["localizer"] == "multilateration") & (metrics["technique"] == "uwb")
                   & (metrics["stage"] == "raw")]

@@ -24,7 +24,7 @@ def test_log_and_config_text_is_escaped(campaign, simulated_run):
               "datasets": {"newcom": {"format": "newcom", "campaign": "c.yaml", "source": "simulate",
                                       "scenarios": ["constant"], "raw_dir": EVIL}}}
     context = build_context(config, [summary], results.frame(rows), {}, {})
-    context["papers"], context["generic_ekf"] = [], []
+    context["papers"], context["studies"] = [], []
     html = render(ROOT / "workflow" / "templates" / "report.html.j2", context)
     assert EVIL not in html
     assert "&lt;script&gt;alert(1)&lt;/script&gt;" in html

@@ -11,7 +11,9 @@ from hypothesis import strategies as st
 
 from wsnloc.campaign import Campaign
 from wsnloc.errors import IngestError
-from wsnloc.experiments import paper_a, paper_b, paper_d
+from wsnloc.estimators import registry
+from wsnloc.estimators.run_data import RunData
+from wsnloc.experiments import paper_a, paper_d
 from wsnloc.io import cricket, generic, newcom
 
 from conftest import ROOT
@@ -100,11 +102,12 @@ def test_bad_measurements_never_crash_the_estimators(campaign, simulated_run, va
     ranges.loc[ranges.index[: len(values)], "range_m"] = values
     rss_table.loc[rss_table.index[: len(rss)], "rss_dbm"] = rss
     tables = dict(tables, ranges=ranges, rss=rss_table)
-    estimates = paper_d.run(tables, campaign, paper_d.Settings.from_config(SETTINGS_D), SETTINGS_D["rss_model"])
+    data = RunData(tables, campaign, SETTINGS_D["rss_model"])
+    estimates = paper_d.run(data, paper_d.Settings.from_config(SETTINGS_D))
     assert np.isfinite(estimates["error_m"]).mean() > 0.9
-    a = paper_a.run(tables, campaign, paper_a.Settings.from_config(SETTINGS_A), SETTINGS_A["rss_model"])
+    a = paper_a.run(RunData(tables, campaign, SETTINGS_A["rss_model"]), paper_a.Settings.from_config(SETTINGS_A))
     assert np.isfinite(a[["x", "y"]].to_numpy()).all()
-    fixes = paper_b.uwb_fixes(ranges, campaign, paper_b.Settings(0.5, "UWB=10", 0, True, 50.0, 4.0, 0.05, 1.0))
+    fixes = registry.run("minmax", data, {"anchors": "UWB=10", "max_range_m": 50.0})
     assert fixes["t"].is_monotonic_increasing
 
 
@@ -113,5 +116,5 @@ def test_unfiltered_ranges_with_nan_are_dropped(campaign, simulated_run):
     ranges = tables["ranges"].copy()
     ranges.loc[ranges.index[:5], "range_m"] = np.nan
     settings = paper_d.Settings.from_config({**SETTINGS_D, "uwb_preliminary_filter": False})
-    raw = paper_d.localize_run(dict(tables, ranges=ranges), campaign, settings, SETTINGS_D["rss_model"])
-    assert len(raw) > 0
+    raw = paper_d.run(RunData(dict(tables, ranges=ranges), campaign, SETTINGS_D["rss_model"]), settings)
+    assert np.isfinite(raw["x"]).mean() > 0.9

@@ -1,15 +1,33 @@
-# Papers A and C, and the same EKF on other datasets (one job each: every scenario and run inside it).
+# Papers A and C: one estimator job per scenario (all its runs), then one summary job per
+# paper for the tables, claims and figures over all scenarios.
 PAPER_A = config["experiments"].get("paper_a")
 PAPER_C = config["experiments"].get("paper_c")
 PAPER_A_PAIRS = experiment_pairs(PAPER_A)
 PAPER_C_PAIRS = experiment_pairs(PAPER_C)
-GENERIC_EKF = config["experiments"].get("generic_ekf")
-GENERIC_EKF_PAIRS = experiment_pairs(GENERIC_EKF)
 
 
 rule paper_a:
     input:
-        tables=all_tables(PAPER_A_PAIRS),
+        tables=lambda w: tables_of(w.dataset, w.scenario),
+        campaign=campaign_file,
+    output:
+        estimates="data/processed/{dataset}/{scenario}/paper_a/estimates.parquet",
+        metrics="data/processed/{dataset}/{scenario}/paper_a/metrics.csv",
+    params:
+        settings=PAPER_A,
+    priority: PRIORITY["estimator"]
+    log:
+        "logs/paper_a/{dataset}-{scenario}.log",
+    conda:
+        ENV
+    script:
+        "../scripts/paper_a.py"
+
+
+rule paper_a_summary:
+    input:
+        metrics=[f"data/processed/{d}/{s}/paper_a/metrics.csv" for d, s in PAPER_A_PAIRS],
+        estimates=[f"data/processed/{d}/{s}/paper_a/estimates.parquet" for d, s in PAPER_A_PAIRS],
         campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_A_PAIRS}),
         papers="config/papers.yaml",
     output:
@@ -22,20 +40,39 @@ rule paper_a:
         settings=PAPER_A,
         labels=[f"{d}/{s}" for d, s in PAPER_A_PAIRS],
         campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in PAPER_A_PAIRS},
-        tables_of={f"{d}/{s}": tables_of(d, s) for d, s in PAPER_A_PAIRS},
-    priority: PRIORITY["estimator"]
+    priority: PRIORITY["summary"]
     log:
-        "logs/paper_a/paper_a.log",
+        "logs/paper_a/summary.log",
     conda:
         ENV
     script:
-        "../scripts/paper_a.py"
+        "../scripts/paper_a_summary.py"
 
 
 rule paper_c:
     input:
-        tables=all_tables(PAPER_C_PAIRS),
-        imu_5hz=[p for d, s in PAPER_C_PAIRS for p in imu_of(d, s)],
+        tables=lambda w: tables_of(w.dataset, w.scenario),
+        imu_5hz=lambda w: imu_of(w.dataset, w.scenario),
+        campaign=campaign_file,
+    output:
+        estimates="data/processed/{dataset}/{scenario}/paper_c/estimates.parquet",
+        metrics="data/processed/{dataset}/{scenario}/paper_c/metrics.csv",
+    params:
+        settings=PAPER_C,
+        label="{dataset}/{scenario}",
+    priority: PRIORITY["estimator"]
+    log:
+        "logs/paper_c/{dataset}-{scenario}.log",
+    conda:
+        ENV
+    script:
+        "../scripts/paper_c.py"
+
+
+rule paper_c_summary:
+    input:
+        metrics=[f"data/processed/{d}/{s}/paper_c/metrics.csv" for d, s in PAPER_C_PAIRS],
+        estimates=[f"data/processed/{d}/{s}/paper_c/estimates.parquet" for d, s in PAPER_C_PAIRS],
         campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_C_PAIRS}),
         papers="config/papers.yaml",
     output:
@@ -49,31 +86,10 @@ rule paper_c:
         settings=PAPER_C,
         labels=[f"{d}/{s}" for d, s in PAPER_C_PAIRS],
         campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in PAPER_C_PAIRS},
-        tables_of={f"{d}/{s}": tables_of(d, s) for d, s in PAPER_C_PAIRS},
-        imu_of={f"{d}/{s}": imu_of(d, s) for d, s in PAPER_C_PAIRS},
-    priority: PRIORITY["estimator"]
+    priority: PRIORITY["summary"]
     log:
-        "logs/paper_c/paper_c.log",
+        "logs/paper_c/summary.log",
     conda:
         ENV
     script:
-        "../scripts/paper_c.py"
-
-
-rule generic_ekf:
-    input:
-        tables=all_tables(GENERIC_EKF_PAIRS),
-        campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in GENERIC_EKF_PAIRS}),
-    output:
-        results="data/processed/generic_ekf/results.csv",
-    params:
-        settings=GENERIC_EKF,
-        labels=[f"{d}/{s}" for d, s in GENERIC_EKF_PAIRS],
-        campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in GENERIC_EKF_PAIRS},
-        tables_of={f"{d}/{s}": tables_of(d, s) for d, s in GENERIC_EKF_PAIRS},
-    log:
-        "logs/generic_ekf/generic_ekf.log",
-    conda:
-        ENV
-    script:
-        "../scripts/generic_ekf.py"
+        "../scripts/paper_c_summary.py"

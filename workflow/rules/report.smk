@@ -1,4 +1,5 @@
 # One self-contained HTML report and the results contract (reports/results.csv).
+STUDY_OUTPUTS = ["results.csv", "figures/error_cdf.png", "figures/error_over_time.png", "figures/trajectories.png"]
 
 
 rule report:
@@ -35,7 +36,7 @@ rule report:
             if PAPER_C_PAIRS
             else []
         ),
-        generic_ekf=["data/processed/generic_ekf/results.csv"] if GENERIC_EKF_PAIRS else [],
+        studies=[f"data/processed/studies/{study}/{name}" for study in STUDIES for name in STUDY_OUTPUTS],
         paper_b=(
             [
                 "data/processed/paper_b/results.csv",
@@ -67,6 +68,7 @@ rule report:
         paper_b_labels=[f"{d}/{s}" for d, s in PAPER_B_PAIRS],
         paper_a_labels=[f"{d}/{s}" for d, s in PAPER_A_PAIRS],
         paper_c_labels=[f"{d}/{s}" for d, s in PAPER_C_PAIRS],
+        studies=STUDIES,
     log:
         "logs/report/report.log",
     conda:

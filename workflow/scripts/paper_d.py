@@ -5,6 +5,7 @@ import json
 import pandas as pd
 
 from wsnloc.campaign import Campaign
+from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import paper_d
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
@@ -19,9 +20,10 @@ runs = load_runs(sm.input.tables, paper_d.INPUT_TABLES)
 models = paper_d.rss_models_for_runs(runs, campaign, settings)
 estimates, metrics = [], []
 for name, run_tables in runs.items():
-    est = paper_d.run(run_tables, campaign, settings, models[name]).assign(run=name)
+    est = paper_d.run(RunData(run_tables, campaign, models[name], name), settings).assign(run=name)
     estimates.append(est)
-    metrics.append(paper_d.run_metrics(est).assign(run=name, **{f"rss_{k}": v for k, v in models[name].items()}))
+    metrics.append(paper_d.run_metrics(est, run_tables["truth"])
+                   .assign(run=name, **{f"rss_{k}": v for k, v in models[name].items()}))
     log.info("%s: RSS model %s", name, json.dumps(models[name]))
 tables.write("estimates_paper_d", pd.concat(estimates, ignore_index=True), sm.output.estimates)
 pd.concat(metrics, ignore_index=True).to_csv(sm.output.metrics, index=False, float_format="%.6g")

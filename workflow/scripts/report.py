@@ -11,7 +11,8 @@ from wsnloc.io import tables
 from wsnloc.report import figures
 from wsnloc.config import read_yaml
 from wsnloc.report.render import build_context, png_data_uri, render
-from wsnloc.report.sections import paper_a_section, paper_b_section, paper_c_section, paper_d_section
+from wsnloc.report.sections import (paper_a_section, paper_b_section, paper_c_section, paper_d_section,
+                                    study_section)
 from wsnloc.workflow import script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
@@ -19,7 +20,7 @@ log = script_logger(sm.log[0], "report")
 config = sm.params.config
 
 summaries = [json.loads(Path(p).read_text()) for p in sm.input.summaries]
-paper_outputs = list(sm.input.generic_ekf) + list(sm.input.paper_a) + list(sm.input.paper_b) + list(sm.input.paper_c) + list(sm.input.paper_d)
+paper_outputs = list(sm.input.studies) + list(sm.input.paper_a) + list(sm.input.paper_b) + list(sm.input.paper_c) + list(sm.input.paper_d)
 result_files = list(sm.input.results) + [p for p in paper_outputs if p.endswith("results.csv")]
 all_results = pd.concat([results.read(p) for p in result_files], ignore_index=True)
 results.write(all_results, sm.output.results)
@@ -39,7 +40,11 @@ for name, spec in config["datasets"].items():
 final_results = results.read(sm.output.results)
 context = build_context(config, summaries, final_results, scenario_figures, floor_plans)
 papers = read_yaml(sm.input.papers)
-context["generic_ekf"] = final_results[final_results["experiment"] == "generic"].to_dict(orient="records")
+context["studies"] = []
+for study, spec in sm.params.studies.items():
+    pngs = [Path(p) for p in sm.input.studies if p.endswith(".png") and Path(p).parts[3] == study]
+    figures_uri = {path.stem: png_data_uri(path.read_bytes()) for path in pngs}
+    context["studies"].append(study_section(final_results, study, spec, figures_uri))
 
 SECTIONS = {   # paper: (section builder, figure names, labels)
     "A": (paper_a_section, ("error_cdf", "trajectories", "rmse_vs_anchors"), sm.params.paper_a_labels),

@@ -2,11 +2,10 @@
 RSS, or both stacked (hybrid), without (Table I) and with (Table II) accelerometer motion
 detection, on the Newcom++ scenarios.
 
-Per run and row (measurement type + anchor subsets): epochs of `epoch_s`; UWB ranges of
-the epoch (preliminary filter applied) and the RSS per anchor averaged in dB over the
-epoch enter the measurement vector; the RSS model P0, n, sigma is calibrated on another
-run with truth. Initialisation by multilateration of the first epoch with 3 ranges
-(RSS turned into distances by inverting the calibrated model).
+Each row (measurement type + anchor subsets) is the registry's `ekf` estimator (PV model,
+one update per epoch of `epoch_s`), run without and with motion detection; the RSS model
+P0, n, sigma is calibrated on another run with truth (the caller's RunData.rss_model).
+This module holds only the paper's table layout, its claims and figures.
 """
 
 from __future__ import annotations
@@ -19,17 +18,12 @@ import pandas as pd
 from wsnloc import results
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
-from wsnloc.experiments.ekf_tracking import run_ekf
-from wsnloc.experiments.epochs import Epoch, build_epochs, score
-from wsnloc.experiments.paper_d import preliminary_filter
-from wsnloc.filters.measurement_models import RangeModel, RssModel, Stacked
-from wsnloc.filters.motion_models import constant_velocity
-from wsnloc.geometry.lateration import multilateration
-from wsnloc.geometry.selection import rss_to_distance
-from wsnloc.inertial.motion_detection import static_epochs
-from wsnloc.metrics.stats import error_summary
+from wsnloc.estimators import registry
+from wsnloc.estimators.run_data import RunData
+from wsnloc.metrics.tracking import cell_metrics, score
 
 EXPERIMENT = "A"
+INPUT_TABLES = ("ranges", "rss", "imu", "truth", "anchors")   # the processed tables a run needs (see load_runs)
 MEASUREMENT_LABEL = {"toa": "distance (UWB)", "rss": "RSS (ZigBee)", "hybrid": "hybrid"}
 
 
@@ -71,69 +65,37 @@ class Settings:
                                       f"{row['measurements']} measurements")
 
 
-class _RowMeasurements:
-    """Builds each epoch's measurement model for one table row."""
-
-    def __init__(self, row: dict, campaign: Campaign, settings: Settings, rss_model: dict):
-        subsets = campaign.spec["subsets"]
-        self.uwb = set(subsets[row["uwb"]]) if row["measurements"] in ("toa", "hybrid") else set()
-        self.zigbee = set(subsets[row["zigbee"]]) if row["measurements"] in ("rss", "hybrid") else set()
-        self.xy = {a: np.array([x, y]) for a, x, y in campaign.anchors[["anchor_id", "x", "y"]].itertuples(index=False)}
-        self.settings, self.rss = settings, rss_model
-
-    def _pick(self, ids, values, members):
-        keep = [k for k, i in enumerate(ids) if i in members]
-        return np.array([self.xy[ids[k]] for k in keep]).reshape(-1, 2), values[keep]
-
-    def measure(self, epoch: Epoch):
-        parts, z = [], []
-        uwb_xy, ranges = self._pick(epoch.range_ids, epoch.ranges, self.uwb)
-        if len(ranges):
-            parts.append(RangeModel(uwb_xy, np.full(len(ranges), self.settings.range_sigma_m)))
-            z.append(ranges)
-        rss_xy, rss = self._pick(epoch.rss_ids, epoch.rss, self.zigbee)
-        if len(rss):
-            parts.append(RssModel(rss_xy, self.rss["p0_dbm"], self.rss["path_loss_exponent"], self.rss["sigma_db"],
-                                  self.rss.get("d0_m", 1.0)))
-            z.append(rss)
-        return Stacked(parts, np.concatenate(z)) if parts else None
-
-    def initial_fix(self, epoch: Epoch):
-        uwb_xy, ranges = self._pick(epoch.range_ids, epoch.ranges, self.uwb)
-        rss_xy, rss = self._pick(epoch.rss_ids, epoch.rss, self.zigbee)
-        distances = rss_to_distance(rss, self.rss["p0_dbm"], self.rss["path_loss_exponent"], self.rss.get("d0_m", 1.0))
-        return multilateration(np.vstack([uwb_xy, rss_xy]), np.concatenate([ranges, distances]))
+def estimator_params(settings: Settings, row: dict, motion_detection: bool) -> dict:
+    """Registry parameters of the `ekf` estimator for one row of Table I (or II, with motion detection)."""
+    return {
+        "anchors": "+".join(row[k] for k in ("uwb", "zigbee") if k in row),
+        "measurements": row["measurements"], "motion": "pv", "update": "epoch", "epoch_s": settings.epoch_s,
+        "preliminary_filter": settings.uwb_preliminary_filter, "max_range_m": settings.max_range_m,
+        "range_sigma_m": settings.range_sigma_m, "accel_sigma_mps2": settings.accel_sigma_mps2,
+        "initial_sigma_m": settings.initial_sigma_m, "initial_speed_sigma_mps": settings.initial_speed_sigma_mps,
+        "motion_detection": motion_detection, "motion_threshold_mps2": settings.motion_threshold_mps2,
+        "static_start_s": settings.static_reference_s, "rss_calibration": settings.rss_calibration,
+        "p0_dbm": settings.rss_model["p0_dbm"], "path_loss_exponent": settings.rss_model["path_loss_exponent"],
+        "sigma_db": settings.rss_model["sigma_db"], "d0_m": settings.rss_model.get("d0_m", 1.0),
+    }
 
 
-def run(tables: dict, campaign: Campaign, settings: Settings, rss_model: dict) -> pd.DataFrame:
-    """Estimates of every row, without and with motion detection, scored against truth."""
-    ranges = tables["ranges"][tables["ranges"]["anchor_id"].isin(campaign.anchors_of("uwb")["anchor_id"])]
-    ranges = preliminary_filter(ranges, settings.max_range_m) if settings.uwb_preliminary_filter \
-        else ranges[np.isfinite(ranges["range_m"])]
-    rss = tables["rss"][np.isfinite(tables["rss"]["rss_dbm"])]
-    epochs = build_epochs(ranges, rss, settings.epoch_s)
-    times = np.array([e.t for e in epochs])
-    static = static_epochs(tables["imu"], times, settings.epoch_s, settings.motion_threshold_mps2,
-                           settings.static_reference_s)
-    F, Q = constant_velocity(settings.epoch_s, settings.accel_sigma_mps2)
-    P0 = np.diag([settings.initial_sigma_m**2] * 2 + [settings.initial_speed_sigma_mps**2] * 2)
+def run(data: RunData, settings: Settings) -> pd.DataFrame:
+    """Estimates of every row, without (Table I) and with (Table II) motion detection, scored."""
     frames = []
     for row in settings.rows:
-        model = _RowMeasurements(row, campaign, settings, rss_model)
-        measurements = [model.measure(epoch) for epoch in epochs]
-        for table, flags in (("Table I", None), ("Table II", static)):
-            track = run_ekf(epochs, F, Q, P0, measurements, model.initial_fix, static=flags)
+        for table, motion_detection in (("Table I", False), ("Table II", True)):
+            track = registry.run("ekf", data, estimator_params(settings, row, motion_detection),
+                                 where="experiments.paper_a")
             frames.append(track.assign(row=row_label(row), table=table))
-    return score(pd.concat(frames, ignore_index=True), tables["truth"])
+    return score(pd.concat(frames, ignore_index=True), data.table("truth"))
 
 
-def run_metrics(estimates: pd.DataFrame) -> pd.DataFrame:
-    rows = []
-    for (table, row), group in estimates.groupby(["table", "row"], sort=False):
-        stats = error_summary(group["error_m"])
-        rows.append({"table": table, "row": row, **{k: stats[k] for k in ("rmse", "median", "p95", "max")},
-                     "nis_mean": float(group["nis"].mean())})
-    return pd.DataFrame(rows)
+def run_metrics(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
+    """Per (table, row): the standard run metrics (metrics.tracking) and the mean NIS."""
+    metrics = cell_metrics(estimates, ["table", "row"], truth)
+    metrics["nis_mean"] = estimates.groupby(["table", "row"], sort=False)["nis"].mean().to_numpy()
+    return metrics
 
 
 def paper_value(paper: dict, row: dict, table: str, motion: str):

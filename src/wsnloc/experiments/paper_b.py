@@ -1,9 +1,11 @@
 """Paper B (Pavia group, c. 2013): UWB Min-Max fixes fused with inertial dead reckoning
 by a steady-state Kalman filter, beside the classical (time-varying gain) KF.
 
-Per run: dead reckoning on the 5 Hz IMU from the known start pose; Min-Max fixes at every
-UWB epoch (2 Hz); both filters predict with the dead-reckoning displacement of each
-5 Hz step and update with the fix that arrived during the step.
+Every method is a registry estimator: `minmax` (UWB Min-Max fixes at every 2 Hz epoch),
+`dead_reckoning` (5 Hz IMU from the known start pose), and `dr_sskf` / `dr_kf` (both
+filters predict with each 5 Hz step's dead-reckoning displacement and update with the
+fix that arrived during the step). This module holds only the paper's table layout,
+its claims and figures.
 """
 
 from __future__ import annotations
@@ -16,17 +18,12 @@ import pandas as pd
 from wsnloc import results
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
-from wsnloc.experiments.epochs import build_epochs, score
-from wsnloc.experiments.paper_d import preliminary_filter
-from wsnloc.filters.steady_state import fuse, steady_state_gain
-from wsnloc.geometry.lateration import min_max
-from wsnloc.geometry.selection import k_smallest
-from wsnloc.inertial.dead_reckoning import dead_reckon, static_bias
-from wsnloc.io.tables import empty as empty_table
-from wsnloc.metrics.stats import error_summary
+from wsnloc.estimators import registry
+from wsnloc.estimators.run_data import RunData
+from wsnloc.metrics.tracking import cell_metrics, score
 
 EXPERIMENT = "B"
-INPUT_TABLES = ("ranges", "truth")   # the processed tables a run needs (see load_runs)
+INPUT_TABLES = ("ranges", "rss", "truth", "anchors", "imu_5hz")   # the processed tables a run needs (see load_runs)
 METHODS = {"uwb": "UWB only (Min-Max)", "imu": "IMU only (dead reckoning)",
            "sskf": "steady-state KF fusion", "kf": "classical KF fusion"}
 
@@ -53,69 +50,31 @@ class Settings:
                               f"in {campaign.source}")
 
 
-def uwb_fixes(ranges: pd.DataFrame, campaign: Campaign, settings: Settings) -> pd.DataFrame:
-    """Min-Max fix (x, y; NaN when none) at the end of every UWB epoch."""
-    members = campaign.spec["subsets"][settings.uwb_subset]
-    ranges = ranges[ranges["anchor_id"].isin(members)]
-    ranges = preliminary_filter(ranges, settings.max_range_m) if settings.uwb_preliminary_filter \
-        else ranges[np.isfinite(ranges["range_m"])]
-    xy = {a: (x, y) for a, x, y in campaign.anchors[["anchor_id", "x", "y"]].itertuples(index=False)}
-    rows = []
-    for epoch in build_epochs(ranges, empty_table("rss"), settings.epoch_s):
-        keep = k_smallest(epoch.ranges, settings.k_smallest or len(epoch.ranges))
-        anchors = np.array([xy[a] for a in epoch.range_ids[keep]]).reshape(-1, 2)
-        fix = min_max(anchors, epoch.ranges[keep])
-        rows.append((epoch.t, *(fix if fix is not None else (np.nan, np.nan))))
-    return pd.DataFrame(rows, columns=["t", "x", "y"])
+METHOD_ESTIMATOR = {"uwb": "minmax", "imu": "dead_reckoning", "sskf": "dr_sskf", "kf": "dr_kf"}
 
 
-def align_fixes(step_times: np.ndarray, fixes: pd.DataFrame) -> np.ndarray:
-    """(N - 1, 2): the fix that arrived during step k (t_k, t_{k+1}], NaN where none."""
-    out = np.full((len(step_times) - 1, 2), np.nan)
-    valid = fixes.dropna()
-    index = np.searchsorted(step_times, valid["t"].to_numpy(), side="left") - 1
-    inside = (index >= 0) & (index < len(out))
-    out[index[inside]] = valid[["x", "y"]].to_numpy()[inside]
-    return out
+def estimator_params(settings: Settings) -> dict:
+    """Registry parameters shared by paper B's four methods."""
+    return {"anchors": settings.uwb_subset, "epoch_s": settings.epoch_s, "k_smallest": settings.k_smallest,
+            "preliminary_filter": settings.uwb_preliminary_filter, "max_range_m": settings.max_range_m,
+            "static_start_s": settings.static_bias_s, "process_sigma_m": settings.process_sigma_m,
+            "fix_sigma_m": settings.fix_sigma_m, "measurements": "toa"}
 
 
-def filter_matrices(settings: Settings, imu_step_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Q per 5 Hz step, R of a fix, and the steady-state gain for one update per UWB epoch."""
-    Q_step = np.eye(2) * settings.process_sigma_m**2
-    R = np.eye(2) * settings.fix_sigma_m**2
-    steps_per_update = settings.epoch_s / imu_step_s
-    return Q_step, R, steady_state_gain(Q_step * steps_per_update, R)
-
-
-def run(tables: dict, imu_5hz: pd.DataFrame, campaign: Campaign, settings: Settings) -> pd.DataFrame:
+def run(data: RunData, settings: Settings) -> pd.DataFrame:
     """UWB-only, IMU-only, steady-state KF and classical KF positions of one run, scored."""
-    x0, y0, heading0 = campaign.path.start_pose()
-    imu = imu_5hz.reset_index(drop=True)
-    dr = dead_reckon(imu, x0, y0, heading0, static_bias(imu, settings.static_bias_s))
-    fixes = uwb_fixes(tables["ranges"], campaign, settings)
-    t = dr["t"].to_numpy()
-    step = float(np.median(np.diff(t)))
-    Q_step, R, gain = filter_matrices(settings, step)
-    displacements = np.diff(dr[["x", "y"]].to_numpy(), axis=0)
-    aligned = align_fixes(t, fixes)
-    start = (x0, y0)
-    sskf = fuse(displacements, aligned, start, Q_step, R, gain=gain)
-    kf = fuse(displacements, aligned, start, Q_step, R, P0=np.zeros((2, 2)))
-    frames = [
-        fixes.assign(method="uwb"),
-        dr[["t", "x", "y"]].assign(method="imu"),
-        pd.DataFrame({"t": t, "x": sskf[:, 0], "y": sskf[:, 1], "method": "sskf"}),
-        pd.DataFrame({"t": t, "x": kf[:, 0], "y": kf[:, 1], "method": "kf"}),
-    ]
-    return score(pd.concat(frames, ignore_index=True), tables["truth"])
+    base = estimator_params(settings)
+    frames = []
+    for method, name in METHOD_ESTIMATOR.items():
+        names = {p.name for p in registry.get(name).params}
+        params = {k: v for k, v in base.items() if k in names}
+        frames.append(registry.run(name, data, params, where="experiments.paper_b")[["t", "x", "y"]]
+                      .assign(method=method))
+    return score(pd.concat(frames, ignore_index=True), data.table("truth"))
 
 
-def run_metrics(estimates: pd.DataFrame) -> pd.DataFrame:
-    rows = []
-    for method, group in estimates.groupby("method", sort=False):
-        stats = error_summary(group["error_m"])
-        rows.append({"method": method, **{k: stats[k] for k in ("rmse", "median", "p95", "max")}})
-    return pd.DataFrame(rows)
+def run_metrics(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
+    return cell_metrics(estimates, ["method"], truth)
 
 
 def results_rows(metrics: pd.DataFrame, scenario: str, paper: dict, simulated_setup: bool) -> list[dict]:

@@ -1,13 +1,13 @@
 """Paper C (Rafi ullah Khan et al. 2014): EKF with P, PV and PVA motion models on Cricket
 ultrasound ranges, at 20/40/60 cm/s and with 3, 4 or 6 beacons.
 
-Cricket beacons range one at a time at random instants; the ranges of one estimation
-period are grouped and applied in one update (several ranges to one beacon are
-averaged), so all three models see the same measurements. The PVA model takes the
-measured acceleration as input: the 5 Hz IMU's horizontal specific force, minus the
-bias measured at rest, rotated to the floor with the gyro-integrated heading from the
-known start pose, averaged over the period; the filter's bias states absorb the rest.
-Beacon positions are the nominal (hand-measured) ones of the campaign file.
+Every cell is the registry's `ekf` estimator with the P, PV or PVA motion model, one
+update per estimation period: Cricket beacons range one at a time at random instants,
+the ranges of one period are grouped (several ranges to one beacon averaged), so all
+three models see the same measurements. The PVA model takes the measured acceleration
+as input (estimators.inertial.floor_input: the 5 Hz IMU's horizontal specific force,
+bias at rest removed, rotated with the gyro heading from the known start pose). This
+module holds only the paper's table layout, its claims and figures.
 """
 
 from __future__ import annotations
@@ -20,17 +20,12 @@ import pandas as pd
 from wsnloc import results
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
-from wsnloc.experiments.ekf_tracking import run_ekf
-from wsnloc.experiments.epochs import Epoch, build_epochs, score
-from wsnloc.filters.measurement_models import RangeModel, Stacked
-from wsnloc.filters.motion_models import constant_velocity, position_only, pva
-from wsnloc.geometry.lateration import multilateration
-from wsnloc.inertial.dead_reckoning import floor_acceleration, static_bias
-from wsnloc.io.tables import empty as empty_table
-from wsnloc.metrics.stats import error_summary
+from wsnloc.estimators import registry
+from wsnloc.estimators.run_data import RunData
+from wsnloc.metrics.tracking import cell_metrics, score
 
 EXPERIMENT = "C"
-INPUT_TABLES = ("ranges", "truth")   # the processed tables a run needs (see load_runs)
+INPUT_TABLES = ("ranges", "truth", "anchors", "imu_5hz")   # the processed tables a run needs (see load_runs)
 MODELS = ("P", "PV", "PVA")
 
 
@@ -63,79 +58,27 @@ class Settings:
                 raise ConfigError(f"config key 'experiments.paper_c.{key}': no subset {name!r} in {campaign.source}")
 
 
-def model_matrices(name: str, settings: Settings):
-    """(F, Q, P0, B) of one motion model for the estimation period."""
-    dt, s = settings.epoch_s, settings
-    if name == "P":
-        F, Q = position_only(s.p_sigma_m)
-        return F, Q, np.eye(2) * s.initial_sigma_m**2, None
-    if name == "PV":
-        F, Q = constant_velocity(dt, s.pv_accel_sigma_mps2)
-        return F, Q, np.diag([s.initial_sigma_m**2] * 2 + [s.initial_speed_sigma_mps**2] * 2), None
-    if name == "PVA":
-        F, B, Q = pva(dt, s.pva_accel_sigma_mps2, s.pva_bias_walk_sigma)
-        P0 = np.diag([s.initial_sigma_m**2] * 2 + [s.initial_speed_sigma_mps**2] * 2 + [s.initial_bias_sigma_mps2**2] * 2)
-        return F, Q, P0, B
-    raise ValueError(f"unknown motion model {name!r} (expected P, PV or PVA)")
+def estimator_params(settings: Settings, model: str, subset: str) -> dict:
+    """Registry parameters of the `ekf` estimator for one motion model and beacon subset."""
+    s = settings
+    accel = {"P": s.pv_accel_sigma_mps2, "PV": s.pv_accel_sigma_mps2, "PVA": s.pva_accel_sigma_mps2}[model]
+    return {"anchors": subset, "measurements": "toa", "motion": model.lower(), "update": "epoch",
+            "epoch_s": s.epoch_s, "preliminary_filter": True, "max_range_m": s.max_range_m,
+            "range_sigma_m": s.range_sigma_m, "p_sigma_m": s.p_sigma_m, "accel_sigma_mps2": accel,
+            "bias_walk_sigma": s.pva_bias_walk_sigma, "initial_sigma_m": s.initial_sigma_m,
+            "initial_speed_sigma_mps": s.initial_speed_sigma_mps, "initial_bias_sigma_mps2": s.initial_bias_sigma_mps2,
+            "static_start_s": s.static_bias_s}
 
 
-def floor_input(imu_5hz: pd.DataFrame, campaign: Campaign, settings: Settings) -> pd.DataFrame:
-    """Floor-frame acceleration (t, ax, ay) of a run: bias at rest removed, gyro heading from the start pose."""
-    if len(imu_5hz) == 0:
-        return pd.DataFrame({"t": [], "ax": [], "ay": []})
-    return floor_acceleration(imu_5hz, campaign.path.start_pose()[2], static_bias(imu_5hz, settings.static_bias_s))
-
-
-def epoch_inputs(acc: pd.DataFrame, times: np.ndarray) -> np.ndarray:
-    """(len(times), 2) mean floor-frame acceleration over each period; NaN without IMU samples."""
-    index = np.searchsorted(times, acc["t"].to_numpy(), side="left")
-    valid = index < len(times)
-    out = np.full((len(times), 2), np.nan)
-    counts = np.bincount(index[valid], minlength=len(times))
-    for j, column in enumerate(("ax", "ay")):
-        sums = np.bincount(index[valid], weights=acc[column].to_numpy()[valid], minlength=len(times))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            out[:, j] = sums / counts
-    return out
-
-
-def run(tables: dict, imu_5hz: pd.DataFrame, campaign: Campaign, settings: Settings, subsets: list[str]) -> pd.DataFrame:
+def run(data: RunData, settings: Settings, subsets: list[str]) -> pd.DataFrame:
     """Estimates of the three models for each beacon subset, scored against truth."""
-    ranges = tables["ranges"]
-    ranges = ranges[(ranges["status"] == 0) & np.isfinite(ranges["range_m"]) & (ranges["range_m"] > 0)
-                    & (ranges["range_m"] <= settings.max_range_m)]
-    no_rss = empty_table("rss")
-    acc = floor_input(imu_5hz, campaign, settings)
-    xy = {a: np.array([x, y]) for a, x, y in campaign.anchors[["anchor_id", "x", "y"]].itertuples(index=False)}
-    frames = []
-    for subset in subsets:
-        members = set(campaign.spec["subsets"][subset])
-        epochs = build_epochs(ranges[ranges["anchor_id"].isin(members)], no_rss, settings.epoch_s)
-        inputs = epoch_inputs(acc, np.array([e.t for e in epochs]))
-
-        def measure(epoch: Epoch):
-            if len(epoch.ranges) == 0:
-                return None
-            anchors = np.array([xy[a] for a in epoch.range_ids])
-            return Stacked([RangeModel(anchors, np.full(len(anchors), settings.range_sigma_m))], epoch.ranges)
-
-        def initial_fix(epoch: Epoch):
-            return multilateration(np.array([xy[a] for a in epoch.range_ids]).reshape(-1, 2), epoch.ranges)
-
-        measurements = [measure(epoch) for epoch in epochs]
-        for model in MODELS:
-            F, Q, P0, B = model_matrices(model, settings)
-            track = run_ekf(epochs, F, Q, P0, measurements, initial_fix, B=B, inputs=inputs if B is not None else None)
-            frames.append(track.assign(model=model, subset=subset))
-    return score(pd.concat(frames, ignore_index=True), tables["truth"])
+    frames = [registry.run("ekf", data, estimator_params(settings, model, subset), where="experiments.paper_c")
+              .assign(model=model, subset=subset) for subset in subsets for model in MODELS]
+    return score(pd.concat(frames, ignore_index=True), data.table("truth"))
 
 
-def run_metrics(estimates: pd.DataFrame) -> pd.DataFrame:
-    rows = []
-    for (subset, model), group in estimates.groupby(["subset", "model"], sort=False):
-        stats = error_summary(group["error_m"])
-        rows.append({"subset": subset, "model": model, **{k: stats[k] for k in ("rmse", "median", "p95", "max")}})
-    return pd.DataFrame(rows)
+def run_metrics(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
+    return cell_metrics(estimates, ["subset", "model"], truth)
 
 
 def speed_label(campaign: Campaign, scenario: str) -> str:
@@ -195,3 +138,38 @@ def anchor_curves(res: pd.DataFrame, settings: Settings) -> dict:
         if points:
             curves[model] = ([p[0] for p in points], [p[1] for p in points])
     return curves
+
+
+def subsets_of(settings: Settings, label: str) -> list[str]:
+    """Beacon subsets run on one scenario: Table I's, plus Table II's on its scenario."""
+    subsets = settings.table_2_subsets if label == settings.table_2_scenario else []
+    return list(dict.fromkeys(list(subsets) + [settings.table_1_subset]))
+
+
+def _table_1(est: pd.DataFrame, settings: Settings, model: str) -> pd.DataFrame:
+    return est[(est["model"] == model) & (est["subset"] == settings.table_1_subset)]
+
+
+def cdf_panels(estimates: dict[str, pd.DataFrame], settings: Settings) -> dict:
+    """Error samples (all runs) per scenario and model, Table I's beacons."""
+    return {label: {m: _table_1(est, settings, m)["error_m"].to_numpy() for m in MODELS}
+            for label, est in estimates.items()}
+
+
+def histogram_panels(estimates: dict[str, pd.DataFrame], settings: Settings) -> dict:
+    """Errors of each model on Table II's scenario (the paper's Fig. 4b)."""
+    est = estimates.get(settings.table_2_scenario)
+    if est is None:
+        return {}
+    return {f"{m} ({settings.table_2_scenario})": _table_1(est, settings, m)["error_m"] for m in MODELS}
+
+
+def trajectory_panels(estimates: dict[str, pd.DataFrame], settings: Settings) -> dict:
+    """First run of Table II's scenario: truth and the three models' tracks."""
+    est = estimates.get(settings.table_2_scenario)
+    if est is None:
+        return {}
+    first = est[est["run"] == est["run"].iloc[0]]
+    truth = _table_1(first, settings, "P")[["true_x", "true_y"]].rename(columns={"true_x": "x", "true_y": "y"})
+    return {f"{settings.table_2_scenario}, {first['run'].iloc[0]}": (truth, {m: _table_1(first, settings, m)
+                                                                          for m in MODELS})}

@@ -1,9 +1,10 @@
 """Paper D (Kianoush et al. 2012): Min-Max / multilateration on narrowband (RSS), UWB,
 P-mix and F-mix ranges; velocity-bounded tracking; a Kalman filter for comparison.
 
-Per run: group the measurements in estimation periods, localise every epoch with every
-(localizer, technique), then track each fix sequence with the velocity-bounded tracker
-and the PV Kalman filter. Scores are errors against the truth at the epoch time.
+Every cell is a registry estimator: the solvers `minmax` / `multilateration` on ranges
+(UWB) or RSS distances (narrowband), the fusions `pmix` / `fmix`, and the trackers
+`velocity_tracker` / `kf_tracker` over those fixes. This module holds only the paper's
+table layout, its claims, the cost comparison and figures.
 """
 
 from __future__ import annotations
@@ -18,16 +19,15 @@ from wsnloc import results
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
 from wsnloc.experiments import calibration
-from wsnloc.experiments.epochs import Epoch, build_epochs, score
+from wsnloc.estimators import registry
+from wsnloc.estimators.run_data import RunData
+from wsnloc.estimators.trackers import kalman_matrices
 from wsnloc.filters.kalman import KalmanFilter
-from wsnloc.filters.motion_models import constant_velocity
-from wsnloc.geometry.lateration import LOCALIZERS
-from wsnloc.geometry.selection import k_smallest, rss_to_distance
-from wsnloc.metrics.stats import error_summary
+from wsnloc.metrics.tracking import cell_metrics, score
 from wsnloc.tracking.velocity_bounded import VelocityBoundedTracker
 
 EXPERIMENT = "D"
-INPUT_TABLES = ("ranges", "rss", "truth")   # the processed tables a run needs (see load_runs)
+INPUT_TABLES = ("ranges", "rss", "truth", "anchors")   # the processed tables a run needs (see load_runs)
 TECHNIQUES = ("narrowband", "uwb", "pmix", "fmix")
 LOCALIZER_LABEL = {"minmax": "Min-Max", "multilateration": "Multilateration"}
 TECHNIQUE_LABEL = {"narrowband": "narrowband", "uwb": "UWB", "pmix": "P-mix", "fmix": "F-mix"}
@@ -71,119 +71,56 @@ class Settings:
                                   f"in {campaign.source} (has: {', '.join(campaign.spec.get('subsets', {}))})")
 
 
-def preliminary_filter(ranges: pd.DataFrame, max_range_m: float) -> pd.DataFrame:
-    """Paper D's preliminary filter: drop records with a non-zero device status and
-    physically impossible values (not finite, <= 0, or longer than max_range_m)."""
-    r = ranges["range_m"]
-    keep = (ranges["status"] == 0) & np.isfinite(r) & (r > 0) & (r <= max_range_m)
-    return ranges[keep]
+TECHNIQUE_OF = {"narrowband": "rss", "uwb": "toa", "pmix": "pmix", "fmix": "fmix"}   # paper label -> registry
 
 
-def _subset(frame: pd.DataFrame, members: list[str]) -> pd.DataFrame:
-    return frame[frame["anchor_id"].isin(members)]
-
-
-class _Anchors:
-    def __init__(self, campaign: Campaign):
-        self._xy = {a: np.array([x, y]) for a, x, y in campaign.anchors[["anchor_id", "x", "y"]].itertuples(index=False)}
-
-    def positions(self, ids) -> np.ndarray:
-        return np.array([self._xy[i] for i in ids]).reshape(-1, 2)
-
-
-def localize_epoch(epoch: Epoch, anchors: _Anchors, localizer: str, settings: Settings,
-                   rss_model: dict) -> dict[str, np.ndarray | None]:
-    """Fix of each technique for one epoch (None = no fix)."""
-    solve = LOCALIZERS[localizer]
-    k = settings.k_smallest
-    nb_ranges = rss_to_distance(epoch.rss, rss_model["p0_dbm"], rss_model["path_loss_exponent"], rss_model["d0_m"])
-    nb_xy, uwb_xy = anchors.positions(epoch.rss_ids), anchors.positions(epoch.range_ids)
-
-    def solve_smallest(xy, ranges):
-        keep = k_smallest(ranges, k)
-        return solve(xy[keep], ranges[keep])
-
-    fixes = {"narrowband": solve_smallest(nb_xy, nb_ranges), "uwb": solve_smallest(uwb_xy, epoch.ranges)}
-    parts = [(fixes[t], settings.pmix_weights[t]) for t in ("narrowband", "uwb") if fixes[t] is not None]
-    fixes["pmix"] = (sum(w * p for p, w in parts) / sum(w for _, w in parts)) if parts else None
-    fixes["fmix"] = solve_smallest(np.vstack([nb_xy, uwb_xy]), np.concatenate([nb_ranges, epoch.ranges]))
-    return fixes
-
-
-def localize_run(tables: dict, campaign: Campaign, settings: Settings, rss_model: dict) -> pd.DataFrame:
-    """Raw fixes: one row per epoch, localizer and technique (x, y NaN when no fix)."""
-    subsets = campaign.spec["subsets"]
-    ranges = _subset(tables["ranges"], subsets[settings.uwb_subset])
-    if settings.uwb_preliminary_filter:
-        ranges = preliminary_filter(ranges, settings.max_range_m)
-    else:
-        ranges = ranges[np.isfinite(ranges["range_m"])]
-    rss = _subset(tables["rss"], subsets[settings.narrowband_subset])
-    rss = rss[np.isfinite(rss["rss_dbm"])]
-    epochs = build_epochs(ranges, rss, settings.epoch_s)
-    anchors = _Anchors(campaign)
-    rows = []
-    for epoch in epochs:
-        for localizer in LOCALIZERS:
-            for technique, fix in localize_epoch(epoch, anchors, localizer, settings, rss_model).items():
-                x, y = (fix if fix is not None and np.all(np.isfinite(fix)) else (np.nan, np.nan))
-                rows.append((epoch.t, localizer, technique, "raw", float(x), float(y)))
-    return pd.DataFrame(rows, columns=["t", "localizer", "technique", "stage", "x", "y"])
-
-
-def kalman_for_fixes(settings: Settings) -> tuple:
-    """(F, Q, H, R, P0) of the comparison KF: PV model, position measurements."""
+def estimator_params(settings: Settings) -> dict:
+    """Registry parameters shared by paper D's cells (fixes, fusions and both trackers)."""
+    w = settings.pmix_weights
     k = settings.kalman
-    F, Q = constant_velocity(settings.epoch_s, k["accel_sigma_mps2"])
-    H = np.hstack([np.eye(2), np.zeros((2, 2))])
-    R = np.eye(2) * k["position_sigma_m"] ** 2
-    P0 = np.diag([k["position_sigma_m"] ** 2] * 2 + [k["initial_speed_sigma_mps"] ** 2] * 2)
-    return F, Q, H, R, P0
+    return {"anchors": f"{settings.uwb_subset}+{settings.narrowband_subset}", "epoch_s": settings.epoch_s,
+            "k_smallest": settings.k_smallest, "preliminary_filter": settings.uwb_preliminary_filter,
+            "max_range_m": settings.max_range_m, "rss_calibration": settings.rss_calibration,
+            "p0_dbm": settings.rss_model["p0_dbm"], "path_loss_exponent": settings.rss_model["path_loss_exponent"],
+            "d0_m": settings.rss_model.get("d0_m", 1.0), "pmix_toa_weight": w["uwb"] / (w["uwb"] + w["narrowband"]),
+            "window": settings.tracker_window, "speed_from": settings.tracker_speed_from,
+            "accel_sigma_mps2": k["accel_sigma_mps2"], "position_sigma_m": k["position_sigma_m"],
+            "initial_speed_sigma_mps": k["initial_speed_sigma_mps"]}
 
 
-def track(raw: pd.DataFrame, settings: Settings) -> pd.DataFrame:
-    """Velocity-bounded tracker and Kalman filter outputs at the epochs that have a fix.
-
-    The KF predicts at every epoch (also those without a fix) and is updated with each fix.
-    """
+def cells(settings: Settings) -> list[tuple[str, str, str, str, dict]]:
+    """(localizer, technique, stage, registry estimator, its parameters) of every cell of Tables 1-3."""
+    base = estimator_params(settings)
     out = []
-    F, Q, H, R, P0 = kalman_for_fixes(settings)
-    for (localizer, technique), series in raw.groupby(["localizer", "technique"], sort=False):
-        tracker = VelocityBoundedTracker(settings.tracker_window, settings.tracker_speed_from)
-        kf = None
-        for t, x, y in series[["t", "x", "y"]].itertuples(index=False):
-            has_fix = np.isfinite(x) and np.isfinite(y)
-            if kf is not None:
-                kf.predict()
-            if not has_fix:
-                continue
-            if kf is None:
-                kf = KalmanFilter(np.array([x, y, 0.0, 0.0]), P0, F, Q, H, R)
+    for localizer in LOCALIZER_LABEL:
+        for technique, registry_technique in TECHNIQUE_OF.items():
+            if technique in ("pmix", "fmix"):
+                raw = (technique, {"solver": localizer})
             else:
-                kf.update(np.array([x, y]))
-            vx, vy = tracker.step(t, (x, y))
-            out.append((t, localizer, technique, "velocity", vx, vy))
-            out.append((t, localizer, technique, "kalman", kf.x[0], kf.x[1]))
-    return pd.DataFrame(out, columns=["t", "localizer", "technique", "stage", "x", "y"])
+                raw = (localizer, {"measurements": registry_technique})
+            tracked = {"solver": localizer, "fixes": registry_technique}
+            out += [(localizer, technique, "raw", raw[0], raw[1]),
+                    (localizer, technique, "velocity", "velocity_tracker", tracked),
+                    (localizer, technique, "kalman", "kf_tracker", tracked)]
+    return [(loc, tech, stage, name, {k: v for k, v in {**base, **extra}.items() if k in _names(name)})
+            for loc, tech, stage, name, extra in out]
 
 
-def run(tables: dict, campaign: Campaign, settings: Settings, rss_model: dict) -> pd.DataFrame:
-    """All estimates of one run, scored against its truth."""
-    raw = localize_run(tables, campaign, settings, rss_model)
-    estimates = pd.concat([raw, track(raw, settings)], ignore_index=True)
-    return score(estimates, tables["truth"])
+def _names(estimator: str) -> set[str]:
+    return {p.name for p in registry.get(estimator).params}
 
 
-def run_metrics(estimates: pd.DataFrame) -> pd.DataFrame:
-    """Per (localizer, technique, stage): RMSE, median, p95, max (m) and fix availability."""
-    rows = []
-    epochs = estimates.loc[estimates["stage"] == "raw", "t"].nunique()
-    for key, group in estimates.groupby(["localizer", "technique", "stage"], sort=False):
-        stats = error_summary(group["error_m"])
-        rows.append({**dict(zip(["localizer", "technique", "stage"], key)),
-                     **{k: stats[k] for k in ("rmse", "median", "p95", "max")},
-                     "availability": float(np.isfinite(group["error_m"]).sum() / epochs) if epochs else np.nan})
-    return pd.DataFrame(rows)
+def run(data: RunData, settings: Settings) -> pd.DataFrame:
+    """All estimates of one run (every cell), scored against its truth."""
+    frames = [registry.run(name, data, params, where="experiments.paper_d")[["t", "x", "y"]]
+              .assign(localizer=loc, technique=tech, stage=stage)
+              for loc, tech, stage, name, params in cells(settings)]
+    return score(pd.concat(frames, ignore_index=True), data.table("truth"))
+
+
+def run_metrics(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
+    """Per (localizer, technique, stage): the standard run metrics (metrics.tracking)."""
+    return cell_metrics(estimates, ["localizer", "technique", "stage"], truth)
 
 
 def rss_models_for_runs(run_tables: dict[str, dict], campaign: Campaign, settings: Settings) -> dict[str, dict]:
@@ -233,7 +170,9 @@ def measure_cost(settings: Settings, repeats: int = 5) -> dict[str, float]:
     n = settings.cost_iterations
     t = np.arange(n) * settings.epoch_s
     fixes = np.column_stack([0.3 * t, np.zeros(n)]) + rng.normal(0, 1.0, (n, 2))
-    F, Q, H, R, P0 = kalman_for_fixes(settings)
+    k = settings.kalman
+    F, Q, H, R, P0 = kalman_matrices(settings.epoch_s, k["accel_sigma_mps2"], k["position_sigma_m"],
+                                     k["initial_speed_sigma_mps"])
     per_step = {"velocity": [], "kalman": []}
     for _ in range(repeats):
         tracker = VelocityBoundedTracker(settings.tracker_window, settings.tracker_speed_from)

@@ -28,11 +28,15 @@ class KalmanFilter:
         self._S_inv = None
         self._eye = np.eye(len(self.x))
 
-    def predict(self, u=None, B=None) -> None:
-        self.x = self.F @ self.x
+    def predict(self, F=None, Q=None, u=None, B=None) -> None:
+        """x <- F x (+ B u), P <- F P F^T + Q; F and Q default to the filter's own (a step of
+        another length passes its own matrices)."""
+        F = self.F if F is None else F
+        Q = self.Q if Q is None else Q
+        self.x = F @ self.x
         if u is not None:
             self.x = self.x + B @ u
-        self.P = self.F @ self.P @ self.F.T + self.Q
+        self.P = F @ self.P @ F.T + Q
 
     def update(self, z, H=None, R=None, hx=None) -> None:
         """Measurement update; `hx` is the predicted measurement h(x) of a linearised model
@@ -68,3 +72,7 @@ class ExtendedKalmanFilter(KalmanFilter):
 
     def update_nonlinear(self, z, h, jacobian, R) -> None:
         self.update(z, H=jacobian(self.x), R=R, hx=h(self.x))
+
+    def update_model(self, model) -> None:
+        """Update with a measurement model object (z, h(x), jacobian(x), R())."""
+        self.update(model.z, H=model.jacobian(self.x), R=model.R(), hx=model.h(self.x))

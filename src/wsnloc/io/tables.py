@@ -34,6 +34,16 @@ _ESTIMATE = [   # position estimate and its error, shared by the estimate tables
     _field("error_m", pa.float64(), "m", "Euclidean position error", nullable=True),
 ]
 
+_COVARIANCE = [   # position block of the estimator's state covariance (NaN where it has none)
+    _field("p_xx", pa.float64(), "m^2", "variance of x", nullable=True),
+    _field("p_xy", pa.float64(), "m^2", "covariance of x and y", nullable=True),
+    _field("p_yy", pa.float64(), "m^2", "variance of y", nullable=True),
+    _field("n_meas", pa.float64(), "1", "measurements in the update at t (NaN: not a filter)", nullable=True),
+    _field("nis", pa.float64(), "1", "normalised innovation squared of that update", nullable=True),
+]
+_RUN = _field("run", pa.string(), "", "run name")
+_EPOCH_T = _field("t", pa.float64(), "s", "estimate time (end of the estimation period)")
+
 SCHEMAS: dict[str, pa.Schema] = {
     "ranges": pa.schema([
         _field("t", pa.float64(), "s", "receive time on the logger clock"),
@@ -72,6 +82,29 @@ SCHEMAS: dict[str, pa.Schema] = {
         _field("x", pa.float64(), "m", "east coordinate"),
         _field("y", pa.float64(), "m", "north coordinate"),
         _field("z", pa.float64(), "m", "height (NaN: 2-D campaign)", nullable=True),
+    ]),
+    "estimates": pa.schema([
+        _RUN,
+        _field("subset", pa.string(), "", "anchor subset"),
+        _EPOCH_T,
+        *_ESTIMATE,
+        *_COVARIANCE,
+    ]),
+    "estimates_paper_a": pa.schema([
+        _RUN,
+        _EPOCH_T,
+        _field("table", pa.string(), "", "Table I (plain EKF) | Table II (motion detection)"),
+        _field("row", pa.string(), "", "measurements | anchor subsets"),
+        *_ESTIMATE,
+        *_COVARIANCE,
+    ]),
+    "estimates_paper_c": pa.schema([
+        _RUN,
+        _EPOCH_T,
+        _field("subset", pa.string(), "", "beacon subset"),
+        _field("model", pa.string(), "", "motion model P | PV | PVA"),
+        *_ESTIMATE,
+        *_COVARIANCE,
     ]),
     "estimates_paper_d": pa.schema([
         _field("run", pa.string(), "", "run name"),

@@ -117,15 +117,18 @@ def imu_resampling(raw: pd.DataFrame, resampled: pd.DataFrame, title: str, windo
     return to_png(fig)
 
 
-def error_cdf(panels: dict[str, dict[str, np.ndarray]], xmax: float = 4.0) -> bytes:
-    """Empirical CDFs of position error (m), one panel per title, one curve per label."""
+def error_cdf(panels: dict[str, dict[str, np.ndarray]], xmax: float | None = 4.0) -> bytes:
+    """Empirical CDFs of position error (m), one panel per title, one curve per label;
+    xmax None: 1.2 x the largest 95th percentile of the panel's curves."""
     fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 3.8), squeeze=False)
     for ax, (title, curves) in zip(axes[0], panels.items()):
+        finite = [np.asarray(e, dtype=float)[np.isfinite(e)] for e in curves.values()]
+        limit = xmax if xmax is not None else 1.2 * max([np.percentile(e, 95) for e in finite if len(e)] or [1.0])
         for label, errors in curves.items():
             e = np.sort(np.asarray(errors, dtype=float)[np.isfinite(errors)])
             if len(e):
                 ax.plot(e, np.arange(1, len(e) + 1) / len(e), lw=1.4, label=f"{label} (median {np.median(e):.2f} m)")
-        ax.set_xlim(0, xmax)
+        ax.set_xlim(0, limit)
         ax.set_ylim(0, 1)
         ax.grid(alpha=0.3)
         ax.set_xlabel("position error [m]")

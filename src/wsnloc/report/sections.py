@@ -147,3 +147,25 @@ def paper_c_section(results: pd.DataFrame, claims: dict, figures: dict[str, str]
                                                  for c in detail_columns]} for m in MODELS]}]
     return {"id": "C", "title": paper["title"], "citation": paper["citation"], "published": True, "tables": tables,
             "details": details, "claims": claims["claims"], "cost": [], "figures": figures, "settings": settings}
+
+
+STUDY_STATS = ("median", "p75", "rmse", "availability", "resets")
+
+
+def study_section(results: pd.DataFrame, study: str, spec: dict, figures: dict[str, str]) -> dict:
+    """Context of one study's section: per anchor subset, cells x scenarios with their statistics."""
+    from wsnloc.studies import EXPERIMENT_PREFIX, estimator_of
+
+    sel = results[results["experiment"] == EXPERIMENT_PREFIX + study]
+    scenarios, cells = list(spec["scenarios"]), list(spec["estimators"])
+    tables = []
+    for subset in dict.fromkeys(sel["table"]):
+        in_subset = sel[sel["table"] == subset]
+        rows = [{"label": cell, "cells": [{stat: _cell(in_subset, row=cell, scenario=sc, column=stat)
+                                           for stat in STUDY_STATS} for sc in scenarios]} for cell in cells]
+        tables.append({"subset": subset, "scenarios": scenarios, "rows": rows})
+    estimators = [{"cell": c, "estimator": estimator_of(spec, c),
+                   "overrides": {k: v for k, v in (spec["estimators"][c] or {}).items() if k != "estimator"}}
+                  for c in cells]
+    return {"id": study, "tables": tables, "estimators": estimators, "overrides": spec.get("overrides") or {},
+            "figures": figures}

@@ -3,6 +3,10 @@
 Epoch k ends at t_k = t_first + k * period and collects the measurements with
 t in (t_k - period, t_k]. An estimator run in real time produces its estimate at t_k,
 so errors are scored against the truth at t_k.
+
+All estimators of one run share one grid (`run_grid`): it starts at the run's first
+usable measurement, whatever the estimator's anchor subset, so that the outputs of
+different estimators and subsets fall at the same times and can be compared pairwise.
 """
 
 from __future__ import annotations
@@ -12,7 +16,6 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from wsnloc.metrics.ranging import truth_at
 
 
 @dataclass
@@ -53,29 +56,25 @@ def _per_anchor_mean(frame: pd.DataFrame, value: str, times, period) -> list[tup
     return out
 
 
+def grid_over(stamps: np.ndarray, period: float) -> np.ndarray:
+    """Epoch end times covering the measurement times `stamps` (s): the first epoch ends
+    one period after the first measurement (minus 1 ns, so it holds that measurement)."""
+    if len(stamps) == 0:
+        return np.array([])
+    start = float(np.min(stamps)) - 1e-9
+    return epoch_times(start, float(np.max(stamps)) + period, period)
+
+
 def build_epochs(ranges: pd.DataFrame, rss: pd.DataFrame, period: float,
-                 start: float | None = None, end: float | None = None) -> list[Epoch]:
-    """Epochs over [start, end] (defaults: the span of all measurements).
+                 times: np.ndarray | None = None) -> list[Epoch]:
+    """Epochs ending at `times` (default: the grid over all the given measurements).
 
     Several ranges to one anchor within an epoch are averaged (m); RSS samples are
     averaged per anchor in dB (the mean of the log-normal samples, which is the ML
     estimate of the local mean power under the shadowing model).
     """
-    stamps = np.concatenate([ranges["t"].to_numpy(float), rss["t"].to_numpy(float)])
-    if len(stamps) == 0:
-        return []
-    start = float(stamps.min()) - 1e-9 if start is None else start
-    end = float(stamps.max()) + period if end is None else end
-    times = epoch_times(start, end, period)
+    if times is None:
+        times = grid_over(np.concatenate([ranges["t"].to_numpy(float), rss["t"].to_numpy(float)]), period)
     grouped_ranges = _per_anchor_mean(ranges, "range_m", times, period)
     grouped_rss = _per_anchor_mean(rss, "rss_dbm", times, period)
     return [Epoch(float(t), gr[0], gr[1], gs[0], gs[1]) for t, gr, gs in zip(times, grouped_ranges, grouped_rss)]
-
-
-def score(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
-    """Add true_x, true_y (truth at the estimate time) and error_m = ||estimate - truth||."""
-    position = truth_at(truth, estimates["t"].to_numpy(float))
-    out = estimates.copy()
-    out["true_x"], out["true_y"] = position[:, 0], position[:, 1]
-    out["error_m"] = np.hypot(out["x"] - out["true_x"], out["y"] - out["true_y"])
-    return out

@@ -1,0 +1,172 @@
+"""Bayesian filters assembled from parts: motion model, measurement models, update mode,
+initiator, coasting limit and optional motion detection (papers A and C, and any dataset).
+
+Update modes
+- `epoch`: one predict (step T) and one update per estimation period with the epoch's
+  measurements (per-anchor means), as in papers A and C; output at every epoch end t_k.
+- `sequential`: the filter predicts to each measurement's own time and updates with it
+  (records sharing a time stamp update together), so ranges that arrive one anchor at a
+  time are used as they come; output at the same epoch ends t_k, predicted from the
+  last update (x(t_k) = F(t_k - t) x, P(t_k) = F P F^T + Q(t_k - t), not stored).
+  When every measurement of an epoch carries the time t_k, both modes give the same
+  estimates.
+Initiator: the first time the measurements of the last `init_window_s` seconds (per-anchor
+  means) give a multilateration fix, the state starts there (speed and bias 0, P0).
+Coasting limit: after `max_coast_s` seconds without an update the track is dropped
+  (counted as a reset) and restarted by the initiator; no estimate is output meanwhile,
+  so a long gap shows as lower availability instead of unbounded drift.
+Motion detection (paper A): in epochs declared static by the accelerometer the predict
+  step is skipped (state and covariance frozen).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from wsnloc.estimators.inertial import epoch_inputs, floor_input
+from wsnloc.estimators.measurements import MeasurementSource, rss_params
+from wsnloc.estimators.motion import MotionModel
+from wsnloc.estimators.run_data import RunData
+from wsnloc.filters.kalman import ExtendedKalmanFilter
+from wsnloc.inertial.motion_detection import static_epochs
+
+COLUMNS = ["t", "x", "y", "p_xx", "p_xy", "p_yy", "n_meas", "nis"]
+
+
+def ekf_factory(x0: np.ndarray, P0: np.ndarray, motion: MotionModel):
+    F, Q, _ = motion.matrices(motion.period_s)
+    return ExtendedKalmanFilter(x0, P0, F, Q)
+
+
+FILTERS = {"ekf": ekf_factory}
+
+
+class _Track:
+    """Output rows and counters of one filter run."""
+
+    def __init__(self):
+        self.rows: list[tuple] = []
+        self.resets = 0
+
+    def emit(self, t: float, x: np.ndarray, P: np.ndarray, n_meas: int, nis: float) -> None:
+        self.rows.append((t, x[0], x[1], P[0, 0], P[0, 1], P[1, 1], n_meas, nis))
+
+    def frame(self) -> pd.DataFrame:
+        out = pd.DataFrame(self.rows, columns=COLUMNS)
+        out.attrs["resets"] = self.resets
+        return out
+
+
+def motion_model(p: dict) -> MotionModel:
+    return MotionModel(p["motion"], p["epoch_s"], p["p_sigma_m"], p["accel_sigma_mps2"], p["bias_walk_sigma"],
+                       p["initial_sigma_m"], p["initial_speed_sigma_mps"], p["initial_bias_sigma_mps2"])
+
+
+def run_filter(data: RunData, p: dict) -> pd.DataFrame:
+    """Estimates (COLUMNS) of one run; `attrs['resets']` counts coasting-limit resets."""
+    source = MeasurementSource(data, p["measurements"], p["anchors"], p["range_sigma_m"], p["preliminary_filter"],
+                               p["max_range_m"], rss_params(data, p) if p["measurements"] != "toa" else None)
+    times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
+    motion = motion_model(p)
+    static = (static_epochs(data.require("imu", "motion detection"), times, p["epoch_s"],
+                            p["motion_threshold_mps2"], p["static_start_s"])
+              if p["motion_detection"] else np.zeros(len(times), dtype=bool))
+    inputs = epoch_inputs(floor_input(data, p["static_start_s"]), times) if motion.kind == "pva" else None
+    make = FILTERS[p["filter"]]
+    if p["update"] == "epoch":
+        return _epoch_loop(source, times, p, motion, static, inputs, make)
+    return _sequential_loop(source, times, p, motion, static, inputs, make)
+
+
+def _start(fix: np.ndarray, motion: MotionModel, make):
+    x0 = np.zeros(motion.dim)
+    x0[:2] = fix
+    return make(x0, motion.initial_covariance(), motion)
+
+
+def _predict(filt, motion: MotionModel, dt: float, u: np.ndarray | None) -> None:
+    F, Q, B = motion.matrices(dt)
+    if B is not None and u is not None and np.all(np.isfinite(u)):
+        filt.predict(F, Q, u=u, B=B)
+    else:
+        filt.predict(F, Q)
+
+
+def _epoch_loop(source, times, p, motion, static, inputs, make) -> pd.DataFrame:
+    period, window = p["epoch_s"], p["init_window_s"] or p["epoch_s"]
+    models = source.epoch_models(times, period)
+    records = source.records()
+    track, filt, last_update = _Track(), None, -np.inf
+    for k, (t, model) in enumerate(zip(times, models)):
+        if filt is None:
+            fix = _window_fix(source, records, t, window)
+            if fix is None:
+                continue
+            filt, last_update = _start(fix, motion, make), t
+            track.emit(t, filt.x, filt.P, 0, np.nan)
+            continue
+        if not static[k]:
+            _predict(filt, motion, period, None if inputs is None else inputs[k])
+        nis = np.nan
+        if model is not None:
+            filt.update_model(model)
+            nis, last_update = filt.nis, t
+        elif t - last_update > p["max_coast_s"]:
+            filt = None
+            track.resets += 1
+            continue
+        track.emit(t, filt.x, filt.P, 0 if model is None else len(model.z), nis)
+    return track.frame()
+
+
+def _window_fix(source: MeasurementSource, records, t: float, window: float) -> np.ndarray | None:
+    """Multilateration on the per-anchor means of the measurements in (t - window, t]."""
+    a, b = np.searchsorted(records.t, [t - window, t], side="right")
+    if b - a < 3:
+        return None
+    return source.fix(*records.window_means(a, b))
+
+
+def _sequential_loop(source, times, p, motion, static, inputs, make) -> pd.DataFrame:
+    records = source.records()
+    bounds = records.groups()
+    window = p["init_window_s"] or p["epoch_s"]
+    epoch_of = np.searchsorted(times, records.t, side="left")        # epoch (t_k - T, t_k] of each record
+    track, filt, t_filter, last_update = _Track(), None, -np.inf, -np.inf
+    g = 0
+    for k, t_k in enumerate(times):
+        n_meas, nis = 0, np.nan
+        while g < len(bounds) - 1 and records.t[bounds[g]] <= t_k:
+            a, b = bounds[g], bounds[g + 1]
+            t = records.t[a]
+            g += 1
+            if filt is not None and t - last_update > p["max_coast_s"]:
+                filt = None
+                track.resets += 1
+            if filt is None:
+                fix = _window_fix(source, records, t, window)
+                if fix is not None:
+                    filt, t_filter, last_update = _start(fix, motion, make), t, t
+                continue
+            if t > t_filter and not static[min(epoch_of[a], len(times) - 1)]:
+                _predict(filt, motion, t - t_filter, None if inputs is None else inputs[min(epoch_of[a], len(times) - 1)])
+            t_filter = max(t, t_filter)
+            filt.update_model(source.model(*records.split(a, b)))
+            n_meas, nis, last_update = n_meas + b - a, filt.nis, t
+        if filt is None:
+            continue
+        if t_k - last_update > p["max_coast_s"]:
+            filt = None
+            track.resets += 1
+            continue
+        x, P = filt.x, filt.P
+        if t_k > t_filter and not static[k]:
+            F, Q, B = motion.matrices(t_k - t_filter)
+            x = F @ x
+            u = None if inputs is None else inputs[k]
+            if B is not None and u is not None and np.all(np.isfinite(u)):
+                x = x + B @ u
+            P = F @ P @ F.T + Q
+        track.emit(t_k, x, P, n_meas, nis)
+    return track.frame()

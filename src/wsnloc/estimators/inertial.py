@@ -1,0 +1,84 @@
+"""Inertial pipelines (paper B) and the measured-acceleration input of the PVA filter.
+
+Dead reckoning integrates the 5 Hz IMU from the start pose (inertial.dead_reckoning);
+the fused pipelines predict with each 5 Hz step's dead-reckoning displacement and update
+with the fix that arrived during the step (filters.steady_state): a steady-state gain
+K = P (P + R)^-1 from the DARE for one update per fix period, or the classical
+time-varying gain from P0 = 0 (the start pose is known).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from wsnloc.errors import WsnlocError
+from wsnloc.estimators.run_data import RunData
+from wsnloc.filters.steady_state import fuse, steady_state_gain
+from wsnloc.inertial.dead_reckoning import dead_reckon, floor_acceleration, static_bias
+
+
+def start_pose(data: RunData, why: str) -> tuple[float, float, float]:
+    """(x0, y0, heading0) from the campaign path: the inertial pipelines start from the known pose."""
+    if data.campaign is None or data.campaign.path is None:
+        raise WsnlocError(f"{data.name}: {why} needs the start pose, from a campaign file with a path")
+    return data.campaign.path.start_pose()
+
+
+def dead_reckoning(data: RunData, static_start_s: float) -> pd.DataFrame:
+    """(t, x, y, vx, vy, heading) by dead reckoning of the run's 5 Hz IMU."""
+    def build():
+        imu = data.require("imu_5hz", "dead reckoning").reset_index(drop=True)
+        x0, y0, heading0 = start_pose(data, "dead reckoning")
+        return dead_reckon(imu, x0, y0, heading0, static_bias(imu, static_start_s))
+    return data.cached(("dead_reckoning", static_start_s), build)
+
+
+def align_fixes(step_times: np.ndarray, fixes: pd.DataFrame) -> np.ndarray:
+    """(N - 1, 2): the fix that arrived during step k (t_k, t_{k+1}], NaN where none."""
+    out = np.full((len(step_times) - 1, 2), np.nan)
+    valid = fixes.dropna()
+    index = np.searchsorted(step_times, valid["t"].to_numpy(), side="left") - 1
+    inside = (index >= 0) & (index < len(out))
+    out[index[inside]] = valid[["x", "y"]].to_numpy()[inside]
+    return out
+
+
+def fused(data: RunData, fixes: pd.DataFrame, p: dict, steady_state: bool) -> pd.DataFrame:
+    """Dead reckoning fused with the fixes; Q per 5 Hz step = sigma_p^2 I, R = sigma_fix^2 I."""
+    dr = dead_reckoning(data, p["static_start_s"])
+    t = dr["t"].to_numpy()
+    if len(t) < 2:
+        raise WsnlocError(f"{data.name}: the 5 Hz IMU has fewer than 2 samples")
+    Q_step = np.eye(2) * p["process_sigma_m"] ** 2
+    R = np.eye(2) * p["fix_sigma_m"] ** 2
+    start = dr[["x", "y"]].to_numpy()[0]
+    displacements = np.diff(dr[["x", "y"]].to_numpy(), axis=0)
+    aligned = align_fixes(t, fixes)
+    if steady_state:
+        steps_per_update = p["epoch_s"] / float(np.median(np.diff(t)))
+        positions = fuse(displacements, aligned, start, Q_step, R, gain=steady_state_gain(Q_step * steps_per_update, R))
+    else:
+        positions = fuse(displacements, aligned, start, Q_step, R, P0=np.zeros((2, 2)))
+    return pd.DataFrame({"t": t, "x": positions[:, 0], "y": positions[:, 1]})
+
+
+def floor_input(data: RunData, static_start_s: float) -> pd.DataFrame:
+    """Floor-frame acceleration (t, ax, ay; m/s^2) of the 5 Hz IMU: bias measured at rest
+    removed, rotated with the gyro heading from the start pose (the PVA model's input)."""
+    imu = data.require("imu_5hz", "the PVA model's acceleration input")
+    heading0 = start_pose(data, "the PVA model's acceleration input")[2]
+    return floor_acceleration(imu, heading0, static_bias(imu, static_start_s))
+
+
+def epoch_inputs(acc: pd.DataFrame, times: np.ndarray) -> np.ndarray:
+    """(len(times), 2) mean floor-frame acceleration over each period; NaN without IMU samples."""
+    index = np.searchsorted(times, acc["t"].to_numpy(), side="left")
+    valid = index < len(times)
+    out = np.full((len(times), 2), np.nan)
+    counts = np.bincount(index[valid], minlength=len(times))
+    for j, column in enumerate(("ax", "ay")):
+        sums = np.bincount(index[valid], weights=acc[column].to_numpy()[valid], minlength=len(times))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out[:, j] = sums / counts
+    return out

@@ -1,0 +1,230 @@
+"""The estimator registry: every estimator of the project under a config name, with its
+parameters (default, unit, meaning) and one entry point.
+
+    estimates = run("ekf", run_data, {"motion": "pva", "anchors": "3: B1,B3,B4"})
+
+returns a DataFrame sorted by time with columns t (s), x, y (m) and, where the estimator
+has one, the position covariance p_xx, p_xy, p_yy (m^2); Bayesian filters add n_meas
+(measurements in the last update) and nis. `estimates.attrs` carries counters (resets).
+Estimators are compositions of the parts in this package: position solvers and fusions
+(fixes), trackers over fixes (trackers), Bayesian filters (bayes, motion, measurements)
+and the inertial pipelines (inertial).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Callable
+
+import numpy as np
+import pandas as pd
+
+from wsnloc.errors import ConfigError
+from wsnloc.estimators import bayes, fixes, inertial, trackers
+from wsnloc.estimators.motion import MOTIONS
+from wsnloc.estimators.parameters import Param, resolve
+from wsnloc.estimators.run_data import RunData
+from wsnloc.estimators.measurements import KINDS
+
+OUTPUT_COLUMNS = ["t", "x", "y", "p_xx", "p_xy", "p_yy", "n_meas", "nis"]
+
+# ---- parameter groups ------------------------------------------------------------------
+COMMON = (
+    Param("anchors", "all", "", "anchor subset: 'all', or campaign subset names joined by '+' "
+          "(e.g. 'UWB=9+ZigBee=17')", str),
+    Param("epoch_s", 0.5, "s", "estimation period T: epochs (t_k - T, t_k]; the output period", minimum=1e-3),
+    Param("preliminary_filter", True, "", "drop ranges with a non-zero device status or outside (0, max_range_m]",
+          bool),
+    Param("max_range_m", 100.0, "m", "longest physically possible range at the site", minimum=0.0),
+)
+RSS = (
+    Param("rss_calibration", "other_run", "", "RSS model: 'other_run' = fitted on a donor run with truth of the "
+          "same dataset (when the caller has one), 'configured' = the values below", str,
+          ("other_run", "configured")),
+    Param("p0_dbm", -60.0, "dBm", "configured RSS at the reference distance d0"),
+    Param("path_loss_exponent", 2.0, "1", "configured path-loss exponent n", minimum=0.1),
+    Param("sigma_db", 4.0, "dB", "configured shadowing standard deviation", minimum=1e-3),
+    Param("d0_m", 1.0, "m", "reference distance of the path-loss model", minimum=1e-3),
+)
+SOLVER = (
+    Param("solver", "minmax", "", "position solver", str, fixes.SOLVERS),
+    Param("k_smallest", 0, "1", "use only the k smallest distances of an epoch (0: all; paper D: 6)", int, minimum=0),
+    Param("pmix_toa_weight", 0.5, "1", "P-mix: weight w of the range fix (the RSS fix gets 1 - w)", minimum=0.0),
+)
+VELOCITY = (
+    Param("window", 6, "fixes", "speed estimated over the last N fixes (paper D: 6)", int, minimum=1),
+    Param("speed_from", "raw", "", "positions feeding the speed window: raw fixes or the tracker's output", str,
+          ("raw", "tracked")),
+)
+KALMAN_FIXES = (
+    Param("accel_sigma_mps2", 0.5, "m/s^2", "white acceleration of the PV model"),
+    Param("position_sigma_m", 1.5, "m", "fix noise (R = sigma^2 I) and initial position sigma"),
+    Param("initial_speed_sigma_mps", 0.5, "m/s", "initial speed sigma"),
+)
+FILTER = (
+    Param("filter", "ekf", "", "Bayesian filter", str, tuple(bayes.FILTERS)),
+    Param("measurements", "toa", "", "toa: ranges; rss: RSS; hybrid: both stacked", str, tuple(KINDS)),
+    Param("motion", "pv", "", "p: random walk; pv: constant velocity; pva: measured acceleration input + bias",
+          str, MOTIONS),
+    Param("update", "epoch", "", "epoch: one update per period; sequential: at each measurement's time", str,
+          ("epoch", "sequential")),
+    Param("range_sigma_m", 0.3, "m", "range noise standard deviation in R", minimum=1e-6),
+    Param("p_sigma_m", 0.15, "m", "P model: position change per period T", minimum=0.0),
+    Param("accel_sigma_mps2", 0.5, "m/s^2", "PV: white acceleration; PVA: acceleration input noise", minimum=0.0),
+    Param("bias_walk_sigma", 0.01, "m/s^2/sqrt(s)", "PVA: accelerometer bias random walk", minimum=0.0),
+    Param("initial_sigma_m", 1.0, "m", "initial position sigma (around the initiator's fix)", minimum=1e-6),
+    Param("initial_speed_sigma_mps", 0.5, "m/s", "initial speed sigma", minimum=1e-6),
+    Param("initial_bias_sigma_mps2", 0.05, "m/s^2", "PVA: initial accelerometer bias sigma", minimum=1e-6),
+    Param("init_window_s", 0.0, "s", "initiator: multilateration on the last W seconds of measurements "
+          "(0: one period)", minimum=0.0),
+    Param("max_coast_s", 10.0, "s", "drop the track after this long without an update; restart by the initiator",
+          minimum=0.0),
+    Param("motion_detection", False, "", "paper A: skip the predict step in epochs the accelerometer finds static",
+          bool),
+    Param("motion_threshold_mps2", 0.05, "m/s^2", "motion detection: mean | |f| - g | below this is static",
+          minimum=0.0),
+    Param("static_start_s", 4.0, "s", "the mobile rests during the first S s (gravity reference, IMU bias)",
+          minimum=0.0),
+)
+INERTIAL = (
+    Param("static_start_s", 4.0, "s", "the mobile rests during the first S s: IMU bias measured then", minimum=0.0),
+    Param("process_sigma_m", 0.05, "m", "dead-reckoning displacement error per 5 Hz step", minimum=1e-6),
+    Param("fix_sigma_m", 1.0, "m", "fix error (R = sigma^2 I)", minimum=1e-6),
+)
+
+
+def _with(params: tuple[Param, ...], **defaults) -> tuple[Param, ...]:
+    """The parameter group with other defaults (a preset)."""
+    unknown = set(defaults) - {p.name for p in params}
+    assert not unknown, unknown
+    return tuple(replace(p, default=defaults[p.name]) if p.name in defaults else p for p in params)
+
+
+def _drop(params: tuple[Param, ...], *names: str) -> tuple[Param, ...]:
+    return tuple(p for p in params if p.name not in names)
+
+
+# ---- estimator entries --------------------------------------------------------------------
+@dataclass(frozen=True)
+class Estimator:
+    name: str
+    summary: str
+    params: tuple[Param, ...]
+    function: Callable[[RunData, dict], pd.DataFrame]
+    inputs: Callable[[dict], tuple[str, ...]] = field(default=lambda p: ())   # extra tables: imu, imu_5hz
+
+    def resolve(self, overrides: dict, where: str = "") -> dict:
+        return resolve(self.params, overrides, where or f"estimator {self.name}")
+
+    def tables(self, p: dict) -> tuple[str, ...]:
+        """The processed tables this estimator reads with parameters p."""
+        return ("ranges", "rss", "truth", "anchors") + self.inputs(p)
+
+    def describe(self) -> dict:
+        return {"name": self.name, "summary": self.summary, "parameters": [p.describe() for p in self.params]}
+
+
+def _solver_run(solver: str | None, technique: str | None):
+    def run(data: RunData, p: dict) -> pd.DataFrame:
+        q = dict(p, solver=solver or p["solver"])
+        return fixes.epoch_fixes(data, q, technique or p["measurements"])
+    return run
+
+
+def _velocity_run(data: RunData, p: dict) -> pd.DataFrame:
+    return trackers.velocity_track(fixes.epoch_fixes(data, p, p["fixes"]), p["window"], p["speed_from"])
+
+
+def _kalman_run(data: RunData, p: dict) -> pd.DataFrame:
+    matrices = trackers.kalman_matrices(p["epoch_s"], p["accel_sigma_mps2"], p["position_sigma_m"],
+                                        p["initial_speed_sigma_mps"])
+    return trackers.kalman_track(fixes.epoch_fixes(data, p, p["fixes"]), matrices)
+
+
+def _minmax_fixes(p: dict) -> dict:
+    """The Min-Max fixes the inertial pipelines fuse (paper B: Min-Max on the ranges)."""
+    return dict(p, solver="minmax")
+
+
+def _dead_reckoning_run(data: RunData, p: dict) -> pd.DataFrame:
+    return inertial.dead_reckoning(data, p["static_start_s"])[["t", "x", "y"]]
+
+
+def _fused_run(steady_state: bool):
+    def run(data: RunData, p: dict) -> pd.DataFrame:
+        return inertial.fused(data, fixes.epoch_fixes(data, _minmax_fixes(p), "toa"), p, steady_state)
+    return run
+
+
+def _filter_inputs(p: dict) -> tuple[str, ...]:
+    return (("imu",) if p["motion_detection"] else ()) + (("imu_5hz",) if p["motion"] == "pva" else ())
+
+
+K_SMALLEST = _drop(SOLVER, "solver", "pmix_toa_weight")
+SOLVER_MEASUREMENTS = K_SMALLEST + (Param("measurements", "toa", "", "toa: ranges; rss: RSS distances", str,
+                                          ("toa", "rss")),)
+FIX_SOURCE = COMMON + RSS + SOLVER + (Param("fixes", "toa", "", "fixes tracked: toa, rss, pmix or fmix", str,
+                                            fixes.TECHNIQUES),)
+TRACKER_DEFAULTS = dict(update="sequential", init_window_s=4.0, initial_sigma_m=2.0)
+
+ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
+    Estimator("minmax", "Min-Max: centre of the intersection of the range boxes, per epoch (paper D)",
+              COMMON + RSS + SOLVER_MEASUREMENTS, _solver_run("minmax", None)),
+    Estimator("multilateration", "Linearised least squares + Gauss-Newton on the ranges, per epoch (paper D)",
+              COMMON + RSS + SOLVER_MEASUREMENTS, _solver_run("multilateration", None)),
+    Estimator("pmix", "P-mix: weighted barycentre of the range fix and the RSS fix (paper D)",
+              COMMON + RSS + SOLVER, _solver_run(None, "pmix")),
+    Estimator("fmix", "F-mix: one solver on ranges and RSS distances together (paper D)",
+              COMMON + RSS + SOLVER, _solver_run(None, "fmix")),
+    Estimator("velocity_tracker", "Velocity-bounded tracker over per-epoch fixes (paper D)",
+              FIX_SOURCE + VELOCITY, _velocity_run),
+    Estimator("kf_tracker", "Constant-velocity Kalman filter over per-epoch fixes (paper D's comparison)",
+              FIX_SOURCE + KALMAN_FIXES, _kalman_run),
+    Estimator("ekf", "EKF: motion model p / pv / pva, toa / rss / hybrid measurements, epoch or sequential "
+              "updates, optional motion detection (papers A and C)",
+              COMMON + RSS + FILTER, bayes.run_filter, _filter_inputs),
+    Estimator("ekf_p", "EKF with the P (random walk) model (paper C)",
+              COMMON + RSS + _with(FILTER, motion="p"), bayes.run_filter, _filter_inputs),
+    Estimator("ekf_pva", "EKF with the PVA model: measured acceleration as input, bias states (paper C)",
+              COMMON + RSS + _with(FILTER, motion="pva"), bayes.run_filter, _filter_inputs),
+    Estimator("ekf_motion_detection", "PV EKF that skips the prediction while the accelerometer says static "
+              "(paper A, Table II)", COMMON + RSS + _with(FILTER, motion_detection=True),
+              bayes.run_filter, _filter_inputs),
+    Estimator("tracker", "Recommended tracker for any range data: PV EKF with sequential updates (ranges used "
+              "at their own times, one anchor at a time is fine), window initiator, coasting limit",
+              COMMON + RSS + _with(FILTER, **TRACKER_DEFAULTS), bayes.run_filter, _filter_inputs),
+    Estimator("dead_reckoning", "Dead reckoning of the 5 Hz IMU from the start pose (paper B)",
+              _drop(INERTIAL, "process_sigma_m", "fix_sigma_m"), _dead_reckoning_run, lambda p: ("imu_5hz",)),
+    Estimator("dr_sskf", "Dead reckoning fused with Min-Max fixes by a steady-state KF (paper B)",
+              COMMON + K_SMALLEST + INERTIAL, _fused_run(True),
+              lambda p: ("imu_5hz",)),
+    Estimator("dr_kf", "Dead reckoning fused with Min-Max fixes by the classical KF (paper B)",
+              COMMON + K_SMALLEST + INERTIAL, _fused_run(False),
+              lambda p: ("imu_5hz",)),
+]}
+
+DEFAULT_ESTIMATOR = "tracker"
+
+
+def get(name: str, where: str = "estimator") -> Estimator:
+    if name not in ESTIMATORS:
+        raise ConfigError(f"config key '{where}': unknown estimator {name!r} "
+                          f"(registered: {', '.join(ESTIMATORS)})")
+    return ESTIMATORS[name]
+
+
+def run(name: str, data: RunData, overrides: dict | None = None, where: str = "") -> pd.DataFrame:
+    """Resolve the parameters and run one estimator on one run (see the module docstring)."""
+    estimator = get(name)
+    p = estimator.resolve(overrides or {}, where)
+    return finish(estimator.function(data, p))
+
+
+def finish(estimates: pd.DataFrame) -> pd.DataFrame:
+    """Standard columns (NaN covariance, n_meas and nis where the estimator has none), sorted by time."""
+    out = estimates.copy()
+    for column in OUTPUT_COLUMNS:
+        if column not in out:
+            out[column] = np.nan
+    out.attrs = dict(estimates.attrs)
+    return out.sort_values("t", kind="stable").reset_index(drop=True)

@@ -1,0 +1,125 @@
+"""What an estimator reads: one run's canonical tables, its campaign, and the RSS model.
+
+`RunData` is the single input of every estimator in the registry. It answers the
+questions all estimators share (where is anchor A, which anchors does a subset name,
+which ranges are usable, on which time grid do the run's estimates fall) and caches the
+derived products that several estimators of one run reuse (epochs, fixes, dead
+reckoning), keyed by the parameters they depend on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import pandas as pd
+
+from wsnloc.campaign import Campaign
+from wsnloc.errors import ConfigError, WsnlocError
+from wsnloc.estimators.epochs import grid_over
+from wsnloc.io import tables as canonical
+
+ALL_ANCHORS = "all"
+
+
+def preliminary_filter(ranges: pd.DataFrame, max_range_m: float) -> pd.DataFrame:
+    """Paper D's preliminary filter: drop records with a non-zero device status and
+    physically impossible values (not finite, <= 0, or longer than max_range_m)."""
+    r = ranges["range_m"]
+    keep = (ranges["status"] == 0) & np.isfinite(r) & (r > 0) & (r <= max_range_m)
+    return ranges[keep]
+
+
+@dataclass
+class RunData:
+    """One run: canonical tables (ranges, rss, truth, anchors; imu and imu_5hz when an
+    estimator needs them), the campaign (None for a generic run without a campaign file)
+    and the RSS path-loss model this run is evaluated with (calibrated elsewhere)."""
+
+    tables: dict[str, pd.DataFrame]
+    campaign: Campaign | None = None
+    rss_model: dict | None = None
+    name: str = "run"
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self) -> None:
+        anchors = self.table("anchors")
+        if len(anchors) == 0 and self.campaign is not None:
+            anchors = self.campaign.anchors
+        self._xy = {a: (float(x), float(y)) for a, x, y in zip(anchors["anchor_id"], anchors["x"], anchors["y"])}
+        tag = self.campaign.tag_height_m if self.campaign is not None else None
+        heights = anchors["z"] if "z" in anchors else pd.Series(np.nan, index=anchors.index)
+        # 3-D ranges where the anchor has a height: dz = z_anchor - h_tag (h_tag 0 without a campaign value)
+        self._dz = {a: (float(z) - (tag or 0.0)) if np.isfinite(z) else 0.0
+                    for a, z in zip(anchors["anchor_id"], heights.astype(float))}
+
+    def table(self, name: str) -> pd.DataFrame:
+        """A canonical table of the run (empty, with its columns, when the run has none)."""
+        frame = self.tables.get(name)
+        return canonical.empty(name) if frame is None else frame
+
+    def require(self, name: str, why: str) -> pd.DataFrame:
+        frame = self.tables.get(name)
+        if frame is None or len(frame) == 0:
+            raise WsnlocError(f"{self.name}: {why} needs the {name!r} table, which this run does not have")
+        return frame
+
+    # ---- anchors -------------------------------------------------------------------------
+    def positions(self, ids) -> np.ndarray:
+        """(m, 2) anchor coordinates (m) of the anchor ids."""
+        return np.array([self._xy[a] for a in ids], dtype=float).reshape(-1, 2)
+
+    def height_offsets(self, ids) -> np.ndarray:
+        """(m,) anchor height minus tag height (m); 0 for 2-D anchors."""
+        return np.array([self._dz[a] for a in ids], dtype=float)
+
+    @property
+    def three_d(self) -> bool:
+        return any(v != 0.0 for v in self._dz.values())
+
+    def members(self, expression: str) -> set[str]:
+        """Anchor ids of a subset expression: 'all', or campaign subset names joined by '+'
+        (their union, e.g. 'UWB=9+ZigBee=17')."""
+        if expression == ALL_ANCHORS:
+            return set(self._xy)
+        subsets = self.campaign.spec.get("subsets", {}) if self.campaign is not None else {}
+        out: set[str] = set()
+        for name in expression.split("+"):
+            if name not in subsets:
+                raise ConfigError(f"anchor subset {name!r} (in {expression!r}) is not defined in "
+                                  f"{self.campaign.source if self.campaign else 'a campaign file'}"
+                                  f" (defined: {', '.join(subsets) or 'none'}; or use 'all')")
+            out |= set(subsets[name])
+        return out
+
+    # ---- measurements --------------------------------------------------------------------
+    def usable_ranges(self, apply_filter: bool, max_range_m: float) -> pd.DataFrame:
+        """Ranges to known anchors; with `apply_filter` the preliminary filter, else finite ones."""
+        ranges = self.table("ranges")
+        ranges = ranges[ranges["anchor_id"].isin(self._xy)]
+        return preliminary_filter(ranges, max_range_m) if apply_filter else ranges[np.isfinite(ranges["range_m"])]
+
+    def usable_rss(self) -> pd.DataFrame:
+        rss = self.table("rss")
+        return rss[rss["anchor_id"].isin(self._xy) & np.isfinite(rss["rss_dbm"])]
+
+    def grid(self, period: float, apply_filter: bool, max_range_m: float) -> np.ndarray:
+        """Epoch end times (s) of the run: every `period` s from its first usable measurement
+        (any anchor, ranges or RSS) to its last. One grid per run, shared by every estimator
+        and anchor subset, so that their outputs fall at the same times and pair up.
+
+        The phase of the grid against periodic ranging rounds matters to estimators that do
+        not predict to the output time (Min-Max, multilateration): their fix is as old as
+        the round, up to one period at the epoch end."""
+        def build():
+            stamps = np.concatenate([self.usable_ranges(apply_filter, max_range_m)["t"].to_numpy(float),
+                                     self.usable_rss()["t"].to_numpy(float)])
+            return grid_over(stamps, period)
+        return self.cached(("grid", period, apply_filter, max_range_m), build)
+
+    def cached(self, key: tuple, build: Callable):
+        """`build()` once per run and key: estimators of one run share epochs, fixes, dead reckoning."""
+        if key not in self._cache:
+            self._cache[key] = build()
+        return self._cache[key]

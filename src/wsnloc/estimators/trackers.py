@@ -1,0 +1,53 @@
+"""Trackers over a sequence of fixes (paper D): the velocity-bounded tracker and a
+constant-velocity Kalman filter with the fixes as position measurements.
+
+KF: state [x, y, vx, vy], PV model with white acceleration sigma_a over the epoch T;
+z = [x, y] with R = sigma_fix^2 I; P0 = diag(sigma_fix^2, sigma_fix^2, sigma_v^2, sigma_v^2).
+It starts at the first fix, predicts at every later epoch (with or without a fix) and
+is updated with each fix. Both trackers output only at epochs that have a fix.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from wsnloc.filters.kalman import KalmanFilter
+from wsnloc.filters.motion_models import constant_velocity
+from wsnloc.tracking.velocity_bounded import VelocityBoundedTracker
+
+
+def kalman_matrices(epoch_s: float, accel_sigma_mps2: float, position_sigma_m: float,
+                    initial_speed_sigma_mps: float) -> tuple:
+    """(F, Q, H, R, P0) of the KF over fixes."""
+    F, Q = constant_velocity(epoch_s, accel_sigma_mps2)
+    H = np.hstack([np.eye(2), np.zeros((2, 2))])
+    R = np.eye(2) * position_sigma_m**2
+    P0 = np.diag([position_sigma_m**2] * 2 + [initial_speed_sigma_mps**2] * 2)
+    return F, Q, H, R, P0
+
+
+def velocity_track(fixes: pd.DataFrame, window: int, speed_from: str) -> pd.DataFrame:
+    """Velocity-bounded tracker output (t, x, y) at the epochs with a fix."""
+    tracker = VelocityBoundedTracker(window, speed_from)
+    rows = [(t, *tracker.step(t, (x, y))) for t, x, y in fixes[["t", "x", "y"]].itertuples(index=False)
+            if np.isfinite(x) and np.isfinite(y)]
+    return pd.DataFrame(rows, columns=["t", "x", "y"])
+
+
+def kalman_track(fixes: pd.DataFrame, matrices: tuple) -> pd.DataFrame:
+    """KF output (t, x, y and the position covariance) at the epochs with a fix."""
+    F, Q, H, R, P0 = matrices
+    kf, rows = None, []
+    for t, x, y in fixes[["t", "x", "y"]].itertuples(index=False):
+        has_fix = np.isfinite(x) and np.isfinite(y)
+        if kf is not None:
+            kf.predict()
+        if not has_fix:
+            continue
+        if kf is None:
+            kf = KalmanFilter(np.array([x, y, 0.0, 0.0]), P0, F, Q, H, R)
+        else:
+            kf.update(np.array([x, y]))
+        rows.append((t, kf.x[0], kf.x[1], kf.P[0, 0], kf.P[0, 1], kf.P[1, 1]))
+    return pd.DataFrame(rows, columns=["t", "x", "y", "p_xx", "p_xy", "p_yy"])

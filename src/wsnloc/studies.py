@@ -1,0 +1,172 @@
+"""Studies: scenarios x estimators x anchor subsets, declared in config, run cell by cell.
+
+    studies:
+      <study>:
+        scenarios: [dataset/scenario, ...]
+        subsets: [all, "UWB=9"]               # anchor subsets (default: all)
+        estimators:                           # cell name: parameter overrides
+          tracker: {}                         #   the registry entry of the same name
+          ekf_slow: {estimator: ekf, accel_sigma_mps2: 0.2}   # or the one named by `estimator`
+        overrides:                            # per dataset or dataset/scenario (the more specific wins):
+          mysite: {max_range_m: 60}           #   a parameter, for every cell that has it
+          mysite/walk: {ekf_slow: {epoch_s: 1.0}}   # or a cell's own parameters
+
+A cell is (study, dataset/scenario, estimator cell); one job runs every run and subset of
+it, so adding a scenario or an estimator re-runs only the new cells. Parameters resolve
+in this order: registry default < the study's entry < overrides[dataset] <
+overrides[dataset/scenario] (within one, a cell's own mapping after the shared keys).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from wsnloc import results
+from wsnloc.campaign import Campaign
+from wsnloc.errors import ConfigError, WsnlocError
+from wsnloc.estimators import registry
+from wsnloc.estimators.run_data import ALL_ANCHORS, RunData
+from wsnloc.experiments import calibration
+from wsnloc.metrics.tracking import RUN_METRICS, run_metrics, score
+
+EXPERIMENT_PREFIX = "study:"
+REPORTED = RUN_METRICS + ("resets",)         # per cell and run; results.csv gives mean and 95% interval
+UNIT = {"n": "count", "availability": "share", "resets": "count"}
+
+
+def estimator_of(spec: dict, cell: str) -> str:
+    return spec["estimators"][cell].get("estimator", cell) if spec["estimators"][cell] else cell
+
+
+def cell_params(spec: dict, cell: str, dataset: str, scenario: str, where: str) -> dict:
+    """The resolved parameters of one cell on one dataset/scenario (see the module docstring)."""
+    estimator = registry.get(estimator_of(spec, cell), f"{where}.estimators.{cell}.estimator")
+    names = {p.name for p in estimator.params}
+    merged = {k: v for k, v in (spec["estimators"][cell] or {}).items() if k != "estimator"}
+    for key in (dataset, f"{dataset}/{scenario}"):
+        layer = (spec.get("overrides") or {}).get(key) or {}
+        merged.update({k: v for k, v in layer.items() if k in names and k not in spec["estimators"]})
+        merged.update(layer.get(cell) or {})
+    return estimator.resolve(merged, f"{where}.estimators.{cell}")
+
+
+def validate_studies(config: dict) -> None:
+    """Everything knowable before jobs run: estimators, parameters, override keys, subsets."""
+    declared = {f"{d}/{s}" for d, spec in config["datasets"].items() for s in spec["scenarios"]}
+    campaigns: dict[str, Campaign] = {}
+    for study, spec in (config.get("studies") or {}).items():
+        where = f"studies.{study}"
+        for label in spec["scenarios"]:
+            if label not in declared:
+                raise ConfigError(f"config key '{where}.scenarios': {label!r} is not a declared dataset/scenario "
+                                  f"(declared: {', '.join(sorted(declared))})")
+        for key, layer in (spec.get("overrides") or {}).items():
+            if key not in {d for d in config["datasets"]} | declared:
+                raise ConfigError(f"config key '{where}.overrides.{key}': not a declared dataset or dataset/scenario")
+            known = set(spec["estimators"]) | {p.name for c in spec["estimators"]
+                                               for p in registry.get(estimator_of(spec, c)).params}
+            for name in layer or {}:
+                if name not in known:
+                    raise ConfigError(f"config key '{where}.overrides.{key}.{name}': neither an estimator cell of "
+                                      f"this study nor a parameter of its estimators")
+        for label in spec["scenarios"]:
+            dataset, scenario = label.split("/", 1)
+            for cell in spec["estimators"]:
+                cell_params(spec, cell, dataset, scenario, where)
+            path = config["datasets"][dataset]["campaign"]
+            campaign = campaigns.setdefault(path, Campaign.load(path))
+            subsets = campaign.spec.get("subsets", {})
+            for expression in spec.get("subsets") or [ALL_ANCHORS]:
+                missing = [n for n in expression.split("+") if expression != ALL_ANCHORS and n not in subsets]
+                if missing:
+                    raise ConfigError(f"config key '{where}.subsets': {missing[0]!r} is not a subset of {path} "
+                                      f"(has: {', '.join(subsets) or 'none'}; or use 'all')")
+
+
+# ---- one cell ------------------------------------------------------------------------------
+def reads_rss(name: str, p: dict) -> bool:
+    return p.get("measurements") in ("rss", "hybrid") or p.get("fixes") in ("rss", "pmix", "fmix") \
+        or name in ("pmix", "fmix")
+
+
+def donor_models(runs: dict[str, dict], donors: dict[str, dict], campaign: Campaign | None, p: dict,
+                 needed: bool) -> dict[str, dict | None]:
+    """RSS model of each run: fitted on the next run of the scenario with truth (cyclically), or
+    on a run of another scenario of the same dataset (`donors`), else None (configured model)."""
+    if not needed or p.get("rss_calibration") != "other_run":
+        return {name: None for name in runs}
+    pool = {**runs, **donors}
+    usable = [k for k, t in pool.items() if len(t["rss"]) and len(t["truth"])]
+    out = {}
+    for i, name in enumerate(runs):
+        candidates = [k for k in usable[i + 1:] + usable[:i + 1] if k != name] if name in usable else usable
+        if not candidates:
+            out[name] = None
+            continue
+        donor = pool[candidates[0]]
+        model = calibration.calibrate(donor["rss"], donor["truth"], campaign, p.get("d0_m", 1.0), donor["anchors"])
+        out[name] = dict(model, source=f"fitted on {candidates[0]}")
+    return out
+
+
+def diagnose(data: RunData, p: dict) -> str:
+    """Why a run gave no estimates: what the estimator could read."""
+    ranges = data.usable_ranges(p.get("preliminary_filter", True), p.get("max_range_m", np.inf))
+    members = data.members(p.get("anchors", ALL_ANCHORS))
+    ranges = ranges[ranges["anchor_id"].isin(members)]
+    rss = data.usable_rss()
+    rss = rss[rss["anchor_id"].isin(members)]
+    return (f"{len(ranges)} usable ranges from {ranges['anchor_id'].nunique()} anchors and {len(rss)} RSS samples "
+            f"from {rss['anchor_id'].nunique()} anchors of subset {p.get('anchors', ALL_ANCHORS)!r}")
+
+
+def run_cell(label: str, cell: str, name: str, p: dict, subsets: list[str], runs: dict[str, dict],
+             campaign: Campaign | None, donors: dict[str, dict] | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(estimates, metrics) of one cell over every run and subset; raises when any yields nothing."""
+    models = donor_models(runs, donors or {}, campaign, p, reads_rss(name, p))
+    estimates, metrics = [], []
+    for run, run_tables in runs.items():
+        data = RunData(run_tables, campaign, models[run], f"{label}/{run}")
+        for subset in subsets:
+            est = registry.run(name, data, dict(p, anchors=subset) if "anchors" in p else p)
+            finite = est[np.isfinite(est["x"]) & np.isfinite(est["y"])]
+            if len(finite) == 0:
+                raise WsnlocError(f"cell {cell} ({name}) on {label}, {run}, subset {subset!r}: no estimates; "
+                                  f"{diagnose(data, dict(p, anchors=subset))}")
+            scored = score(est, run_tables["truth"]).assign(run=run, subset=subset)
+            estimates.append(scored)
+            metrics.append({"run": run, "subset": subset, **run_metrics(scored, run_tables["truth"]),
+                            "resets": est.attrs.get("resets", 0),
+                            "rss_model": (models[run] or {}).get("source", "configured") if reads_rss(name, p) else ""})
+    return pd.concat(estimates, ignore_index=True), pd.DataFrame(metrics)
+
+
+# ---- summary ---------------------------------------------------------------------------------
+def results_rows(study: str, cell: str, label: str, metrics: pd.DataFrame) -> list[dict]:
+    """results.csv rows of one cell: every reported metric, mean over runs with its 95% interval."""
+    rows = []
+    for subset, group in metrics.groupby("subset", sort=False):
+        for metric in REPORTED:
+            rows.append(results.row_over_runs(group[metric], experiment=EXPERIMENT_PREFIX + study, table=subset,
+                                              row=cell, column=metric, scenario=label,
+                                              metric=f"{metric}_{UNIT.get(metric, 'm')}"))
+    return rows
+
+
+
+def study_panels(estimates: dict[tuple[str, str], pd.DataFrame]) -> tuple[dict, dict, dict]:
+    """Figure panels per scenario: error CDFs over all runs (one curve per cell and subset),
+    and, on the first run and subset, the error over time and the tracks beside the truth."""
+    cdf, errors, tracks = {}, {}, {}
+    for (label, cell), est in estimates.items():
+        subsets = list(dict.fromkeys(est["subset"]))
+        for subset in subsets:
+            name = cell if len(subsets) == 1 else f"{cell} [{subset}]"
+            cdf.setdefault(label, {})[name] = est.loc[est["subset"] == subset, "error_m"].to_numpy()
+        first = est[(est["run"] == est["run"].iloc[0]) & (est["subset"] == subsets[0])]
+        title = f"{label}, {first['run'].iloc[0]}, subset {subsets[0]}"
+        errors.setdefault(title, {})[cell] = first[["t", "error_m"]]
+        truth = first[["true_x", "true_y"]].rename(columns={"true_x": "x", "true_y": "y"})
+        tracks.setdefault(title, (truth, {}))[1][cell] = first
+    return cdf, errors, tracks

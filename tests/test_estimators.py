@@ -1,0 +1,212 @@
+"""The estimator registry: every estimator on noise-free geometry, the parameter contract,
+sequential against epoch updates, asynchronous ranges, gaps and the coasting limit."""
+
+import numpy as np
+import pandas as pd
+import pytest
+from filterpy.kalman import ExtendedKalmanFilter as FilterpyEKF
+
+from synthetic import RSS_MODEL, SQUARE, bursts, one_at_a_time, run_data, tables_for, walk
+from wsnloc.errors import ConfigError
+from wsnloc.estimators import registry
+from wsnloc.estimators.measurements import MeasurementSource, RssParams
+from wsnloc.filters.motion_models import constant_velocity
+from wsnloc.metrics.tracking import availability, run_metrics, score
+
+CROSS = {"N": (10.0, 18.0), "S": (10.0, 2.0), "E": (18.0, 10.0), "W": (2.0, 10.0)}   # symmetric around (10, 10)
+TARGET = np.array([10.0, 10.0])
+CONFIGURED_RSS = {"rss_calibration": "configured", **{k: RSS_MODEL[k] for k in ("p0_dbm", "path_loss_exponent",
+                                                                                 "sigma_db", "d0_m")}}
+
+
+def static_run(anchors=CROSS, seconds=60.0, rss=False):
+    times, ids = bursts(seconds, 0.5, anchors)
+    tables = tables_for(times, ids, TARGET, anchors, rss_times=np.unique(times) if rss else None)
+    return run_data(tables)
+
+
+def test_registry_lists_at_least_twelve_estimators_with_documented_parameters():
+    assert len(registry.ESTIMATORS) >= 12
+    for estimator in registry.ESTIMATORS.values():
+        description = estimator.describe()
+        assert description["summary"] and description["parameters"]
+        for p in description["parameters"]:
+            assert p["doc"] and "unit" in p and "default" in p
+
+
+def test_unknown_parameter_is_refused_naming_the_key():
+    with pytest.raises(ConfigError, match=r"'studies.s.estimators.x.acel_sigma_mps2': unknown parameter"):
+        registry.get("ekf").resolve({"acel_sigma_mps2": 1.0}, "studies.s.estimators.x")
+    with pytest.raises(ConfigError, match=r"'estimator ekf.motion': 'pvx' is not one of p, pv, pva"):
+        registry.get("ekf").resolve({"motion": "pvx"})
+    with pytest.raises(ConfigError, match=r"unknown estimator 'ekff'"):
+        registry.get("ekff")
+
+
+@pytest.mark.parametrize("name, params", [
+    ("minmax", {}), ("multilateration", {}), ("minmax", {"measurements": "rss", **CONFIGURED_RSS}),
+    ("multilateration", {"measurements": "rss", **CONFIGURED_RSS}), ("pmix", CONFIGURED_RSS),
+    ("fmix", CONFIGURED_RSS), ("fmix", {"solver": "multilateration", **CONFIGURED_RSS}),
+])
+def test_static_solvers_recover_the_position_exactly(name, params):
+    """Noise-free ranges (and RSS by the configured model) to anchors in a cross around the
+    target: Min-Max's box centre and multilateration are both exact there."""
+    estimates = registry.run(name, static_run(rss=True), params)
+    errors = np.hypot(estimates["x"] - TARGET[0], estimates["y"] - TARGET[1])
+    assert len(estimates) >= 100 and errors.max() < 1e-6
+
+
+@pytest.mark.parametrize("name, params", [
+    ("velocity_tracker", {}), ("kf_tracker", {}), ("ekf", {}), ("ekf_p", {}), ("tracker", {}),
+    ("ekf", {"measurements": "hybrid", **CONFIGURED_RSS}), ("ekf", {"measurements": "rss", **CONFIGURED_RSS}),
+    ("ekf", {"update": "sequential"}),
+])
+def test_trackers_and_filters_converge_to_a_static_target(name, params):
+    estimates = registry.run(name, static_run(seconds=120.0, rss=True), params)
+    final = estimates[["x", "y"]].to_numpy()[-1]
+    assert np.hypot(*(final - TARGET)) < 1e-3
+
+
+def test_filters_report_their_position_covariance_and_trackers_over_fixes_do_not_invent_one():
+    ekf = registry.run("ekf", static_run())
+    assert np.all(ekf["p_xx"].iloc[1:] > 0) and np.all(np.isfinite(ekf["nis"].iloc[1:]))
+    vt = registry.run("velocity_tracker", static_run())
+    assert vt["p_xx"].isna().all()
+
+
+def test_pv_ekf_follows_a_walk_with_noise_free_ranges():
+    """Sequential updates predict to the output time: no lag behind the walk (the epoch mode
+    outputs at the epoch's end what it measured up to a period earlier)."""
+    times, ids = bursts(200.0, 0.5, SQUARE)
+    data = run_data(tables_for(times, ids, walk, SQUARE))
+    scored = score(registry.run("ekf", data, {"update": "sequential"}), data.table("truth"))
+    assert np.nanmedian(scored["error_m"].iloc[20:]) < 0.02     # corners of the walk cost a few cm
+    lagging = score(registry.run("ekf", data, {"update": "epoch"}), data.table("truth"))
+    assert np.nanmedian(lagging["error_m"].iloc[20:]) == pytest.approx(0.25, abs=0.01)   # 0.5 m/s x 0.5 s
+
+
+def test_sequential_equals_epoch_updates_when_measurements_share_the_epoch_time():
+    """All ranges of an epoch carry the time t_k: predict to t_k then update in both modes."""
+    rng = np.random.default_rng(3)
+    # The run's grid starts at its first measurement (one RSS sample at t0 = 0.3 s): epoch k
+    # ends at t0 - 1e-9 + 0.5 k, and every range burst is stamped with exactly that time.
+    ends = (0.3 - 1e-9) + 0.5 * np.arange(1, 201)
+    ids = np.tile(np.array(list(SQUARE), dtype=object), len(ends))
+    tables = tables_for(np.repeat(ends, len(SQUARE)), ids, walk, SQUARE, noise_m=0.1, rng=rng)
+    tables["rss"] = pd.DataFrame({"t": [0.3], "seq": [-1], "anchor_id": ["A1"], "rss_dbm": [-60.0], "line": [1]})
+    data = run_data(tables)
+    assert np.array_equal(data.grid(0.5, True, 100.0)[:len(ends)], ends)
+    epoch = registry.run("ekf", data, {"update": "epoch", "epoch_s": 0.5})
+    sequential = registry.run("ekf", data, {"update": "sequential", "epoch_s": 0.5})
+    assert len(epoch) == len(sequential) > 150
+    np.testing.assert_allclose(sequential[["t", "x", "y", "p_xx", "p_yy"]].to_numpy(),
+                               epoch[["t", "x", "y", "p_xx", "p_yy"]].to_numpy(), rtol=0, atol=1e-9)
+
+
+def test_epoch_ekf_equals_filterpy_on_the_same_measurements():
+    """The registry's epoch EKF step by step against filterpy's ExtendedKalmanFilter."""
+    rng = np.random.default_rng(8)
+    times, ids = bursts(30.0, 0.5, SQUARE)
+    data = run_data(tables_for(times, ids, walk, SQUARE, noise_m=0.2, rng=rng))
+    ours = registry.run("ekf", data, {"accel_sigma_mps2": 0.4, "range_sigma_m": 0.2})
+    params = registry.get("ekf").resolve({"accel_sigma_mps2": 0.4, "range_sigma_m": 0.2})
+    source = MeasurementSource(data, "toa", "all", 0.2, True, 100.0, None)
+    grid = data.grid(0.5, True, 100.0)
+    models = source.epoch_models(grid, 0.5)
+    F, Q = constant_velocity(0.5, 0.4)
+    ref = FilterpyEKF(dim_x=4, dim_z=4)
+    ref.x = np.array([ours["x"].iloc[0], ours["y"].iloc[0], 0.0, 0.0])
+    ref.F, ref.Q = F, Q
+    ref.P = np.diag([params["initial_sigma_m"] ** 2] * 2 + [params["initial_speed_sigma_mps"] ** 2] * 2)
+    start = int(np.searchsorted(grid, ours["t"].iloc[0]))
+    for k, model in enumerate(models[start + 1:], start=1):
+        ref.predict()
+        ref.update(model.z, HJacobian=model.jacobian, Hx=model.h, R=model.R())
+        assert ours["x"].iloc[k] == pytest.approx(ref.x[0], abs=1e-9)
+        assert ours["y"].iloc[k] == pytest.approx(ref.x[1], abs=1e-9)
+
+
+def _async_and_burst_runs(seed=11, duration=1500.0, gap=(600.0, 660.0)):
+    """The same walk ranged one anchor at a time (about 2 Hz, unsorted rows, a 60 s gap) and in
+    bursts of all four anchors every 2 s (the same number of ranges)."""
+    rng = np.random.default_rng(seed)
+    times, ids = one_at_a_time(duration, 2.0, rng, SQUARE, gap)
+    tables = tables_for(times, ids, walk, SQUARE, noise_m=0.1, rng=rng)
+    shuffled = tables["ranges"].sample(frac=1.0, random_state=1).reset_index(drop=True)
+    burst_times, burst_ids = bursts(duration, 2.0, SQUARE)
+    burst_times = burst_times[(burst_times < gap[0]) | (burst_times > gap[1])]
+    burst_ids = burst_ids[:len(burst_times)]
+    burst = tables_for(burst_times, burst_ids, walk, SQUARE, noise_m=0.1, rng=rng)
+    return dict(tables, ranges=shuffled), burst
+
+
+def test_default_tracker_follows_ranges_that_arrive_one_anchor_at_a_time():
+    one_by_one, burst = _async_and_burst_runs()
+    tracked = score(registry.run(registry.DEFAULT_ESTIMATOR, run_data(one_by_one)), one_by_one["truth"])
+    reference = score(registry.run(registry.DEFAULT_ESTIMATOR, run_data(burst)), burst["truth"])
+    a = run_metrics(tracked, one_by_one["truth"])
+    b = run_metrics(reference, burst["truth"])
+    assert a["availability"] >= 0.95
+    assert a["median"] <= 2.0 * b["median"]
+    assert tracked.attrs["resets"] == 1                      # the 60 s gap exceeds the coasting limit
+
+
+def test_window_initiator_starts_on_ranges_that_arrive_one_anchor_at_a_time():
+    """At 1 Hz one anchor at a time an epoch of 0.5 s rarely holds 3 anchors; the tracker's
+    initiator (multilateration over the last 4 s) starts within seconds."""
+    rng = np.random.default_rng(5)
+    times, ids = one_at_a_time(300.0, 1.0, rng, SQUARE)
+    data = run_data(tables_for(times, ids, walk, SQUARE, noise_m=0.1, rng=rng))
+    assert registry.run("tracker", data)["t"].iloc[0] < times[0] + 15.0
+    single_epoch = registry.run("ekf", data, {"update": "sequential", "init_window_s": 0.0})
+    assert len(single_epoch) == 0 or single_epoch["t"].iloc[0] > registry.run("tracker", data)["t"].iloc[0]
+
+
+def test_no_measurements_for_longer_than_the_coasting_limit_drops_the_track():
+    times, ids = bursts(100.0, 0.5, SQUARE)
+    keep = (times < 30.0) | (times > 60.0)
+    data = run_data(tables_for(times[keep], ids[keep], walk, SQUARE))
+    estimates = registry.run("ekf", data, {"max_coast_s": 5.0})
+    inside = estimates[(estimates["t"] > 35.5) & (estimates["t"] < 60.0)]
+    assert len(inside) == 0 and estimates.attrs["resets"] == 1
+    assert estimates["t"].max() > 99.0                       # restarted after the gap
+
+
+def test_anchor_subsets_restrict_the_measurements():
+    times, ids = bursts(20.0, 0.5, SQUARE)
+    data = run_data(tables_for(times, ids, TARGET, SQUARE))
+    data.campaign = type("C", (), {"spec": {"subsets": {"three": ["A1", "A2", "A3"]}}, "source": "test"})()
+    source = MeasurementSource(data, "toa", "three", 0.3, True, 100.0, None)
+    assert set(source.ranges["anchor_id"]) == {"A1", "A2", "A3"}
+    with pytest.raises(ConfigError, match="anchor subset 'four'"):
+        data.members("four")
+
+
+def test_rss_model_from_the_donor_or_configured():
+    data = static_run(rss=True)
+    p = registry.get("ekf").resolve({"measurements": "rss", **CONFIGURED_RSS})
+    from wsnloc.estimators.measurements import rss_params
+    assert rss_params(data, p) == RssParams(-40.0, 2.5, 3.0, 1.0)
+    data.rss_model = {"p0_dbm": -45.0, "path_loss_exponent": 3.0, "sigma_db": 4.0, "d0_m": 1.0}
+    assert rss_params(data, dict(p, rss_calibration="other_run")).p0_dbm == -45.0
+    assert rss_params(data, p).p0_dbm == -40.0
+
+
+def test_availability_is_the_covered_share_of_the_truth_span():
+    truth = pd.DataFrame({"t": [0.0, 10.0], "x": [0.0, 0.0], "y": [0.0, 0.0]})
+    est = pd.DataFrame({"t": np.arange(1.0, 11.0), "x": 0.0, "y": 0.0})
+    assert availability(est, truth) == pytest.approx(1.0)
+    est.loc[est["t"] > 5, "x"] = np.nan
+    assert availability(est, truth, period=1.0) == pytest.approx(0.5)
+
+
+def test_motion_detection_skips_the_prediction_while_the_accelerometer_is_still():
+    """A still IMU (gravity only) declares every epoch static: no process noise is added, so
+    the covariance only shrinks with each update; without detection it settles at a floor."""
+    data = static_run(seconds=30.0)
+    t = np.arange(0.0, 31.0, 0.002)
+    data.tables["imu"] = pd.DataFrame({"t": t, "ax": 0.0, "ay": 0.0, "az": 9.81, "gz": 0.0})
+    detected = registry.run("ekf_motion_detection", data)
+    plain = registry.run("ekf", data)
+    assert np.all(np.diff(detected["p_xx"].to_numpy()) < 0)
+    assert detected["p_xx"].iloc[-1] < 0.2 * plain["p_xx"].iloc[-1]

@@ -1,0 +1,32 @@
+"""Snakemake adapter: paper A tables, claims and figures over all scenarios."""
+
+import json
+from pathlib import Path
+
+import pandas as pd
+
+from wsnloc import results
+from wsnloc.campaign import Campaign
+from wsnloc.config import read_yaml
+from wsnloc.experiments import paper_a
+from wsnloc.io import tables
+from wsnloc.report import figures
+from wsnloc.workflow import script_logger
+
+sm = snakemake  # noqa: F821  (injected by Snakemake)
+log = script_logger(sm.log[0], "paper_a_summary")
+settings = paper_a.Settings.from_config(sm.params.settings)
+paper = read_yaml(sm.input.papers)["A"]
+labels = list(sm.params.labels)
+rows = []
+for label, path in zip(labels, sm.input.metrics):
+    motion = Campaign.load(sm.params.campaign_of[label]).section("scenarios", label.split("/", 1)[1])["motion"]
+    rows += paper_a.results_rows(pd.read_csv(path), label, motion, settings, paper)
+results.write(rows, sm.output.results)
+res = results.read(sm.output.results)
+Path(sm.output.claims).write_text(json.dumps({"claims": paper_a.claims(res, settings)}, indent=1))
+estimates = {label: tables.read(p) for label, p in zip(labels, sm.input.estimates)}
+Path(sm.output.cdf).write_bytes(figures.error_cdf(paper_a.cdf_panels(estimates)))
+Path(sm.output.tracks).write_bytes(figures.trajectories(paper_a.trajectory_panels(estimates)))
+Path(sm.output.anchors).write_bytes(figures.rmse_vs_anchors(paper_a.anchor_curves(res, settings),
+                                                             "Paper A: RMSE against the number of anchors"))

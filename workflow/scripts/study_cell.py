@@ -1,0 +1,23 @@
+"""Snakemake adapter: one study cell (an estimator on every run and subset of one scenario)."""
+
+from wsnloc.campaign import Campaign
+from wsnloc.estimators import registry
+from wsnloc.io import tables
+from wsnloc.metrics.data_quality import load_runs
+from wsnloc.studies import run_cell
+from wsnloc.workflow import script_logger
+
+sm = snakemake  # noqa: F821  (injected by Snakemake)
+log = script_logger(sm.log[0], "study_cell")
+cell = sm.params.cell
+name, params = cell["estimator"], cell["parameters"]
+names = registry.get(name).tables(params)
+campaign = Campaign.load(sm.input.campaign)
+runs = load_runs(sm.input.tables, names, getattr(sm.input, "imu_5hz", None))
+donors = load_runs(sm.input.donors, ("rss", "truth", "anchors")) if sm.input.donors else {}
+cell_name = sm.wildcards.cell
+estimates, metrics = run_cell(sm.params.label, cell_name, name, params, cell["subsets"], runs, campaign, donors)
+tables.write("estimates", estimates, sm.output.estimates)
+metrics.to_csv(sm.output.metrics, index=False, float_format="%.6g")
+log.info("%s on %s: %d runs x %d subsets, parameters %s", cell_name, sm.params.label, len(runs),
+         len(cell["subsets"]), params)

@@ -1,0 +1,26 @@
+"""Snakemake adapter: a study's results rows and figures over all its cells."""
+
+from pathlib import Path
+
+import pandas as pd
+
+from wsnloc import results
+from wsnloc.io import tables
+from wsnloc.report import figures
+from wsnloc.studies import results_rows, study_panels
+from wsnloc.workflow import script_logger
+
+sm = snakemake  # noqa: F821  (injected by Snakemake)
+log = script_logger(sm.log[0], "study_summary")
+study = sm.wildcards.study
+rows, estimates = [], {}
+for cell, metrics_path, estimates_path in zip(sm.params.cells, sm.input.metrics, sm.input.estimates):
+    rows += results_rows(study, cell["cell"], cell["label"], pd.read_csv(metrics_path, keep_default_na=False,
+                                                                          na_values=[""]))
+    estimates[(cell["label"], cell["cell"])] = tables.read(estimates_path)
+results.write(rows, sm.output.results)
+cdf, errors, tracks = study_panels(estimates)
+Path(sm.output.cdf).write_bytes(figures.error_cdf(cdf, xmax=None))
+Path(sm.output.errors).write_bytes(figures.error_over_time(errors))
+Path(sm.output.tracks).write_bytes(figures.trajectories(tracks))
+log.info("study %s: %d cells, %d results rows", study, len(estimates), len(rows))
