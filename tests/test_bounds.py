@@ -137,3 +137,21 @@ def test_matched_ekf_rmse_is_at_or_above_and_close_to_sqrt_pcrb():
     assert np.all(ratio > 0.75) and np.all(ratio < 1.3), ratio
     overall = np.sqrt(sq_err.mean() / bound_mse.mean())    # RMSE / sqrt(PCRB) over all steps
     assert 0.97 <= overall <= 1.2, overall
+
+
+def test_bound_figures_render_deterministically(campaign):
+    from wsnloc.metrics.consistency import consistency_test
+    from wsnloc.report import bound_figures
+
+    subset = campaign.anchors[campaign.anchors["anchor_id"].isin(campaign.spec["subsets"]["UWB=9"])]
+    x, y, points = bounds.grid_points(30.0, 15.0, 1.0)
+    xy = subset[["x", "y"]].to_numpy()
+    panels = {"TOA CRLB [m]": bounds.toa_crlb(points, xy, 0.1).reshape(len(y), len(x)),
+              "GDOP": bounds.gdop(points, xy).reshape(len(y), len(x))}
+    t = np.arange(20) * 0.2
+    test = consistency_test(np.random.default_rng(0).chisquare(4, size=(10, 20)), 4)
+    for render in (lambda: bound_figures.bound_maps(campaign, subset, x, y, panels),
+                   lambda: bound_figures.pcrb_vs_rmse(t, {"EKF": 0.2 + t / 50}, 0.1 + t / 100, "PV model", "test"),
+                   lambda: bound_figures.consistency_over_time(t, test, "ANEES", "test")):
+        first = render()
+        assert first.startswith(b"\x89PNG") and render() == first
