@@ -119,11 +119,11 @@ def to_matrices(information, state_dim: int = 2) -> np.ndarray:
 def available_information(terms, available) -> np.ndarray:
     """Measurement information of each step from the anchors heard at that step.
 
-    terms: (K, N, 3) per-anchor information at the true position of each step;
-    available: (..., K, N) booleans (e.g. one row of steps per Monte Carlo run).
-    Returns (..., K, 3): sum over the available anchors.
+    terms: (..., K, N, 3) per-anchor information at the true position of each step (one
+    trajectory, or one per Monte Carlo run); available: (..., K, N) booleans (one row of
+    steps per run). Returns (..., K, 3): the sum over the available anchors.
     """
-    return np.einsum("...kn,knc->...kc", np.asarray(available, dtype=float), np.asarray(terms, dtype=float))
+    return np.einsum("...kn,...knc->...kc", np.asarray(available, dtype=float), np.asarray(terms, dtype=float))
 
 
 def model_information(model, states) -> np.ndarray:
