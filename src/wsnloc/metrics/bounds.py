@@ -7,7 +7,7 @@ Static, at a point p = (x, y) (m), anchors a_i, d_i = ||p - a_i|| (floored at 1 
                                  g_i = dP_i/dp = -10 n / ln10 (p - a_i) / d_i^2
 - Fisher information J(p) = sum_i g_i g_i^T / sigma_i^2 (2 x 2); hybrid = J_TOA + J_RSS.
 - Position bound (m): sqrt(trace(J^-1)), a lower bound on the RMSE of any unbiased estimator;
-  infinite where J is singular (fewer than two non-collinear anchors).
+  infinite where J is singular (fewer than two anchors, or all in line with the point).
 - TOA GDOP = sqrt(trace((G^T G)^-1)), G rows g_i (unit vectors for 2-D ranges), i.e. the TOA
   bound with sigma = 1 m: CRLB = sigma GDOP for equal sigmas.
 The 2 x 2 information matrices are kept as their three unique entries (Jxx, Jxy, Jyy) in the
@@ -98,7 +98,8 @@ def gdop(points, anchors, dz_m=None) -> np.ndarray:
 
 
 def grid_points(width_m: float, height_m: float, spacing_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Cell centres of a floor grid: x (nx,), y (ny,) and the points (ny * nx, 2), row-major in y."""
+    """Cell centres of a floor grid: x (nx,), y (ny,) and the points (ny * nx, 2), x varying
+    fastest (values over the points reshape to (ny, nx))."""
     x = np.arange(spacing_m / 2.0, width_m, spacing_m)
     y = np.arange(spacing_m / 2.0, height_m, spacing_m)
     xx, yy = np.meshgrid(x, y)

@@ -49,9 +49,9 @@ def bound_maps(campaign: Campaign, anchors: pd.DataFrame, x, y, panels: dict[str
     fig, axes = plt.subplots(len(panels), 1, figsize=(9, (9 * height / width + 0.9) * len(panels)), squeeze=False)
     for ax, (title, values) in zip(axes[:, 0], panels.items()):
         finite = values[np.isfinite(values)]
+        low, high = (finite.min(), np.percentile(finite, 95)) if finite.size else (0.0, 1.0)
         cmap = plt.get_cmap("viridis").with_extremes(bad="0.6")
-        image = ax.pcolormesh(x, y, np.ma.masked_invalid(values), cmap=cmap, shading="nearest",
-                              vmin=finite.min() if finite.size else 0, vmax=np.percentile(finite, 95) if finite.size else 1)
+        image = ax.pcolormesh(x, y, np.ma.masked_invalid(values), cmap=cmap, shading="nearest", vmin=low, vmax=high)
         fig.colorbar(image, cax=make_axes_locatable(ax).append_axes("right", size="2.5%", pad=0.1),
                      label=title, extend="max")
         _overlay_floor(ax, campaign, anchors)
