@@ -1,0 +1,94 @@
+"""Figures of the bounds section: CRLB / GDOP maps on the floor, sqrt(PCRB) beside the RMSE,
+ANEES / ANIS with their chi-square band. Each function returns PNG bytes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from matplotlib.ticker import StrMethodFormatter
+from mpl_toolkits.axes_grid1 import make_axes_locatable
+
+from wsnloc.campaign import Campaign
+from wsnloc.metrics.consistency import ConsistencyTest
+from wsnloc.report.figures import TECH_STYLE, plt, to_png
+
+
+def _finish_time_axes(ax, ylabel: str, title: str) -> None:
+    """Labels, grid, plain tick numbers and the legend below the axes (clear of the curves)."""
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=9)
+    ax.grid(alpha=0.3, which="both")
+    ax.yaxis.set_major_formatter(StrMethodFormatter("{x:g}"))
+    ax.yaxis.set_minor_formatter(StrMethodFormatter("{x:g}"))
+    ax.tick_params(axis="y", which="minor", labelsize=7)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, frameon=False)
+
+
+def _overlay_floor(ax, campaign: Campaign, anchors: pd.DataFrame) -> None:
+    """Walls, the path and the given anchors (with ids) over a map."""
+    for x1, y1, x2, y2 in campaign.walls:
+        ax.plot([x1, x2], [y1, y2], color="w", lw=1.6, solid_capstyle="butt")
+    if campaign.path is not None:
+        pose = campaign.path.evaluate(np.linspace(0, campaign.path.length, 400))
+        ax.plot(pose["x"], pose["y"], color="tab:orange", lw=1.8, label="path")
+    for tech, group in anchors.groupby("tech"):
+        color, marker = TECH_STYLE.get(tech, ("tab:gray", "D"))
+        ax.scatter(group["x"], group["y"], c=color, marker=marker, s=40, edgecolors="w", zorder=3,
+                   label=f"{tech} ({len(group)})")
+        for _, a in group.iterrows():
+            ax.annotate(a["anchor_id"], (a["x"], a["y"]), xytext=(4, 3), textcoords="offset points",
+                        fontsize=7, color="w")
+
+
+def bound_maps(campaign: Campaign, anchors: pd.DataFrame, x, y, panels: dict[str, np.ndarray]) -> bytes:
+    """One floor map per panel (title with units -> values (len(y), len(x)) on the grid of
+    cell centres x, y in m). The colour scale runs from the minimum to the 95th percentile
+    (values above are drawn in the top colour); infinite values (singular geometry) are grey."""
+    width, height = campaign.spec["floor"]["width_m"], campaign.spec["floor"]["height_m"]
+    fig, axes = plt.subplots(len(panels), 1, figsize=(9, (9 * height / width + 0.9) * len(panels)), squeeze=False)
+    for ax, (title, values) in zip(axes[:, 0], panels.items()):
+        finite = values[np.isfinite(values)]
+        low, high = (finite.min(), np.percentile(finite, 95)) if finite.size else (0.0, 1.0)
+        cmap = plt.get_cmap("viridis").with_extremes(bad="0.6")
+        image = ax.pcolormesh(x, y, np.ma.masked_invalid(values), cmap=cmap, shading="nearest", vmin=low, vmax=high)
+        fig.colorbar(image, cax=make_axes_locatable(ax).append_axes("right", size="2.5%", pad=0.1),
+                     label=title, extend="max")
+        _overlay_floor(ax, campaign, anchors)
+        ax.set_xlim(0, width)
+        ax.set_ylim(0, height)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.set_title(f"{campaign.name}: {title}", fontsize=10)
+        ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.12), ncol=3, fontsize=7, frameon=False)
+    fig.tight_layout()
+    return to_png(fig)
+
+
+def pcrb_vs_rmse(t, rmse: dict[str, np.ndarray], sqrt_pcrb: np.ndarray, bound_model: str, title: str) -> bytes:
+    """Monte Carlo RMSE curves (m) of estimators and sqrt(PCRB) (m) over time t (s).
+
+    bound_model states the motion and noise model the bound assumes (printed under the title).
+    """
+    fig, ax = plt.subplots(figsize=(8, 3.8))
+    for label, values in rmse.items():
+        ax.plot(t, values, lw=1.2, label=f"{label} RMSE")
+    ax.plot(t, sqrt_pcrb, color="k", lw=1.8, ls="--", label="sqrt(PCRB)")
+    ax.set_yscale("log")
+    _finish_time_axes(ax, "position error [m]", f"{title}\nbound for: {bound_model}")
+    return to_png(fig)
+
+
+def consistency_over_time(t, test: ConsistencyTest, statistic: str, title: str) -> bytes:
+    """ANEES or ANIS (statistic names which) over time t (s) with its 95% band, and the time
+    average with its band and the verdict in the legend."""
+    fig, ax = plt.subplots(figsize=(8, 3.6))
+    ax.fill_between(t, test.low, test.high, color="tab:green", alpha=0.25, lw=0, label="95% band")
+    ax.plot(t, test.average, color="tab:blue", lw=1.0, label=statistic)
+    ax.axhline(test.time_average, color="tab:red", lw=1.2,
+               label=f"time average {test.time_average:.2f} "
+                     f"(band {test.time_low:.2f}-{test.time_high:.2f}): {test.verdict}")
+    ax.set_yscale("log")
+    _finish_time_axes(ax, statistic, title)
+    return to_png(fig)
