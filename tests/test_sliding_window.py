@@ -111,6 +111,16 @@ def _trajectory_from_the_prior(rng, window_s=2.0, knot_s=0.5):
     return states[-1], (t, anchors, dz, r, np.full(len(t), 0.1))
 
 
+def test_prior_from_the_previous_window_carries_a_window_without_ranges():
+    est = SlidingWindowEstimator(window_s=2.0, knot_s=0.5)
+    before = est.estimate(2.0, *measurements(2.0, 2.0))
+    empty = np.zeros(0)
+    after = est.estimate(3.0, empty, np.zeros((0, 2)), empty, empty, empty)
+    np.testing.assert_allclose(after.x, truth_at(3.0)[0], atol=1e-6)      # constant-velocity extrapolation
+    assert after.n_ranges == 0
+    assert np.all(np.diag(after.P) > np.diag(before.P))                   # and the uncertainty grows
+
+
 def test_covariance_is_consistent_with_the_error():
     """On trajectories drawn from the estimator's own model, the normalised estimation error
     squared e^T P^-1 e of the window's end state averages its dimension, 4."""

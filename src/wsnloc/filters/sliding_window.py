@@ -101,19 +101,19 @@ class SlidingWindowEstimator:
         self._previous = None      # (knot times (K,), states (K, 4), covariance (4K, 4K))
 
     def _propagate(self, times):
-        """Previous solution's mean (len(times), 4) and covariance at the given times, each by
-        the constant-velocity model from the last previous knot at or before it."""
+        """The previous solution carried to the given times by the constant-velocity model, each
+        from the last previous knot at or before it: means Phi(dt) s_j (len(times), 4), and the
+        covariance Phi Sigma_j Phi^T + Qc(dt) at times[0]."""
         knots, states, cov = self._previous
         j = np.searchsorted(knots, times + 1e-9, side="right") - 1
         if np.any(j < 0):
             raise ValueError("sliding window: t_end must increase from call to call")
-        means, covs = [], []
-        for jj, t in zip(j, times):
-            F = constant_velocity(t - knots[jj], self.accel_sigma)[0]
-            block = cov[STATE * jj:STATE * (jj + 1), STATE * jj:STATE * (jj + 1)]
-            means.append(F @ states[jj])
-            covs.append(F @ block @ F.T + white_noise_acceleration_cov(t - knots[jj], self.accel_sigma))
-        return np.array(means), covs
+        dt = times - knots[j]
+        means = states[j].copy()
+        means[:, :2] += dt[:, None] * states[j, 2:]
+        F = constant_velocity(dt[0], self.accel_sigma)[0]
+        block = cov[STATE * j[0]:STATE * (j[0] + 1), STATE * j[0]:STATE * (j[0] + 1)]
+        return means, F @ block @ F.T + white_noise_acceleration_cov(dt[0], self.accel_sigma)
 
     def estimate(self, t_end, t, anchors_xy, dz_m, ranges_m, sigma_m, initial_state=None) -> WindowEstimate:
         """Solve the window ending at t_end (s) from the ranges measured in it.
@@ -141,8 +141,8 @@ class SlidingWindowEstimator:
                      else np.asarray(initial_state, dtype=float))
             start, prior = np.tile(guess, (self.n_knots, 1)), None
         else:
-            start, covs = self._propagate(knots)
-            prior = (start[0], np.linalg.inv(np.linalg.cholesky(self.prior_inflation * covs[0])))
+            start, first_cov = self._propagate(knots)
+            prior = (start[0], np.linalg.inv(np.linalg.cholesky(self.prior_inflation * first_cov)))
         j = np.clip(np.floor((t - knots[0]) / self.knot_s + 1e-9).astype(int), 0, self.n_knots - 1)
         ranges = RangeFactors(j, t - knots[j], anchors_xy, dz_m, ranges_m, sigma_m)
         n_gaussian = STATE * (self.n_knots - 1) + (0 if prior is None else STATE)
