@@ -8,6 +8,7 @@ d_i = ||p - a_i|| (floored at 1 mm to keep the Jacobian finite).
 - RSS (log-normal shadowing):          h_i = P0 - 10 n log10(d_i / d0)
                                        H_i = [-10 n / ln10 (x - x_i)/d_i^2, -10 n / ln10 (y - y_i)/d_i^2, 0 ...]
 - hybrid: the two stacked, R = blockdiag(R_TOA, R_RSS).
+h_many(X) evaluates h at N states at once, X (N, n) -> (N, m) (particle filters).
 """
 
 from __future__ import annotations
@@ -25,6 +26,12 @@ def _geometry(x, anchors):
     return diff, d
 
 
+def _distances_many(X, anchors):
+    """Horizontal distances (N, m) from N states X (N, n) to the anchors, floored like _geometry."""
+    diff = np.asarray(X, dtype=float)[:, None, :2] - anchors[None, :, :]
+    return np.maximum(np.hypot(diff[..., 0], diff[..., 1]), MIN_DISTANCE)
+
+
 @dataclass
 class RangeModel:
     anchors: np.ndarray        # (m, 2)
@@ -34,6 +41,11 @@ class RangeModel:
     def h(self, x) -> np.ndarray:
         d = _geometry(x, self.anchors)[1]
         return d if self.dz_m is None else np.sqrt(d**2 + self.dz_m**2)
+
+    def h_many(self, X) -> np.ndarray:
+        """h at every row of X (N, n): (N, m) ranges in m."""
+        d = _distances_many(X, self.anchors)
+        return d if self.dz_m is None else np.sqrt(d**2 + self.dz_m[None, :] ** 2)
 
     def jacobian(self, x) -> np.ndarray:
         diff, d = _geometry(x, self.anchors)
@@ -57,6 +69,10 @@ class RssModel:
     def h(self, x) -> np.ndarray:
         return self.p0_dbm - 10.0 * self.exponent * np.log10(_geometry(x, self.anchors)[1] / self.d0_m)
 
+    def h_many(self, X) -> np.ndarray:
+        """h at every row of X (N, n): (N, m) RSS in dBm."""
+        return self.p0_dbm - 10.0 * self.exponent * np.log10(_distances_many(X, self.anchors) / self.d0_m)
+
     def jacobian(self, x) -> np.ndarray:
         diff, d = _geometry(x, self.anchors)
         H = np.zeros((len(self.anchors), len(x)))
@@ -79,6 +95,10 @@ class Stacked:
 
     def h(self, x) -> np.ndarray:
         return np.concatenate([p.h(x) for p in self.parts])
+
+    def h_many(self, X) -> np.ndarray:
+        """h at every row of X (N, n): (N, m), the parts side by side."""
+        return np.hstack([p.h_many(X) for p in self.parts])
 
     def jacobian(self, x) -> np.ndarray:
         return np.vstack([p.jacobian(x) for p in self.parts])

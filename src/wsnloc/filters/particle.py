@@ -1,0 +1,138 @@
+"""Bootstrap particle filter, vectorised over the particles, with systematic resampling.
+
+N particles X_i (n,) with normalised weights w_i, started from N(x0, P0).
+predict:  X_i <- F X_i (+ B u) + q_i,  q_i = S e_i,  e_i ~ N(0, I),  S = V diag(sqrt(max(lambda, 0)))
+          from the eigen-decomposition Q = V diag(lambda) V^T (so a singular Q, e.g. the
+          rank-2 constant-velocity noise, is fine)
+update:   log w_i <- log w_i + sum_j log p(z_j | X_i),  then normalised with log-sum-exp;
+          per element j, r_ij = z_j - h_j(X_i), sigma_j^2 = R_jj (R must be diagonal):
+            Gaussian:        p = N(r_ij; 0, sigma_j^2)
+            range elements with outlier_probability eps > 0 (Gaussian + uniform outlier mixture):
+                             p = (1 - eps) N(r_ij; 0, sigma_j^2) + eps / span     (span in m)
+          computed with logaddexp, so products of many small likelihoods never underflow.
+          log_likelihood = log sum_i w_i(prior) p(z | X_i), the measurement's marginal likelihood.
+resample: systematic, when ESS = 1 / sum w_i^2 < resample_threshold * N:
+          positions u_k = (U + k) / N, U ~ U[0, 1), k = 0..N-1; particle k copies X_j with the
+          smallest j whose cumulative weight exceeds u_k; weights reset to 1 / N.
+x = sum w_i X_i,  P = sum w_i (X_i - x)(X_i - x)^T.
+NIS of an update: y^T S^-1 y with y = z - sum w_i h(X_i), S = weighted covariance of h(X_i) + R
+(prior weights), as for a Gaussian filter.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import logsumexp
+
+from wsnloc.filters.measurement_models import RangeModel
+
+LOG_2PI = np.log(2.0 * np.pi)
+
+
+def noise_square_root(Q) -> np.ndarray:
+    """S with S S^T = Q for a symmetric positive semi-definite Q (eigen-decomposition;
+    tiny negative eigenvalues from round-off are clipped to 0)."""
+    lam, V = np.linalg.eigh(np.asarray(Q, dtype=float))
+    return V * np.sqrt(np.maximum(lam, 0.0))
+
+
+def systematic_resample(weights, rng: np.random.Generator) -> np.ndarray:
+    """Indices (N,) of the particles kept by systematic resampling of normalised weights (N,)."""
+    n = len(weights)
+    positions = (rng.random() + np.arange(n)) / n
+    cumulative = np.cumsum(weights)
+    cumulative[-1] = 1.0                                   # guard against round-off below 1
+    return np.searchsorted(cumulative, positions, side="right")
+
+
+def range_elements(model) -> np.ndarray:
+    """Boolean mask (m,) of the measurement elements that are ranges (RangeModel parts)."""
+    parts = getattr(model, "parts", [model])
+    return np.concatenate([np.full(len(p.anchors), isinstance(p, RangeModel)) for p in parts])
+
+
+def element_log_likelihoods(residuals, variances, heavy_tailed, outlier_probability: float,
+                            outlier_span_m: float) -> np.ndarray:
+    """log p of residuals r (N, m) with variances (m,): Gaussian, and on the columns where
+    heavy_tailed (m,) is True the mixture (1 - eps) N(r; 0, var) + eps / span."""
+    log_p = -0.5 * (residuals**2 / variances + np.log(variances) + LOG_2PI)
+    if np.any(heavy_tailed):
+        log_p[:, heavy_tailed] = np.logaddexp(np.log1p(-outlier_probability) + log_p[:, heavy_tailed],
+                                              np.log(outlier_probability / outlier_span_m))
+    return log_p
+
+
+class ParticleFilter:
+    """Bootstrap particle filter; `rng` (numpy.random.Generator) makes it reproducible.
+
+    resample_threshold: resample when ESS < threshold * N (0..1); outlier_probability eps and
+    outlier_span_m (m) set the heavy-tailed range likelihood (eps = 0: pure Gaussian).
+    """
+
+    def __init__(self, x, P, n_particles: int, rng: np.random.Generator, resample_threshold: float = 0.5,
+                 outlier_probability: float = 0.0, outlier_span_m: float = 50.0):
+        if n_particles < 1:
+            raise ValueError(f"particle filter n_particles must be >= 1, got {n_particles}")
+        if not 0.0 <= resample_threshold <= 1.0:
+            raise ValueError(f"particle filter resample_threshold must be in [0, 1], got {resample_threshold}")
+        if not 0.0 <= outlier_probability < 1.0:
+            raise ValueError(f"particle filter outlier_probability must be in [0, 1), got {outlier_probability}")
+        if outlier_span_m <= 0:
+            raise ValueError(f"particle filter outlier_span_m must be > 0, got {outlier_span_m}")
+        self.rng = rng
+        self.resample_threshold = resample_threshold
+        self.outlier_probability = outlier_probability
+        self.outlier_span_m = outlier_span_m
+        x = np.asarray(x, dtype=float)
+        self.particles = x + rng.standard_normal((n_particles, len(x))) @ noise_square_root(P).T
+        self.log_weights = np.full(n_particles, -np.log(n_particles))
+        self.log_likelihood = float("nan")
+        self.nis = float("nan")
+        self.resampled = False
+
+    @property
+    def weights(self) -> np.ndarray:
+        return np.exp(self.log_weights)
+
+    @property
+    def x(self) -> np.ndarray:
+        return self.weights @ self.particles
+
+    @property
+    def P(self) -> np.ndarray:
+        d = self.particles - self.x
+        return (self.weights[:, None] * d).T @ d
+
+    @property
+    def ess(self) -> float:
+        """Effective sample size 1 / sum w_i^2."""
+        return float(1.0 / np.sum(self.weights**2))
+
+    def predict(self, F, Q, u=None, B=None) -> None:
+        """Propagate every particle: X <- X F^T (+ u^T B^T) + noise drawn from Q."""
+        X = self.particles @ F.T
+        if u is not None:
+            X = X + B @ u
+        self.particles = X + self.rng.standard_normal(X.shape) @ noise_square_root(Q).T
+
+    def update_model(self, model) -> None:
+        """Weight the particles by p(z | X_i), then resample if the ESS fell below the threshold."""
+        R = np.asarray(model.R())
+        variances = np.diag(R)
+        if np.any(R != np.diag(variances)):
+            raise ValueError("particle filter: the measurement noise R must be diagonal")
+        w = self.weights
+        residuals = model.z - model.h_many(self.particles)           # (N, m)
+        y = w @ residuals                                              # z - sum w_i h(X_i)
+        spread = residuals - y
+        self.nis = float(y @ np.linalg.solve((w[:, None] * spread).T @ spread + R, y))
+        heavy_tailed = range_elements(model) if self.outlier_probability > 0 else np.zeros(len(y), dtype=bool)
+        log_p = element_log_likelihoods(residuals, variances, heavy_tailed,
+                                        self.outlier_probability, self.outlier_span_m)
+        joint = self.log_weights + log_p.sum(axis=1)
+        self.log_likelihood = float(logsumexp(joint))
+        self.log_weights = joint - self.log_likelihood
+        self.resampled = self.ess < self.resample_threshold * len(self.particles)
+        if self.resampled:
+            self.particles = self.particles[systematic_resample(self.weights, self.rng)]
+            self.log_weights = np.full(len(self.particles), -np.log(len(self.particles)))

@@ -1,0 +1,193 @@
+"""Sliding-window batch estimator: robust non-linear least squares over the last W seconds.
+
+Unknowns: states s_j = [x, y, vx, vy] (m, m/s) at K knots tau_0 < ... < tau_K-1 = t_end spaced
+knot_s apart and covering the window [t_end - window_s, t_end]. Whitened residuals (unit variance):
+  constant-velocity prior between consecutive knots (white-noise acceleration, spectral density
+  q = accel_sigma^2 in m^2/s^3), Delta = knot_s:
+      L^-1 (s_j+1 - Phi s_j),  Phi = [[I, Delta I], [0, I]],
+      L L^T = Qc = q [[Delta^3/3 I, Delta^2/2 I], [Delta^2/2 I, Delta I]]
+      (the continuous-time form: positive definite, unlike the rank-2 piecewise-constant Q of
+      motion_models.constant_velocity, which cannot be whitened)
+  weak prior on the first knot from the previous window's solution, propagated to tau_0 and
+  inflated:  L0^-1 (s_0 - s_prior),  L0 L0^T = prior_inflation (Phi Sigma Phi^T + Qc)
+  one per range measured at time t to an anchor a with height difference dz, from the knot j
+  before t (delta = t - tau_j):
+      (sqrt(||p_j + delta v_j - a||^2 + dz^2) - r) / sigma
+Minimised with scipy.optimize.least_squares (trf), warm-started from the previous window; the
+robust loss rho (huber, soft_l1, cauchy or linear) acts on the range residuals only, with
+f_scale in units of sigma (the priors stay Gaussian). Covariance of the knots: (J^T J)^-1 with
+J the loss-weighted Jacobian at the solution; the estimate is the last knot (x, P).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from wsnloc.filters.measurement_models import MIN_DISTANCE
+from wsnloc.filters.motion_models import constant_velocity
+
+STATE = 4
+
+
+def _linear(z):
+    return np.vstack([z, np.ones_like(z), np.zeros_like(z)])
+
+
+def _huber(z):
+    big = z > 1.0
+    root = np.sqrt(np.where(big, z, 1.0))
+    return np.vstack([np.where(big, 2.0 * root - 1.0, z), np.where(big, 1.0 / root, 1.0),
+                      np.where(big, -0.5 / root**3, 0.0)])
+
+
+def _soft_l1(z):
+    t = 1.0 + z
+    return np.vstack([2.0 * (np.sqrt(t) - 1.0), t**-0.5, -0.5 * t**-1.5])
+
+
+def _cauchy(z):
+    t = 1.0 + z
+    return np.vstack([np.log(t), 1.0 / t, -1.0 / t**2])
+
+
+# rho(z) with z = (residual / f_scale)^2, and its first two derivatives (scipy's convention).
+LOSSES = {"linear": _linear, "huber": _huber, "soft_l1": _soft_l1, "cauchy": _cauchy}
+
+
+def white_noise_acceleration_cov(dt: float, accel_sigma: float) -> np.ndarray:
+    """Qc (4, 4) of [x, y, vx, vy] over dt (s) for white acceleration of density accel_sigma^2 (m^2/s^3)."""
+    block = accel_sigma**2 * np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]])
+    return np.kron(block, np.eye(2))
+
+
+class RangeFactors(NamedTuple):
+    """The window's ranges, each tied to the knot before it: knot (k,) index, delta (k,) s
+    after that knot, anchors (k, 2) m, dz (k,) m, ranges (k,) m, sigma (k,) m."""
+    knot: np.ndarray
+    delta: np.ndarray
+    anchors: np.ndarray
+    dz: np.ndarray
+    ranges: np.ndarray
+    sigma: np.ndarray
+
+
+class WindowEstimate(NamedTuple):
+    x: np.ndarray          # (4,) [x, y, vx, vy] at the window's end (m, m/s)
+    P: np.ndarray          # (4, 4) its covariance
+    n_ranges: int
+
+
+class SlidingWindowEstimator:
+    """Call estimate() once per output time, with increasing t_end."""
+
+    def __init__(self, window_s: float = 2.0, knot_s: float = 0.5, accel_sigma: float = 0.5,
+                 loss: str = "huber", f_scale: float = 1.345, prior_inflation: float = 10.0):
+        if loss not in LOSSES:
+            raise ValueError(f"sliding window loss must be one of {sorted(LOSSES)}, got {loss!r}")
+        for name, value in (("window_s", window_s), ("knot_s", knot_s), ("accel_sigma", accel_sigma),
+                            ("f_scale", f_scale), ("prior_inflation", prior_inflation)):
+            if not value > 0:
+                raise ValueError(f"sliding window {name} must be > 0, got {value}")
+        if knot_s > window_s:
+            raise ValueError(f"sliding window knot_s ({knot_s}) must not exceed window_s ({window_s})")
+        self.window_s, self.knot_s, self.accel_sigma = window_s, knot_s, accel_sigma
+        self.rho, self.f_scale, self.prior_inflation = LOSSES[loss], f_scale, prior_inflation
+        self.n_knots = int(np.ceil(window_s / knot_s - 1e-9)) + 1
+        self.Phi = constant_velocity(knot_s, accel_sigma)[0]
+        self._W_cv = np.linalg.inv(np.linalg.cholesky(white_noise_acceleration_cov(knot_s, accel_sigma)))
+        self._previous = None      # (knot times (K,), states (K, 4), covariance (4K, 4K))
+
+    def _propagate(self, times):
+        """The previous solution carried to the given times by the constant-velocity model, each
+        from the last previous knot at or before it: means Phi(dt) s_j (len(times), 4), and the
+        covariance Phi Sigma_j Phi^T + Qc(dt) at times[0]."""
+        knots, states, cov = self._previous
+        j = np.searchsorted(knots, times + 1e-9, side="right") - 1
+        if np.any(j < 0):
+            raise ValueError("sliding window: t_end must increase from call to call")
+        dt = times - knots[j]
+        means = states[j].copy()
+        means[:, :2] += dt[:, None] * states[j, 2:]
+        F = constant_velocity(dt[0], self.accel_sigma)[0]
+        block = cov[STATE * j[0]:STATE * (j[0] + 1), STATE * j[0]:STATE * (j[0] + 1)]
+        return means, F @ block @ F.T + white_noise_acceleration_cov(dt[0], self.accel_sigma)
+
+    def estimate(self, t_end, t, anchors_xy, dz_m, ranges_m, sigma_m, initial_state=None) -> WindowEstimate:
+        """Solve the window ending at t_end (s) from the ranges measured in it.
+
+        t (k,) s, each in [t_end - window_s, t_end]; anchors_xy (k, 2) m; dz_m (k,) anchor
+        height - tag height (m, 0 for 2-D ranges); ranges_m (k,) m; sigma_m (k,) m, > 0.
+        initial_state (4,): starting guess for the first call (default: the anchors' centroid,
+        at rest); later calls warm-start from, and put a weak prior on, the previous solution.
+        """
+        t = np.asarray(t, dtype=float)
+        anchors_xy = np.asarray(anchors_xy, dtype=float).reshape(-1, 2)
+        dz_m, ranges_m, sigma_m = (np.broadcast_to(np.asarray(a, dtype=float), t.shape)
+                                   for a in (dz_m, ranges_m, sigma_m))
+        if len(anchors_xy) != len(t):
+            raise ValueError(f"sliding window: {len(t)} times but {len(anchors_xy)} anchor positions")
+        if np.any(t < t_end - self.window_s - 1e-9) or np.any(t > t_end + 1e-9):
+            raise ValueError(f"sliding window: measurement times must lie in [{t_end - self.window_s}, {t_end}]")
+        if np.any(~(sigma_m > 0)):
+            raise ValueError("sliding window: range sigmas must be > 0")
+        knots = t_end - self.knot_s * np.arange(self.n_knots - 1, -1, -1)
+        if self._previous is None:
+            if len(t) < STATE:
+                raise ValueError(f"sliding window: the first window needs at least {STATE} ranges, got {len(t)}")
+            guess = (np.array([*anchors_xy.mean(axis=0), 0.0, 0.0]) if initial_state is None
+                     else np.asarray(initial_state, dtype=float))
+            start, prior = np.tile(guess, (self.n_knots, 1)), None
+        else:
+            start, first_cov = self._propagate(knots)
+            prior = (start[0], np.linalg.inv(np.linalg.cholesky(self.prior_inflation * first_cov)))
+        j = np.clip(np.floor((t - knots[0]) / self.knot_s + 1e-9).astype(int), 0, self.n_knots - 1)
+        ranges = RangeFactors(j, t - knots[j], anchors_xy, dz_m, ranges_m, sigma_m)
+        n_gaussian = STATE * (self.n_knots - 1) + (0 if prior is None else STATE)
+
+        def loss(z):
+            out = _linear(z)
+            out[:, n_gaussian:] = self.rho(z[n_gaussian:])
+            return out
+
+        solution = least_squares(self._residuals, start.ravel(), jac=self._jacobian, args=(prior, ranges),
+                                 loss=loss, f_scale=self.f_scale, method="trf",
+                                 ftol=1e-12, xtol=1e-12, gtol=1e-12)
+        cov = np.linalg.inv(solution.jac.T @ solution.jac)
+        states = solution.x.reshape(self.n_knots, STATE)
+        self._previous = (knots, states, cov)
+        return WindowEstimate(states[-1].copy(), cov[-STATE:, -STATE:].copy(), len(t))
+
+    def _range_geometry(self, theta, ranges):
+        s = theta.reshape(self.n_knots, STATE)[ranges.knot]
+        diff = s[:, :2] + ranges.delta[:, None] * s[:, 2:] - ranges.anchors
+        return diff, np.maximum(np.sqrt(np.sum(diff**2, axis=1) + ranges.dz**2), MIN_DISTANCE)
+
+    def _residuals(self, theta, prior, ranges):
+        s = theta.reshape(self.n_knots, STATE)
+        parts = [] if prior is None else [prior[1] @ (s[0] - prior[0])]
+        parts.append(((s[1:] - s[:-1] @ self.Phi.T) @ self._W_cv.T).ravel())
+        _, h = self._range_geometry(theta, ranges)
+        parts.append((h - ranges.ranges) / ranges.sigma)
+        return np.concatenate(parts)
+
+    def _jacobian(self, theta, prior, ranges):
+        K, n = self.n_knots, STATE
+        j, delta = ranges.knot, ranges.delta
+        n_prior = 0 if prior is None else n
+        J = np.zeros((n_prior + n * (K - 1) + len(j), n * K))
+        if prior is not None:
+            J[:n, :n] = prior[1]
+        for k in range(K - 1):
+            rows = slice(n_prior + n * k, n_prior + n * (k + 1))
+            J[rows, n * k:n * (k + 1)] = -self._W_cv @ self.Phi
+            J[rows, n * (k + 1):n * (k + 2)] = self._W_cv
+        diff, h = self._range_geometry(theta, ranges)
+        unit = diff / (h * ranges.sigma)[:, None]
+        rows = n_prior + n * (K - 1) + np.arange(len(j))
+        for c in range(2):
+            J[rows, n * j + c] = unit[:, c]
+            J[rows, n * j + 2 + c] = delta * unit[:, c]
+        return J

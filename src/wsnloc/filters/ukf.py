@@ -1,0 +1,81 @@
+"""Unscented Kalman filter with scaled sigma points (van der Merwe), additive noise.
+
+State x (n,), covariance P (n, n). Scaled sigma points and weights, lambda = alpha^2 (n + kappa) - n:
+  chi_0 = x,  chi_i = x + L_i,  chi_{n+i} = x - L_i   (i = 1..n),  L L^T = (n + lambda) P (Cholesky, L_i its columns)
+  Wm_0 = lambda / (n + lambda),  Wc_0 = Wm_0 + 1 - alpha^2 + beta,  Wm_i = Wc_i = 1 / (2 (n + lambda))
+predict (linear motion model, done exactly):  x <- F x (+ B u),  P <- F P F^T + Q
+  Pushing the sigma points through a linear F gives the same mean and covariance (the points'
+  weighted mean is x and their weighted covariance is P), so the exact form is used: cheaper,
+  and it needs no Cholesky factor of P.
+update with a measurement model z = h(x) + v, v ~ N(0, R); the sigma points are drawn from
+the current (x, P), i.e. after any predict (Q included), as in Wan & van der Merwe's additive-noise UKF:
+  Z_i = h(chi_i),  z_hat = sum Wm_i Z_i,  S = sum Wc_i (Z_i - z_hat)(Z_i - z_hat)^T + R
+  Pxz = sum Wc_i (chi_i - x)(Z_i - z_hat)^T,  K = Pxz S^-1,  y = z - z_hat
+  x <- x + K y,  P <- P - K S K^T,  NIS = y^T S^-1 y
+With predict/update pairs this is exactly filterpy.kalman.UnscentedKalmanFilter with
+MerweScaledSigmaPoints (which redraws its points at the end of predict).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class UnscentedKalmanFilter:
+    """UKF over a linear motion model and any measurement model with z, h(x), R().
+
+    alpha (> 0) sets the sigma points' spread, beta = 2 is optimal for Gaussian priors,
+    kappa a secondary scaling. The defaults alpha = 1, kappa = 0 (lambda = 0) put the points
+    at x +- sqrt(n) * (columns of chol P) with non-negative weights, so S and P stay
+    positive semi-definite.
+    """
+
+    def __init__(self, x, P, alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0):
+        if alpha <= 0:
+            raise ValueError(f"UKF alpha must be > 0, got {alpha}")
+        self.x = np.asarray(x, dtype=float).copy()
+        self.P = np.asarray(P, dtype=float).copy()
+        n = len(self.x)
+        lam = alpha**2 * (n + kappa) - n
+        if n + lam <= 0:
+            raise ValueError(f"UKF needs alpha^2 (n + kappa) > 0; got alpha={alpha}, kappa={kappa}, n={n}")
+        self._spread = n + lam
+        self.Wm = np.full(2 * n + 1, 0.5 / self._spread)
+        self.Wc = self.Wm.copy()
+        self.Wm[0] = lam / self._spread
+        self.Wc[0] = self.Wm[0] + 1.0 - alpha**2 + beta
+        self.y = np.zeros(0)
+        self.S = np.zeros((0, 0))
+        self._S_inv = None
+
+    def sigma_points(self) -> np.ndarray:
+        """(2n + 1, n) scaled sigma points of the current (x, P), ordered chi_0, chi_1..n, chi_n+1..2n."""
+        L = np.linalg.cholesky(self._spread * self.P)
+        return np.vstack([self.x, self.x + L.T, self.x - L.T])
+
+    def predict(self, F, Q, u=None, B=None) -> None:
+        """x <- F x (+ B u), P <- F P F^T + Q (exact; see the module docstring)."""
+        self.x = F @ self.x
+        if u is not None:
+            self.x = self.x + B @ u
+        self.P = F @ self.P @ F.T + Q
+
+    def update_model(self, model) -> None:
+        """Unscented update with model.z, model.h and model.R() (the size of z may vary)."""
+        chi = self.sigma_points()
+        Z = np.array([model.h(c) for c in chi])               # (2n + 1, m)
+        z_hat = self.Wm @ Z
+        dZ = Z - z_hat
+        dX = chi - self.x
+        self.S = (self.Wc[:, None] * dZ).T @ dZ + model.R()
+        Pxz = (self.Wc[:, None] * dX).T @ dZ
+        self._S_inv = np.linalg.inv(self.S)
+        K = Pxz @ self._S_inv
+        self.y = model.z - z_hat
+        self.x = self.x + K @ self.y
+        self.P = self.P - K @ self.S @ K.T
+
+    @property
+    def nis(self) -> float:
+        """Normalised innovation squared y^T S^-1 y of the last update (NaN before any)."""
+        return float("nan") if self._S_inv is None else float(self.y @ self._S_inv @ self.y)

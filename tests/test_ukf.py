@@ -1,0 +1,108 @@
+"""UKF: agreement with filterpy's UnscentedKalmanFilter, exact linear predict, sigma points."""
+
+import numpy as np
+import pytest
+from filterpy.kalman import MerweScaledSigmaPoints
+from filterpy.kalman import UnscentedKalmanFilter as FilterpyUKF
+
+from wsnloc.filters.kalman import KalmanFilter
+from wsnloc.filters.measurement_models import RangeModel, RssModel, Stacked
+from wsnloc.filters.motion_models import constant_velocity
+from wsnloc.filters.ukf import UnscentedKalmanFilter
+
+ANCHORS = np.array([[0.0, 0.0], [8.0, 1.0], [3.0, 7.0], [9.0, 9.0]])
+
+
+@pytest.mark.parametrize("alpha, beta, kappa", [(1.0, 2.0, 0.0), (0.3, 2.0, 1.0), (0.1, 2.0, 0.0)])
+def test_ukf_equals_filterpy_on_identical_inputs(alpha, beta, kappa):
+    rng = np.random.default_rng(17)
+    x0, P0 = np.array([1.0, 1.0, 0.0, 0.0]), np.diag([1.0, 1.0, 0.1, 0.1])
+    ours = UnscentedKalmanFilter(x0, P0, alpha=alpha, beta=beta, kappa=kappa)
+    points = MerweScaledSigmaPoints(4, alpha=alpha, beta=beta, kappa=kappa)
+    ref = FilterpyUKF(dim_x=4, dim_z=4, dt=0.5, hx=None, fx=lambda x, dt, F: F @ x, points=points)
+    ref.x, ref.P = x0.copy(), P0.copy()
+    updates = 0
+    for k in range(50):
+        dt = 0.3 + 0.1 * (k % 4)                                    # the step varies
+        F, Q = constant_velocity(dt, 0.3)
+        truth = np.array([1.0 + 0.2 * k, 1.0 + 0.1 * k])
+        n = k % 5                                                   # 0..4 ranges; 0 = no update
+        ours.predict(F, Q)
+        ref.Q = Q
+        ref.predict(dt=dt, F=F)
+        np.testing.assert_allclose(ours.x, ref.x, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(ours.P, ref.P, rtol=0, atol=1e-9)
+        if n == 0:
+            continue
+        model = Stacked([RangeModel(ANCHORS[:n], np.full(n, 0.3))],
+                        np.hypot(*(truth - ANCHORS[:n]).T) + rng.normal(0, 0.3, n))
+        ours.update_model(model)
+        ref.update(model.z, R=model.R(), hx=model.h)
+        updates += 1
+        np.testing.assert_allclose(ours.x, ref.x, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(ours.P, ref.P, rtol=0, atol=1e-9)
+        assert ours.nis == pytest.approx(float(ref.y @ ref.SI @ ref.y), abs=1e-9)
+    assert updates == 40
+    assert np.hypot(*(ours.x[:2] - truth)) < 1.0                    # it also tracks
+
+
+def test_hybrid_range_rss_update_equals_filterpy():
+    x0, P0 = np.array([4.0, 3.0, 0.1, 0.0]), np.diag([2.0, 2.0, 0.2, 0.2])
+    model = Stacked([RangeModel(ANCHORS[:2], np.full(2, 0.3), dz_m=np.array([1.0, -0.5])),
+                     RssModel(ANCHORS[2:], -45.0, 2.8, 4.0)], np.array([5.0, 4.5, -70.0, -72.0]))
+    ours = UnscentedKalmanFilter(x0, P0, alpha=0.5)
+    ref = FilterpyUKF(dim_x=4, dim_z=4, dt=1.0, hx=model.h, fx=lambda x, dt: x,
+                      points=MerweScaledSigmaPoints(4, alpha=0.5, beta=2.0, kappa=0.0))
+    ref.x, ref.P, ref.Q = x0.copy(), P0.copy(), np.zeros((4, 4))
+    ref.predict()
+    ours.update_model(model)
+    ref.update(model.z, R=model.R())
+    np.testing.assert_allclose(ours.x, ref.x, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ours.P, ref.P, rtol=0, atol=1e-9)
+
+
+def test_sigma_points_reproduce_mean_and_covariance():
+    P = np.array([[2.0, 0.3, 0.1, 0.0], [0.3, 1.0, 0.0, 0.2], [0.1, 0.0, 0.5, 0.05], [0.0, 0.2, 0.05, 0.4]])
+    ukf = UnscentedKalmanFilter(np.array([1.0, -2.0, 0.5, 0.1]), P, alpha=0.7, kappa=1.0)
+    chi = ukf.sigma_points()
+    assert chi.shape == (9, 4)
+    np.testing.assert_allclose(ukf.Wm @ chi, ukf.x, atol=1e-12)
+    d = chi - ukf.x
+    np.testing.assert_allclose((ukf.Wc[:, None] * d).T @ d - (ukf.Wc[0] - ukf.Wm[0]) * np.outer(d[0], d[0]), P,
+                               atol=1e-12)
+    assert ukf.Wm.sum() == pytest.approx(1.0)
+
+
+def test_linear_measurement_update_equals_the_kalman_filter():
+    """With a linear h the unscented transform is exact: the UKF is the KF."""
+    H = np.array([[1.0, 0.0, 0.0, 0.0], [0.5, 1.0, 0.0, 0.0]])
+    R = np.diag([0.2, 0.3])
+
+    class Linear:
+        z = np.array([1.2, 0.4])
+
+        def h(self, x):
+            return H @ x
+
+        def R(self):
+            return R
+
+    F, Q = constant_velocity(0.5, 0.4)
+    x0, P0 = np.array([1.0, 0.0, 0.3, -0.2]), np.eye(4)
+    ukf = UnscentedKalmanFilter(x0, P0, alpha=0.2)
+    kf = KalmanFilter(x0, P0, F, Q, H, R)
+    for _ in range(5):
+        ukf.predict(F, Q)
+        kf.predict()
+        ukf.update_model(Linear())
+        kf.update(Linear.z)
+    np.testing.assert_allclose(ukf.x, kf.x, atol=1e-10)
+    np.testing.assert_allclose(ukf.P, kf.P, atol=1e-10)
+    assert ukf.nis == pytest.approx(kf.nis, abs=1e-9)
+
+
+def test_invalid_scaling_is_rejected():
+    with pytest.raises(ValueError, match="alpha"):
+        UnscentedKalmanFilter(np.zeros(4), np.eye(4), alpha=0.0)
+    with pytest.raises(ValueError, match="kappa"):
+        UnscentedKalmanFilter(np.zeros(4), np.eye(4), kappa=-4.0)
