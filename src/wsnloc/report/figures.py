@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import io
+import json
 
 import matplotlib
+import matplotlib.text
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -17,9 +19,54 @@ TECH_STYLE = {"uwb": ("tab:red", "^"), "zigbee": ("tab:blue", "o"), "cricket": (
 LABEL_OFFSET = {"uwb": (4, -10), "zigbee": (4, 3)}   # points; keeps co-located anchors readable
 
 
+PNG_DPI = 110
+# PNG text chunk listing the pairs of texts that overlap in the figure, as JSON
+# [[text, text], ...]; read back by wsnloc.report.browser_check.
+OVERLAPS_KEY = "wsnloc-text-overlaps"
+OVERLAP_TOLERANCE_PX = 1.0      # boxes that share less than this (width and height) only touch
+
+
+def _drawn_texts(fig) -> list:
+    """Visible, non-empty Text artists of the figure, without tick labels outside the view
+    (matplotlib keeps those artists but does not draw them)."""
+    undrawn = set()
+    for ax in fig.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            low, high = sorted(axis.get_view_interval())
+            span = 1e-9 * max(abs(low), abs(high), 1.0)
+            for tick in axis.get_major_ticks() + axis.get_minor_ticks():
+                if not low - span <= tick.get_loc() <= high + span:
+                    undrawn.update((id(tick.label1), id(tick.label2)))
+    return [t for t in fig.findobj(matplotlib.text.Text)
+            if t.get_visible() and t.get_text().strip() and id(t) not in undrawn]
+
+
+def text_overlaps(fig, dpi: float = PNG_DPI) -> list[tuple[str, str]]:
+    """Pairs of texts whose rendered bounding boxes (pixels at `dpi`) overlap.
+
+    Boxes come from Text.get_window_extent with the figure's renderer after a layout pass;
+    two boxes overlap when their intersection is wider and taller than OVERLAP_TOLERANCE_PX.
+    """
+    fig.set_dpi(dpi)
+    fig.draw_without_rendering()
+    renderer = fig.canvas.get_renderer()
+    boxes = [(t.get_text(), t.get_window_extent(renderer)) for t in _drawn_texts(fig)]
+    pairs = []
+    for i, (text_a, a) in enumerate(boxes):
+        for text_b, b in boxes[i + 1:]:
+            width = min(a.x1, b.x1) - max(a.x0, b.x0)
+            height = min(a.y1, b.y1) - max(a.y0, b.y0)
+            if width > OVERLAP_TOLERANCE_PX and height > OVERLAP_TOLERANCE_PX:
+                pairs.append((text_a, text_b))
+    return pairs
+
+
 def to_png(fig) -> bytes:
+    """PNG bytes of the figure (closed afterwards), with its overlapping texts in OVERLAPS_KEY."""
+    overlaps = json.dumps(text_overlaps(fig), ensure_ascii=True)
     buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=110, bbox_inches="tight", metadata={"Software": None})
+    fig.savefig(buffer, format="png", dpi=PNG_DPI, bbox_inches="tight",
+                metadata={"Software": None, OVERLAPS_KEY: overlaps})
     plt.close(fig)
     return buffer.getvalue()
 

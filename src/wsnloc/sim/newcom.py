@@ -18,9 +18,22 @@ from wsnloc.sim.logs import imu_lines, positions as _positions, truth_lines, wri
 from wsnloc.sim.seeding import model_rng
 
 
-def _uwb_lines(campaign: Campaign, traj, rng_time, rng_channel, rng_fault, detector: str,
+# Paper B's simulation: "an ideal time of arrival (TOA)-based ranging where the only noisy
+# impairment is due to the channel model randomness". These impairments are switched off.
+IMPAIRMENTS_BESIDES_CHANNEL = {"timing_noise_ns": 0.0, "excess_path_per_wall_m": 0.0, "fault_rate": 0.0}
+
+
+def uwb_settings(campaign: Campaign, overrides: dict) -> dict:
+    """radio.uwb of the campaign, with timing noise, wall excess path and faults set to 0
+    when the scenario's `overrides` say `uwb_channel_only: true`."""
+    spec = dict(campaign.section("radio", "uwb"))
+    if overrides.get("uwb_channel_only", False):
+        spec.update(IMPAIRMENTS_BESIDES_CHANNEL)
+    return spec
+
+
+def _uwb_lines(campaign: Campaign, spec: dict, traj, rng_time, rng_channel, rng_fault, detector: str,
                clock_ms: int) -> list[str]:
-    spec = campaign.section("radio", "uwb")
     c = campaign.spec["speed_of_light_mps"]
     anchors = campaign.anchors_of("uwb")
     period, jitter = spec["ranging_period_ms"], spec["period_jitter_ms"]
@@ -99,8 +112,8 @@ def simulate_run(campaign: Campaign, scenario: str, seeds: np.random.SeedSequenc
 
     traj = motion.for_scenario(scenario_spec, campaign.path.length, model_rng(seeds, "motion"))
     files = {
-        "uwb.log": _uwb_lines(campaign, traj, model_rng(seeds, "uwb-timing"), model_rng(seeds, "uwb-channel"),
-                              model_rng(seeds, "uwb-faults"), detector, clock_ms),
+        "uwb.log": _uwb_lines(campaign, uwb_settings(campaign, overrides), traj, model_rng(seeds, "uwb-timing"),
+                              model_rng(seeds, "uwb-channel"), model_rng(seeds, "uwb-faults"), detector, clock_ms),
         "zigbee.log": _zigbee_lines(campaign, traj, model_rng(seeds, "zigbee"), clock_ms),
         "imu.log": imu_lines(campaign, traj, model_rng(seeds, "imu"), imu_noise, clock_ms),
         "truth.log": truth_lines(campaign, traj, clock_ms, "rail_m"),

@@ -1,0 +1,1 @@
+"""Studies computed in memory from the simulator and the library (no workflow files)."""
