@@ -13,6 +13,8 @@ from wsnloc.io.ingest import ingest_one, ingest_scenario
 from wsnloc.io.newcom import ingest_run, parse_imu
 from wsnloc.io.rawlines import Quarantine, read_raw
 
+from test_timeorder import ordered_by_brute_force
+
 UWB = """# newcom-uwb v1
 # t_ms anchor tw_toa_ps status
 12500 U01 51234 0
@@ -211,22 +213,24 @@ def test_damaged_line_in_a_simulated_log(simulated_run, campaign, tmp_path):
 
 def _imu_line_by_line(lines):
     """Reference for parse_imu: the spec applied one line at a time (5 fields, finite t_ms,
-    integer counts, time strictly increasing over accepted lines)."""
-    accepted, refused, last = [], [], -np.inf
+    integer counts), then the fewest lines refused so that time increases strictly
+    (ties to the earliest lines), by brute force."""
+    parsed, refused = [], []
     for number, text in enumerate(lines, start=4):
         fields = text.split()
         try:
             t_ms = float(fields[0])
             counts = [int(f) for f in fields[1:]]
-            usable = len(fields) == 5 and np.isfinite(t_ms) and t_ms > last
+            usable = len(fields) == 5 and np.isfinite(t_ms)
         except (ValueError, IndexError):
             usable = False
         if usable:
-            last = t_ms
-            accepted.append((number, t_ms, *counts))
+            parsed.append((number, t_ms, *counts))
         else:
             refused.append(number)
-    return accepted, refused
+    kept = ordered_by_brute_force([p[1] for p in parsed], strict=True)
+    refused += [p[0] for i, p in enumerate(parsed) if i not in kept]
+    return [parsed[i] for i in kept], sorted(refused)
 
 
 imu_numbers = st.sampled_from(["0", "7", "-12", "1021", "+5", "007", "1.5", "x", "", "nan", "1e3", "99999"])
