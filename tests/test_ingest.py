@@ -1,6 +1,7 @@
 """Raw-log parsers on hand-written fixtures, including the damage real logs carry."""
 
 import numpy as np
+import pandas as pd
 import pytest
 from conftest import ROOT
 from hypothesis import given, settings
@@ -10,6 +11,7 @@ from wsnloc.campaign import Campaign
 from wsnloc.errors import IngestError
 from wsnloc.io import tables
 from wsnloc.io.ingest import ingest_one, ingest_scenario
+from wsnloc.io.limits import QuarantineLimits
 from wsnloc.io.newcom import ingest_run, parse_imu
 from wsnloc.io.rawlines import Quarantine, read_raw
 
@@ -185,8 +187,12 @@ def test_tables_have_units_in_the_schema(run_dir, campaign, tmp_path):
 
 
 def test_quarantine_share_limit_fails_loudly(run_dir, campaign, tmp_path):
-    with pytest.raises(IngestError, match=r"max_quarantine_share"):
-        ingest_scenario("newcom", {"run-01": str(run_dir)}, campaign, tmp_path / "out", 0.1)
+    """Per run: 18 of the 30 records of the fixture are quarantined (6 + 6 + 3 + 3 of 10 + 8 + 6 + 6)."""
+    limits = QuarantineLimits(per_run=0.5, per_file=1.0)
+    with pytest.raises(IngestError, match=r"run-01: 60.0% of the run's records .* 'ingest.max_quarantine_share' = "
+                                          r"50.0% .* quarantine table: .*kept/run-01.quarantine.csv"):
+        ingest_scenario("newcom", {"run-01": str(run_dir)}, campaign, tmp_path / "out", limits, tmp_path / "kept")
+    assert len(pd.read_csv(tmp_path / "kept" / "run-01.quarantine.csv")) == 18
 
 
 def test_empty_logs_give_empty_tables(run_dir, campaign):
