@@ -65,8 +65,8 @@ def _fields(payload: str, allowed: set[str], separator: str = "=") -> dict[str, 
     for position, part in enumerate(parts):
         key, sep, value = part.partition(separator)
         key, value = key.strip(), value.strip()
-        if not sep and position == len(parts) - 1:
-            raise _Bad(f"line cut short after a comma{f' (at {key!r})' if key else ''}")
+        if not sep and position and position == len(parts) - 1:
+            raise _Bad(f"line cut short (ends with ',{key}')" if key else "line cut short after a comma")
         if not sep:
             raise _Bad(f"field {part.strip()!r} is not KEY=value")
         if key not in allowed:
