@@ -350,6 +350,38 @@ def test_random_damage_in_uwb_log(campaign, tmp_path, case):
     assert quarantine.frame()[["file", "line"]].values.tolist() == [["uwb.log", k + 2] for k in sorted(bad)]
 
 
+ZIGBEE_DAMAGE = {
+    "cut": lambda s, _: s[: len(s) - 3],
+    "merged": lambda s, nxt: s + nxt,
+    "count mismatch": lambda s, _: " ".join([*s.split()[:2], str(int(s.split()[2]) + 1), *s.split()[3:]]),
+    "repeated anchor": lambda s, _: s.replace(" Z02:", " Z01:"),
+    "unknown anchor": lambda s, _: s.replace(" Z01:", " Z71:"),
+}
+
+
+@st.composite
+def damaged_zigbee(draw):
+    n = draw(st.integers(3, 20))
+    t = 10000 + 50 * np.arange(n)
+    rssi = draw(st.lists(st.lists(st.integers(-99, -30), min_size=2, max_size=4), min_size=n, max_size=n))
+    good = [f"{t[k]} {k} {len(r)} " + " ".join(f"Z0{j + 1}:{v}" for j, v in enumerate(r)) for k, r in enumerate(rssi)]
+    texts, bad = _apply(draw, good, ZIGBEE_DAMAGE, lambda s, dt: f"{int(s.split()[0]) + dt} {s.split(' ', 1)[1]}")
+    return good, texts, bad
+
+
+@DAMAGE
+@given(case=damaged_zigbee())
+def test_random_damage_in_zigbee_log(campaign, tmp_path, case):
+    good, texts, bad = case
+    (tmp_path / "zigbee.log").write_text("# newcom-zigbee v1\n" + "".join(line + "\n" for line in texts))
+    quarantine = Quarantine()
+    rss = newcom.parse_zigbee(read_raw(tmp_path / "zigbee.log", quarantine), campaign, quarantine)
+    expected = [(k + 2, int(good[k].split()[0]) / 1000, k, pair.split(":")[0], float(pair.split(":")[1]))
+                for k in range(len(good)) if k not in bad for pair in good[k].split()[3:]]
+    assert list(rss[["line", "t", "seq", "anchor_id", "rss_dbm"]].itertuples(index=False, name=None)) == expected
+    assert quarantine.frame()[["file", "line"]].values.tolist() == [["zigbee.log", k + 2] for k in sorted(bad)]
+
+
 @cache
 def _cricket() -> Campaign:
     return Campaign.load(CRICKET)
