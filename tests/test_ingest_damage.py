@@ -78,7 +78,7 @@ def test_garbage_in_one_file_stops_the_scenario_naming_that_file(simulated_run, 
     assert message.startswith(f"{run / 'uwb.log'}: 40.0% of its {len(data) + n_bad} records are quarantined")
     assert "'ingest.max_quarantine_share_per_file' = 20.0%" in message
     assert f"{n_bad // 2} x tw_toa_ps is not an integer: '…'" in message
-    assert f"{n_bad - n_bad // 2} x expected … fields '…', found …" in message
+    assert f"{n_bad - n_bad // 2} x expected N fields '…', found N" in message
     kept = pd.read_csv(tmp_path / "logs" / "run-01.quarantine.csv")
     assert f"quarantine table: {tmp_path / 'logs' / 'run-01.quarantine.csv'}" in message
     assert len(kept) == n_bad and set(kept["file"]) == {"uwb.log"}

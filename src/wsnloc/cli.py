@@ -16,7 +16,7 @@ from wsnloc.errors import WsnlocError
 from wsnloc.io.ingest import PARSERS, ingest_one
 from wsnloc.io import tables
 from wsnloc.io.limits import (DEFAULT_PER_FILE, DEFAULT_PER_RUN, QuarantineLimits, check_quarantine_limits,
-                              quarantine_share, reason_kind)
+                              quarantine_share)
 from wsnloc.workflow import run_name
 
 
@@ -65,7 +65,9 @@ def cmd_ingest(args) -> int:
     quarantine = tables.read(quarantine_path)
     if len(quarantine):
         print("quarantine by reason:")
-        kinds = quarantine.assign(kind=quarantine["reason"].map(reason_kind)).groupby(["file", "kind"]).size()
+        from wsnloc.metrics.data_quality import reason_category
+
+        kinds = quarantine.assign(kind=quarantine["reason"].map(reason_category)).groupby(["file", "kind"]).size()
         for (file, kind), count in kinds.items():
             print(f"  {count:>6}  {file}: {kind}")
     print(f"quarantined share: {quarantine_share(inventory):.2%}; tables written to {args.out_dir}")

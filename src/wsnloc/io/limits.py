@@ -20,11 +20,11 @@ from pathlib import Path
 import pandas as pd
 
 from wsnloc.errors import IngestError
+from wsnloc.metrics.data_quality import reason_category
 
 DEFAULT_PER_RUN = 0.2          # the defaults of config/schema.yaml (a test keeps them equal)
 DEFAULT_PER_FILE = 0.2
 _QUOTED = re.compile(r"'([^']*)'")
-_NUMBER = re.compile(r"(?<![\w.-])[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 
 
 @dataclass(frozen=True)
@@ -33,12 +33,6 @@ class QuarantineLimits:
 
     per_run: float = DEFAULT_PER_RUN
     per_file: float = DEFAULT_PER_FILE
-
-
-def reason_kind(reason: str) -> str:
-    """The reason with its quoted values and numbers replaced by '…', so that reasons
-    group by kind ('time goes backwards: … ms after … ms')."""
-    return _NUMBER.sub("…", _QUOTED.sub("'…'", reason))
 
 
 def quarantine_share(inventory: dict) -> float:
@@ -54,10 +48,10 @@ def file_shares(inventory: dict) -> dict[str, float]:
 
 
 def describe(quarantine: pd.DataFrame, file: str, top: int = 3) -> str:
-    """The dominant reasons (with counts) and the most frequent quoted values among the
-    quarantined lines of `file`."""
+    """The dominant reasons (with counts, grouped as in the report: values become '…' and
+    numbers N) and the most frequent quoted values among the quarantined lines of `file`."""
     reasons = quarantine.loc[quarantine["file"] == file, "reason"].tolist()
-    kinds = Counter(reason_kind(reason) for reason in reasons).most_common(top)
+    kinds = Counter(reason_category(reason) for reason in reasons).most_common(top)
     values = Counter(value for reason in reasons for value in _QUOTED.findall(reason)).most_common(top)
     text = "dominant reasons: " + "; ".join(f"{count} x {kind}" for kind, count in kinds)
     if values:
