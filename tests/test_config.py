@@ -179,4 +179,5 @@ def test_quarantine_limit_defaults_are_those_of_the_command_line(config):
 
     del config["ingest"]
     validate_config(config, SCHEMA)
-    assert config["ingest"] == {"max_quarantine_share": DEFAULT_PER_RUN, "max_quarantine_share_per_file": DEFAULT_PER_FILE}
+    assert config["ingest"] == {"max_quarantine_share": DEFAULT_PER_RUN,
+                                "max_quarantine_share_per_file": DEFAULT_PER_FILE}

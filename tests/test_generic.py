@@ -55,6 +55,16 @@ def test_generic_parquet_input(run_dir, generic):
     assert len(result["truth"]) == 2 and result["truth"]["line"].tolist() == [1, 2]
 
 
+def test_parquet_missing_values_read_as_empty_fields(run_dir):
+    anchors = pd.DataFrame({"anchor_id": ["A1", "A2", "A3"], "tech": "uwb", "x": [0.0, 10.0, 0.0],
+                            "y": [0.0, 0.0, 10.0], "z": [1.0, None, 2.0]})
+    anchors.to_parquet(run_dir / "anchors.parquet")
+    (run_dir / "anchors.csv").unlink()
+    result, _ = ingest_run(run_dir)
+    assert result["anchors"]["z"].tolist()[::2] == [1.0, 2.0] and np.isnan(result["anchors"]["z"].iloc[1])
+    assert "anchors.parquet" not in set(result["quarantine"]["file"])
+
+
 def test_three_d_true_range_uses_the_tag_height(run_dir, generic):
     result, _ = ingest_run(run_dir, generic)
     errors = range_errors(result["ranges"], result["truth"], generic, result["anchors"])

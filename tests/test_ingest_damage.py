@@ -206,8 +206,8 @@ def test_duplicate_anchor_ids_are_refused(generic_dir):
         generic.ingest_run(generic_dir)
 
 
-@pytest.mark.parametrize("name, text", [("ranges.csv", "t,anchor_id,range_m\n"), ("anchors.csv", "anchor_id,tech,x,y\n"),
-                                        ("ranges.csv", "")])
+@pytest.mark.parametrize("name, text", [("ranges.csv", "t,anchor_id,range_m\n"),
+                                        ("anchors.csv", "anchor_id,tech,x,y\n"), ("ranges.csv", "")])
 def test_an_empty_required_table_is_refused(generic_dir, name, text):
     (generic_dir / name).write_text(text)
     with pytest.raises(IngestError, match=rf"{name}: (no data rows|empty file)"):

@@ -154,7 +154,8 @@ def _check_experiments(config: dict, campaigns: dict) -> None:
                 used.append(label.split("/")[0])
         if "table_2_scenario" in spec and spec["table_2_scenario"] not in spec["scenarios"]:
             raise ConfigError(f"config key 'experiments.{experiment}.table_2_scenario': "
-                              f"{spec['table_2_scenario']!r} is not one of its scenarios ({', '.join(spec['scenarios'])})")
+                              f"{spec['table_2_scenario']!r} is not one of its scenarios "
+                              f"({', '.join(spec['scenarios'])})")
         for path in SUBSET_KEYS.get(experiment, ()):
             for key, subset in _values_at(spec, path, f"experiments.{experiment}"):
                 for dataset in dict.fromkeys(used):

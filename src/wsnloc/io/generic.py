@@ -56,9 +56,10 @@ def _read(path: Path) -> CsvRows:
     if path.suffix == ".csv":
         return read_csv_rows(path)
     try:
-        frame = pq.read_table(path).to_pandas().astype(str)
+        values = pq.read_table(path).to_pandas()
     except Exception as exc:  # pyarrow raises many types for unreadable files
         raise IngestError(f"{path}: cannot read as parquet ({exc})") from exc
+    frame = values.astype(str).where(values.notna(), "")      # a missing value reads as an empty CSV field
     return CsvRows(frame, np.arange(len(frame)) + 1, [], len(frame), len(frame))
 
 
