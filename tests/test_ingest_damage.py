@@ -101,14 +101,17 @@ def test_a_failing_ingest_job_keeps_its_quarantine_in_the_logs(simulated_run, tm
     table survives in logs/ although Snakemake deletes the failed job's outputs."""
     raw = tmp_path / "raw" / "constant" / "run-01"
     _copy(simulated_run, raw)
-    lines = _log_lines(raw / "zigbee.log")
-    (raw / "zigbee.log").write_text("\n".join(lines[:2] + [f"{text[:12]}" for text in lines[2:]]) + "\n")
     work = small_workflow(tmp_path / "work")
     config = yaml.safe_load((work / "config" / "config.yaml").read_text())
     config["datasets"]["newcom"].update(source="logs", raw_dir=str(tmp_path / "raw"))
     (work / "config" / "config.yaml").write_text(yaml.safe_dump(config))
     target = "data/processed/newcom/constant/tables/shard-1"
-    result = snakemake(work, "--cores", "1", target)
+    intact = snakemake(work, "--cores", "1", target)
+    assert intact.returncode == 0, intact.stderr[-3000:]
+    assert (work / target / "inventory.json").is_file()
+    lines = _log_lines(raw / "zigbee.log")
+    (raw / "zigbee.log").write_text("\n".join(lines[:2] + [f"{text[:12]}" for text in lines[2:]]) + "\n")
+    result = snakemake(work, "--cores", "1", "--forcerun", "ingest", target)
     assert result.returncode != 0
     log = (work / "logs" / "ingest" / "newcom-constant-shard-1.log").read_text()
     assert f"{raw / 'zigbee.log'}: 100.0% of its {len(lines) - 2} records are quarantined" in log
