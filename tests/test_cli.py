@@ -32,3 +32,15 @@ def test_simulate_then_validate(tmp_path, capsys, monkeypatch):
 def test_unknown_scenario_is_named(tmp_path, capsys):
     assert main(["simulate", "--campaign", str(NEWCOM), "--scenario", "sprint", "--out", str(tmp_path)]) == 2
     assert "scenarios.sprint" in capsys.readouterr().err
+
+
+def test_validate_config_names_a_subset_the_campaign_lacks(tmp_path, capsys, monkeypatch):
+    import yaml
+
+    monkeypatch.chdir(ROOT)
+    config = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
+    config["experiments"]["paper_c"]["table_1_subset"] = "7: B1..B7"
+    (tmp_path / "config.yaml").write_text(yaml.safe_dump(config))
+    assert main(["validate-config", str(tmp_path / "config.yaml")]) == 2
+    assert ("config key 'experiments.paper_c.table_1_subset': '7: B1..B7' is not an anchor subset of "
+            "config/campaigns/cricket.yaml") in capsys.readouterr().err

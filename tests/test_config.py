@@ -1,6 +1,7 @@
 """Config and campaign validation: defaults filled in, every error names its key."""
 
 import copy
+import re
 
 import pytest
 import yaml
@@ -130,3 +131,53 @@ def test_experiment_on_an_undeclared_scenario_is_named(config):
     config["experiments"]["paper_d"]["scenarios"] = ["newcom/sprint"]
     with pytest.raises(ConfigError, match=r"'experiments.paper_d.scenarios': 'newcom/sprint' is not a declared"):
         validate_config(config, SCHEMA)
+
+
+@pytest.mark.parametrize("edit, key, value", [
+    (lambda c: c["experiments"]["paper_b"].update(uwb_subset="UWB=11"), "experiments.paper_b.uwb_subset", "UWB=11"),
+    (lambda c: c["experiments"]["paper_a"]["rows"][3].update(zigbee="ZigBee=5"), "experiments.paper_a.rows[3].zigbee",
+     "ZigBee=5"),
+    (lambda c: c["experiments"]["paper_d"]["subsets"].update(narrowband="ZigBee=2"),
+     "experiments.paper_d.subsets.narrowband", "ZigBee=2"),
+    (lambda c: c["experiments"]["paper_c"]["table_2_subsets"].append("5: B1..B5"),
+     "experiments.paper_c.table_2_subsets[3]", "5: B1..B5"),
+])
+def test_subset_the_campaign_lacks_is_named(config, edit, key, value):
+    edit(config)
+    with pytest.raises(ConfigError, match=rf"config key '{re.escape(key)}': '{value}' is not an anchor subset of "
+                                          rf"config/campaigns/\w+.yaml"):
+        validate_config(config, SCHEMA)
+
+
+def test_simulated_scenario_the_campaign_lacks_is_named(config):
+    config["datasets"]["cricket"]["scenarios"].append("speed_80")
+    with pytest.raises(ConfigError, match=r"'datasets.cricket.scenarios': 'speed_80' is not a scenario of "
+                                          r"config/campaigns/cricket.yaml \(defined there: speed_20, speed_40"):
+        validate_config(config, SCHEMA)
+
+
+def test_real_log_scenario_without_runs_is_named(config, tmp_path):
+    (tmp_path / "constant" / "run-01").mkdir(parents=True)
+    config["datasets"]["newcom"].update(source="logs", raw_dir=str(tmp_path), scenarios=["constant"])
+    for experiment in ("paper_a", "paper_b", "paper_d"):
+        config["experiments"][experiment]["scenarios"] = ["newcom/constant"]
+    config["experiments"]["paper_b"]["simulation_scenarios"] = []
+    validate_config(config, SCHEMA)
+    config["datasets"]["newcom"]["scenarios"] = ["constant", "variable"]
+    with pytest.raises(ConfigError, match=r"'datasets.newcom.scenarios': 'variable' has no run directories"):
+        validate_config(config, SCHEMA)
+
+
+def test_table_2_scenario_outside_the_experiment_is_named(config):
+    config["experiments"]["paper_c"]["table_2_scenario"] = "newcom/constant"
+    with pytest.raises(ConfigError, match=r"'experiments.paper_c.table_2_scenario': 'newcom/constant' is not one"):
+        validate_config(config, SCHEMA)
+
+
+def test_quarantine_limit_defaults_are_those_of_the_command_line(config):
+    from wsnloc.io.limits import DEFAULT_PER_FILE, DEFAULT_PER_RUN
+
+    del config["ingest"]
+    validate_config(config, SCHEMA)
+    assert config["ingest"] == {"max_quarantine_share": DEFAULT_PER_RUN,
+                                "max_quarantine_share_per_file": DEFAULT_PER_FILE}

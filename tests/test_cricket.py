@@ -88,6 +88,38 @@ def test_damaged_lines_are_quarantined(cricket, line, reason):
     assert len(ranges) == 0 and reason in bad[1]
 
 
+def test_unknown_space_id_falls_back_to_the_beacon_id(cricket):
+    ranges, _, bad = _parse(cricket, GOOD.replace("SP=B3", "SP=ship"))
+    assert not bad and ranges["anchor_id"].tolist() == ["B1"]          # the ID is B1's beacon_id
+    _, _, bad = _parse(cricket, GOOD.replace("SP=B3", "SP=ship").replace("ID=01:25", "ID=07:25"))
+    assert bad[1] == "unknown space id SP='ship' and unknown beacon id '07:25:61:61:0b:00:00:42'"
+
+
+@pytest.mark.parametrize("line, reason", [
+    ("12034\tVR=2.0,ID=01:25:61:61:0b:00:00:42,SP=B3,", "line cut short after a comma"),
+    ("12034\tVR=2.0,ID=01:25:61:61:0b:00:00:42,SP=B3,D", "line cut short (ends with ',D')"),
+    ("12034\tVR=2.0,ID=01:25:61:61:0b:00:00:42,SP=B3,DB=155,DR=4518", "a range but no TS field: line cut short"),
+])
+def test_cut_short_reasons(cricket, line, reason):
+    _, _, bad = _parse(cricket, line)
+    assert bad == {1: reason}
+
+
+def test_rf_only_record_without_ts_is_valid(cricket):
+    """The format (docs/raw-formats.md): DB, DR, TM and TS may all be missing on RF-only records."""
+    ranges, rf_only, bad = _parse(cricket, "13102\tVR=2.0,ID=01:4c:61:61:0b:00:00:1f,SP=B5")
+    assert len(ranges) == 0 and rf_only == 1 and not bad
+    _, rf_only, bad = _parse(cricket, "VR=2.0,ID=01:4c:61:61:0b:00:00:1f,SP=B5")
+    assert rf_only == 0 and "no timestamp" in bad[1]
+
+
+def test_listener_log_alone_is_a_run(cricket, tmp_path):
+    (tmp_path / "listener.log").write_text(GOOD + "\n")
+    result, inventory = ingest_run(tmp_path, cricket)
+    assert len(result["ranges"]) == 1 and result["imu"].empty and result["truth"].empty
+    assert list(inventory) == ["listener.log"]
+
+
 def test_time_going_backwards(cricket):
     ranges, _, bad = _parse(cricket, GOOD, GOOD.replace("12034", "11000"))
     assert len(ranges) == 1 and "backwards" in bad[2]

@@ -40,13 +40,16 @@ def run_dir(tmp_path):
 def test_generic_tables_and_quarantine(run_dir, generic):
     result, inventory = ingest_run(run_dir, generic)
     ranges = result["ranges"]
-    assert ranges[["anchor_id", "range_m", "line"]].values.tolist() == [["A1", 5.0, 2], ["A3", 7.5, 5]]
+    # rows out of time order are sorted (stable), not dropped: line 6 (t = 0.25 s) before line 5
+    assert ranges[["anchor_id", "range_m", "line"]].values.tolist() == [["A1", 5.0, 2], ["A1", 4.0, 6],
+                                                                        ["A3", 7.5, 5]]
     q = result["quarantine"].set_index("line")["reason"].to_dict()
-    assert q == {3: "range_m is not a finite number", 4: "unknown anchor (not in anchors table)",
-                 6: "time goes backwards", 7: "range_m is not a finite number", 8: "anchor_id is empty"}
-    assert inventory["ranges.csv"]["quarantined"] == 5
+    assert q == {3: "range_m 'nan' is not a finite number", 4: "unknown anchor 'A9' (not in anchors.csv)",
+                 7: "range_m 'abc' is not a finite number", 8: "anchor_id is empty"}
+    assert inventory["ranges.csv"]["quarantined"] == 4 and inventory["ranges.csv"]["reordered"] == 1
+    assert inventory["ranges.csv"]["unknown_anchors"] == {"A9": 1}
     assert result["truth"]["s"].tolist() == [0.0, 5.0]
-    assert np.isnan(result["anchors"]["z"].iloc[2]) and result["ranges"]["status"].tolist() == [0, 0]
+    assert np.isnan(result["anchors"]["z"].iloc[2]) and result["ranges"]["status"].tolist() == [0, 0, 0]
 
 
 def test_generic_parquet_input(run_dir, generic):
@@ -54,6 +57,16 @@ def test_generic_parquet_input(run_dir, generic):
     (run_dir / "truth.csv").unlink()
     result, _ = ingest_run(run_dir, generic)
     assert len(result["truth"]) == 2 and result["truth"]["line"].tolist() == [1, 2]
+
+
+def test_parquet_missing_values_read_as_empty_fields(run_dir):
+    anchors = pd.DataFrame({"anchor_id": ["A1", "A2", "A3"], "tech": "uwb", "x": [0.0, 10.0, 0.0],
+                            "y": [0.0, 0.0, 10.0], "z": [1.0, None, 2.0]})
+    anchors.to_parquet(run_dir / "anchors.parquet")
+    (run_dir / "anchors.csv").unlink()
+    result, _ = ingest_run(run_dir)
+    assert result["anchors"]["z"].tolist()[::2] == [1.0, 2.0] and np.isnan(result["anchors"]["z"].iloc[1])
+    assert "anchors.parquet" not in set(result["quarantine"]["file"])
 
 
 def test_three_d_true_range_uses_the_tag_height(run_dir, generic):
@@ -73,7 +86,8 @@ def test_missing_required_file_or_column(run_dir, generic):
 
 
 def test_cli_ingests_generic_and_keeps_anchor_heights(run_dir, tmp_path, capsys):
-    assert main(["ingest", "--format", "generic", "--campaign", str(CAMPAIGN), str(run_dir), str(tmp_path / "out")]) == 0
+    assert main(["ingest", "--format", "generic", "--campaign", str(CAMPAIGN), "--max-quarantine-share-per-file", "1",
+                 "--max-quarantine-share", "1", str(run_dir), str(tmp_path / "out")]) == 0
     assert "ranges.csv" in capsys.readouterr().out
     anchors = tables.read(tmp_path / "out" / "anchors.parquet")
     assert anchors["z"].tolist()[:2] == [1.0, 1.0] and tables.unit_of(tmp_path / "out" / "anchors.parquet", "z") == "m"

@@ -1,6 +1,7 @@
 """Raw-log parsers on hand-written fixtures, including the damage real logs carry."""
 
 import numpy as np
+import pandas as pd
 import pytest
 from conftest import ROOT
 from hypothesis import given, settings
@@ -10,8 +11,11 @@ from wsnloc.campaign import Campaign
 from wsnloc.errors import IngestError
 from wsnloc.io import tables
 from wsnloc.io.ingest import ingest_one, ingest_scenario
+from wsnloc.io.limits import QuarantineLimits
 from wsnloc.io.newcom import ingest_run, parse_imu
 from wsnloc.io.rawlines import Quarantine, read_raw
+
+from test_timeorder import ordered_by_brute_force
 
 UWB = """# newcom-uwb v1
 # t_ms anchor tw_toa_ps status
@@ -183,8 +187,12 @@ def test_tables_have_units_in_the_schema(run_dir, campaign, tmp_path):
 
 
 def test_quarantine_share_limit_fails_loudly(run_dir, campaign, tmp_path):
-    with pytest.raises(IngestError, match=r"max_quarantine_share"):
-        ingest_scenario("newcom", {"run-01": str(run_dir)}, campaign, tmp_path / "out", 0.1)
+    """Per run: 18 of the 30 records of the fixture are quarantined (6 + 6 + 3 + 3 of 10 + 8 + 6 + 6)."""
+    limits = QuarantineLimits(per_run=0.5, per_file=1.0)
+    with pytest.raises(IngestError, match=r"run-01: 60.0% of the run's records .* 'ingest.max_quarantine_share' = "
+                                          r"50.0% .* quarantine table: .*kept/run-01.quarantine.csv"):
+        ingest_scenario("newcom", {"run-01": str(run_dir)}, campaign, tmp_path / "out", limits, tmp_path / "kept")
+    assert len(pd.read_csv(tmp_path / "kept" / "run-01.quarantine.csv")) == 18
 
 
 def test_empty_logs_give_empty_tables(run_dir, campaign):
@@ -211,22 +219,24 @@ def test_damaged_line_in_a_simulated_log(simulated_run, campaign, tmp_path):
 
 def _imu_line_by_line(lines):
     """Reference for parse_imu: the spec applied one line at a time (5 fields, finite t_ms,
-    integer counts, time strictly increasing over accepted lines)."""
-    accepted, refused, last = [], [], -np.inf
+    integer counts), then the fewest lines refused so that time increases strictly
+    (ties to the earliest lines), by brute force."""
+    parsed, refused = [], []
     for number, text in enumerate(lines, start=4):
         fields = text.split()
         try:
             t_ms = float(fields[0])
             counts = [int(f) for f in fields[1:]]
-            usable = len(fields) == 5 and np.isfinite(t_ms) and t_ms > last
+            usable = len(fields) == 5 and np.isfinite(t_ms)
         except (ValueError, IndexError):
             usable = False
         if usable:
-            last = t_ms
-            accepted.append((number, t_ms, *counts))
+            parsed.append((number, t_ms, *counts))
         else:
             refused.append(number)
-    return accepted, refused
+    kept = ordered_by_brute_force([p[1] for p in parsed], strict=True)
+    refused += [p[0] for i, p in enumerate(parsed) if i not in kept]
+    return [parsed[i] for i in kept], sorted(refused)
 
 
 imu_numbers = st.sampled_from(["0", "7", "-12", "1021", "+5", "007", "1.5", "x", "", "nan", "1e3", "99999"])

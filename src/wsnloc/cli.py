@@ -13,8 +13,10 @@ from pathlib import Path
 from wsnloc.campaign import Campaign
 from wsnloc.config import read_yaml, validate_config
 from wsnloc.errors import WsnlocError
-from wsnloc.io.ingest import PARSERS, ingest_one, quarantine_share
+from wsnloc.io.ingest import PARSERS, ingest_one
 from wsnloc.io import tables
+from wsnloc.io.limits import (DEFAULT_PER_FILE, DEFAULT_PER_RUN, QuarantineLimits, check_quarantine_limits,
+                              quarantine_share)
 from wsnloc.workflow import run_name
 
 
@@ -41,18 +43,36 @@ def cmd_simulate(args) -> int:
     return 0
 
 
+NOTES = {"rf_only": "RF-only record(s) (no range)", "reordered": "row(s) out of time order (sorted)"}
+
+
+def _ingest_campaign(args) -> Campaign | None:
+    """The --campaign file, else the format's default; the generic format needs none."""
+    if args.campaign:
+        return Campaign.load(args.campaign)
+    return None if args.format == "generic" else Campaign.load(_default_campaign(args.format))
+
+
 def cmd_ingest(args) -> int:
-    campaign = Campaign.load(args.campaign or _default_campaign(args.format))
-    inventory = ingest_one(args.format, args.run_dir, campaign, args.out_dir)
-    print(f"{'file':<12} {'records':>9} {'quarantined':>12}")
+    inventory = ingest_one(args.format, args.run_dir, _ingest_campaign(args), args.out_dir)
+    print(f"{'file':<14} {'records':>9} {'quarantined':>12}  notes")
     for name, info in inventory.items():
-        print(f"{name:<12} {info['data_lines']:>9} {info['quarantined']:>12}")
-    quarantine = tables.read(Path(args.out_dir) / "quarantine.parquet")
+        notes = ", ".join(f"{info[key]} {label}" for key, label in NOTES.items() if info.get(key))
+        print(f"{name:<14} {info['data_lines']:>9} {info['quarantined']:>12}  {notes}")
+        for anchor, count in info.get("unknown_anchors", {}).items():
+            print(f"{'':<14} {count:>9} row(s) of anchor {anchor!r}, missing from the anchors table")
+    quarantine_path = Path(args.out_dir) / "quarantine.parquet"
+    quarantine = tables.read(quarantine_path)
     if len(quarantine):
         print("quarantine by reason:")
-        for (file, reason), count in quarantine.groupby(["file", "reason"]).size().items():
-            print(f"  {count:>6}  {file}: {reason}")
+        from wsnloc.metrics.data_quality import reason_category
+
+        kinds = quarantine.assign(kind=quarantine["reason"].map(reason_category)).groupby(["file", "kind"]).size()
+        for (file, kind), count in kinds.items():
+            print(f"  {count:>6}  {file}: {kind}")
     print(f"quarantined share: {quarantine_share(inventory):.2%}; tables written to {args.out_dir}")
+    limits = QuarantineLimits(per_run=args.max_quarantine_share, per_file=args.max_quarantine_share_per_file)
+    check_quarantine_limits(args.run_dir, inventory, quarantine, limits, quarantine_path)
     return 0
 
 
@@ -87,10 +107,16 @@ def parser() -> argparse.ArgumentParser:
     sim.add_argument("--out", required=True, help="output directory; runs go to OUT/run-NN")
     sim.set_defaults(func=cmd_simulate)
 
-    ing = sub.add_parser("ingest", help="parse one raw run directory into Parquet tables")
+    ing = sub.add_parser("ingest", help="parse one raw run directory into Parquet tables",
+                         description="Parse one raw run directory into Parquet tables; exit code 2 when a "
+                                     "file or the run is over the quarantine limits (the tables are written).")
     ing.add_argument("--format", required=True, choices=sorted(PARSERS))
     ing.add_argument("--campaign", help="campaign file (default: config/campaigns/<format>.yaml; "
-                                        "a generic dataset needs its own, e.g. config/campaigns/cucudasluv.yaml)")
+                                        "the generic format needs none)")
+    ing.add_argument("--max-quarantine-share", type=float, default=DEFAULT_PER_RUN,
+                     help="exit 2 when a larger share of the run is quarantined (default: %(default)s)")
+    ing.add_argument("--max-quarantine-share-per-file", type=float, default=DEFAULT_PER_FILE,
+                     help="exit 2 when a larger share of one file is quarantined (default: %(default)s)")
     ing.add_argument("run_dir")
     ing.add_argument("out_dir")
     ing.set_defaults(func=cmd_ingest)

@@ -1,5 +1,6 @@
 # Raw logs -> one Parquet file per run and table, with a quarantine of unusable lines;
-# one job per shard of the scenario's runs.
+# one job per shard of the scenario's runs. A run over the quarantine limits fails the job
+# and leaves its quarantine table in logs/ingest/<job>/ (outputs of failed jobs are deleted).
 
 
 rule ingest:
@@ -13,6 +14,7 @@ rule ingest:
         runs=lambda w: shard_runs(w),
         raw_dirs=lambda w: [raw_run_dir(config, w.dataset, w.scenario, r) for r in shard_runs(w)],
         max_quarantine_share=config["ingest"]["max_quarantine_share"],
+        max_quarantine_share_per_file=config["ingest"]["max_quarantine_share_per_file"],
     priority: PRIORITY["ingest"]
     log:
         "logs/ingest/{dataset}-{scenario}-{shard}.log",

@@ -1,13 +1,26 @@
-"""Snakemake adapter: ingest every run of one scenario into Parquet tables."""
+"""Snakemake adapter: ingest every run of one scenario into Parquet tables.
+
+A run over the quarantine limits fails the job; its quarantine table is kept beside the
+job's log (logs/ingest/<job>/<run>.quarantine.csv), which Snakemake does not delete.
+"""
+
+from pathlib import Path
 
 from wsnloc.campaign import Campaign
+from wsnloc.errors import IngestError
 from wsnloc.io.ingest import ingest_scenario
+from wsnloc.io.limits import QuarantineLimits
 from wsnloc.workflow import script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "ingest")
 campaign = Campaign.load(sm.input.campaign)
-inventory = ingest_scenario(sm.params.format, dict(zip(sm.params.runs, sm.params.raw_dirs)), campaign,
-                            sm.output.tables, sm.params.max_quarantine_share)
+limits = QuarantineLimits(per_run=sm.params.max_quarantine_share, per_file=sm.params.max_quarantine_share_per_file)
+try:
+    inventory = ingest_scenario(sm.params.format, dict(zip(sm.params.runs, sm.params.raw_dirs)), campaign,
+                                sm.output.tables, limits, keep_dir=Path(sm.log[0]).with_suffix(""))
+except IngestError as exc:
+    log.error("%s", exc)
+    raise
 for run, files in inventory.items():
     log.info("%s: %s", run, {name: (f["data_lines"], f["quarantined"]) for name, f in files.items()})

@@ -1,21 +1,26 @@
-"""Parser for what a Cricket listener prints (listener.log), plus the run's imu/truth logs.
+"""Parser for what a Cricket listener prints (listener.log), plus the run's optional imu/truth logs.
 
 Accepted line forms (one record per line):
   <host_ms>\t<payload>     host receive time in ms, then the listener output
   <payload>                no host prefix: time = TS x ts_unit_ms (campaign radio.cricket)
 Payloads:
   v2 (listener mode 3):  VR=2.0,ID=01:25:61:61:0b:00:00:42,SP=B3,DB=155,DR=4518,TM=4890,TS=22528
-                         keys in any order; DB, DR, TM may be missing (RF only, no range);
-                         TS is always printed last, so a v2 line without TS was cut short.
+                         keys in any order; DB, DR, TM, TS may be missing (RF only, no
+                         range); TS is printed after DB and DR, so a line with a range but
+                         no TS, or ending in a comma or a bare key, was cut short.
   older:                 $Cricket2,ver=3.0,id=45,dist=17,duration=1435,time=1195
                          $Cricket2,ver=3.0,space=MIT-0,id=45,dist=11,duration=1435
 Range: DR (us) x speed of sound when DR is present, else DB (cm, or inches when the
 campaign's units are imperial) / dist. On v2 lines DB and DR must agree (a disagreement
-means a digit was lost); older firmware's `dist` units vary, so there only duration counts. Beacons map through the campaign file: SP/space
-to `space_id`, else ID/id to `beacon_id` (hex bytes compared by value, so 1- and 2-digit
-bytes match). Damage seen in real captures goes to the quarantine with a reason: lines
-cut short, two records run together, empty values, absurd values. Stray spaces are
-tolerated. RF-only records are valid but carry no range; they are counted, not tabled.
+means a digit was lost); older firmware's `dist` units vary, so there only duration
+counts. Beacons map through the campaign file: SP/space to `space_id`; a space id the
+campaign does not list (real listeners print their own, e.g. SP=ship) falls back to
+ID/id and `beacon_id` (hex bytes compared by value, so 1- and 2-digit bytes match).
+Damage seen in real captures goes to the quarantine with a reason: lines cut short, two
+records run together, empty values, absurd values, time out of order
+(wsnloc.io.timeorder). Stray spaces are tolerated. RF-only records are valid but carry
+no range; they are counted, not tabled. A run needs only listener.log: a listener capture
+has no imu.log or truth.log, whose tables are then empty.
 """
 
 from __future__ import annotations
@@ -30,9 +35,11 @@ from wsnloc.campaign import Campaign
 from wsnloc.errors import IngestError
 from wsnloc.io import newcom, tables
 from wsnloc.io.rawlines import Quarantine, RawFile, read_raw
+from wsnloc.io.timeorder import keep_in_time_order
 from wsnloc.sim.cricket import speed_of_sound
 
-FILES = ("listener.log", "imu.log", "truth.log")
+LISTENER = "listener.log"
+OPTIONAL_FILES = ("imu.log", "truth.log")
 MAX_RANGE_M = 15.0            # Cricket ultrasound never reaches this far: longer is absurd
 MAX_COUNTER = 2**32           # TS/TM are 32-bit listener counters
 INCH_M = 0.0254
@@ -54,9 +61,12 @@ def canonical_id(text: str) -> str:
 
 def _fields(payload: str, allowed: set[str], separator: str = "=") -> dict[str, str]:
     out: dict[str, str] = {}
-    for part in payload.split(","):
+    parts = payload.split(",")
+    for position, part in enumerate(parts):
         key, sep, value = part.partition(separator)
         key, value = key.strip(), value.strip()
+        if not sep and position and position == len(parts) - 1:
+            raise _Bad(f"line cut short (ends with ',{key}')" if key else "line cut short after a comma")
         if not sep:
             raise _Bad(f"field {part.strip()!r} is not KEY=value")
         if key not in allowed:
@@ -95,8 +105,8 @@ def parse_payload(payload: str) -> dict:
         return {"space": f.get("space"), "id": f.get("id"), "db": _number(f, "dist"),
                 "dr_us": _number(f, "duration"), "ts": _number(f, "time", int), "old": True}
     f = _fields(payload, V2_KEYS)
-    if "TS" not in f:
-        raise _Bad("no TS field: line cut short")
+    if "TS" not in f and ("DB" in f or "DR" in f):
+        raise _Bad("a range but no TS field: line cut short")
     if "VR" not in f:
         raise _Bad("no VR field: not a Cricket v2 record")
     for key in ("TS", "TM"):
@@ -116,29 +126,34 @@ class _BeaconMap:
         self.by_short_id = {str(int(i.split(":")[-1], 16)): a for i, a in self.by_id.items()}
 
     def resolve(self, record: dict) -> str:
+        """The anchor of a record: by space id, else (unknown or missing space) by beacon id."""
         if record["space"] is not None:
             if record["space"] in self.by_space:
                 return self.by_space[record["space"]]
-            if not record["old"]:
-                raise _Bad(f"unknown space id SP={record['space']!r}")
+            if not record["old"] and record["id"] is None:
+                raise _Bad(f"unknown space id SP={record['space']!r} and no ID")
         if record["id"] is not None:
             key = record["id"].strip()
             if record["old"] and key.isdigit() and key in self.by_short_id:
                 return self.by_short_id[key]
             if not record["old"] and canonical_id(key) in self.by_id:
                 return self.by_id[canonical_id(key)]
-            raise _Bad(f"unknown beacon id {key!r}")
+            space = f"unknown space id SP={record['space']!r} and " if record["space"] is not None else ""
+            raise _Bad(f"{space}unknown beacon id {key!r}")
         raise _Bad("no beacon: SP and ID missing or empty")
 
 
 def parse_listener(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> tuple[pd.DataFrame, int]:
-    """Ranges table from listener.log and the number of RF-only (no range) records."""
+    """Ranges table from listener.log and the number of RF-only (no range) records.
+
+    Range (m) = DR (us) * 1e-6 * c(T), c from the campaign's temperature, else DB x unit.
+    """
     spec = campaign.section("radio", "cricket")
     c = speed_of_sound(spec["temperature_c"])
     db_unit_m = INCH_M if spec.get("units", "metric") == "imperial" else 0.01
     ts_unit_s = spec.get("ts_unit_ms", 1.0) / 1000.0
     beacons = _BeaconMap(campaign)
-    rows, rf_only, last_t = [], 0, -math.inf
+    accepted, rejected = [], []
     for number, text in raw.lines:
         try:
             host, tab, payload = text.partition("\t")
@@ -169,38 +184,36 @@ def parse_listener(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> 
                 db_m = record["db"] * db_unit_m
                 if abs(db_m - range_m) > max(0.1, 0.05 * range_m):
                     raise _Bad(f"DB ({db_m:.2f} m) and DR ({range_m:.2f} m) disagree: line damaged")
-            if t < last_t:
-                raise _Bad(f"time goes backwards: {t * 1000:g} ms after {last_t * 1000:g} ms")
         except _Bad as reason:
-            quarantine.add(raw.name, number, text, str(reason))
+            rejected.append((number, text, str(reason)))
             continue
-        last_t = t
-        if range_m is None:
-            rf_only += 1
-            continue
-        rows.append((t, anchor, range_m, 0, number))
+        accepted.append((number, text, t * 1000.0, (t, anchor, range_m, 0, number)))
+    kept = keep_in_time_order(raw.name, accepted, rejected, quarantine, strict=False)
+    rows = [row for row in kept if row[2] is not None]
     frame = pd.DataFrame(rows, columns=["t", "anchor_id", "range_m", "status", "line"]) if rows else tables.empty("ranges")
-    return frame, rf_only
+    return frame, len(kept) - len(rows)
 
 
 def ingest_run(run_dir: str | Path, campaign: Campaign) -> tuple[dict[str, pd.DataFrame], dict]:
-    """Parse listener.log, imu.log and truth.log of one Cricket run directory."""
+    """Parse listener.log (required) and imu.log, truth.log (when present) of one Cricket run."""
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
         raise IngestError(f"{run_dir}: not a directory")
     quarantine = Quarantine()
-    raws = {name: read_raw(run_dir / name, quarantine) for name in FILES}
-    ranges, rf_only = parse_listener(raws["listener.log"], campaign, quarantine)
+    names = [LISTENER] + [name for name in OPTIONAL_FILES if (run_dir / name).is_file()]
+    raws = {name: read_raw(run_dir / name, quarantine) for name in names}
+    ranges, rf_only = parse_listener(raws[LISTENER], campaign, quarantine)
     result = {
         "ranges": ranges,
         "rss": tables.empty("rss"),
-        "imu": newcom.parse_imu(raws["imu.log"], campaign, quarantine),
-        "truth": newcom.parse_truth(raws["truth.log"], campaign, quarantine),
+        "imu": newcom.parse_imu(raws["imu.log"], campaign, quarantine) if "imu.log" in raws else tables.empty("imu"),
+        "truth": (newcom.parse_truth(raws["truth.log"], campaign, quarantine) if "truth.log" in raws
+                  else tables.empty("truth")),
         "anchors": campaign.anchors[["anchor_id", "tech", "x", "y", "z"]].copy(),
         "quarantine": quarantine.frame(),
     }
     q = result["quarantine"]
     inventory = {name: {"sha256": raw.sha256, "lines": raw.n_lines, "data_lines": raw.n_records,
                         "quarantined": int((q["file"] == name).sum())} for name, raw in raws.items()}
-    inventory["listener.log"]["rf_only"] = rf_only
+    inventory[LISTENER]["rf_only"] = rf_only
     return result, inventory

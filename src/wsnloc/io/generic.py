@@ -6,14 +6,20 @@ Files (CSV or Parquet, by name; `anchors` and one of `ranges` / `rss` required):
   rss:     t, anchor_id, rss_dbm              (s, dBm)
   imu:     t, ax, ay, az, gz                  (s, m/s^2 body frame, rad/s)
   truth:   t, x, y                            (s, m)
-Rows that cannot be used (missing or non-finite numbers, unknown anchors, time going
-backwards) go to the quarantine; the line number is the CSV line (header = line 1) or
-the Parquet row + 1.
+Rows that cannot be used go to the quarantine with file, line and a reason naming the
+value: CSV rows with the wrong number of fields or cut off at the end of the file
+(wsnloc.io.csvrows), missing or non-finite numbers, negative ranges, anchors missing
+from the anchors table (also counted per anchor in the inventory). The line number is
+the CSV line (header = line 1) or the Parquet row + 1. Rows need not be sorted: each
+table is sorted by time (stable), and the number of rows out of order is reported.
+Refused with IngestError naming the file: a missing column, an anchors, ranges or rss
+table with no data row, a duplicate anchor id. No campaign is needed.
 """
 
 from __future__ import annotations
 
 import hashlib
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +29,8 @@ import pyarrow.parquet as pq
 from wsnloc.campaign import Campaign
 from wsnloc.errors import IngestError
 from wsnloc.io import tables
+from wsnloc.io.csvrows import CsvRows, read_csv_rows
+from wsnloc.io.timeorder import longest_ordered
 
 COLUMNS = {
     "anchors": (["anchor_id", "tech", "x", "y"], ["z"]),
@@ -32,6 +40,8 @@ COLUMNS = {
     "truth": (["t", "x", "y"], []),
 }
 TEXT_COLUMNS = {"anchor_id", "tech"}
+NON_NEGATIVE_COLUMNS = {"range_m"}
+NEVER_EMPTY = ("anchors", "ranges", "rss")     # a run without their rows has nothing to localise with
 
 
 def find(run_dir: Path, name: str) -> Path | None:
@@ -41,16 +51,16 @@ def find(run_dir: Path, name: str) -> Path | None:
     return None
 
 
-def _read(path: Path) -> tuple[pd.DataFrame, np.ndarray]:
-    """All columns as text plus each row's line number in the file."""
+def _read(path: Path) -> CsvRows:
+    """A CSV file row by row, or a Parquet file whole (its rows cannot be damaged apart)."""
+    if path.suffix == ".csv":
+        return read_csv_rows(path)
     try:
-        if path.suffix == ".csv":
-            frame = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
-            return frame, np.arange(len(frame)) + 2
-        frame = pq.read_table(path).to_pandas().astype(str)
-        return frame, np.arange(len(frame)) + 1
-    except Exception as exc:  # pandas/pyarrow raise many types for unreadable files
-        raise IngestError(f"{path}: cannot read as {path.suffix[1:]} ({exc})") from exc
+        values = pq.read_table(path).to_pandas()
+    except Exception as exc:  # pyarrow raises many types for unreadable files
+        raise IngestError(f"{path}: cannot read as parquet ({exc})") from exc
+    frame = values.astype(str).where(values.notna(), "")      # a missing value reads as an empty CSV field
+    return CsvRows(frame, np.arange(len(frame)) + 1, [], len(frame), len(frame))
 
 
 class _Table:
@@ -58,57 +68,87 @@ class _Table:
 
     def __init__(self, path: Path, name: str):
         self.path, self.name = path, name
-        self.frame, self.lines = _read(path)
+        read = _read(path)
+        self.frame, self.lines, self.refused = read.frame, read.lines, read.refused
+        self.n_lines, self.n_records = read.n_lines, read.n_records
         required, optional = COLUMNS[name]
         missing = [c for c in required if c not in self.frame.columns]
         if missing:
             raise IngestError(f"{path}: missing column(s) {missing} (expected {required + optional})")
+        if name in NEVER_EMPTY and self.n_records == 0:
+            raise IngestError(f"{path}: no data rows (the {name} table is required; leave an empty "
+                              f"{'ranges or rss ' if name != 'anchors' else ''}file out of the run)")
         self.columns = required + [c for c in optional if c in self.frame.columns]
-        self.optional = set(optional)
         self.ok = np.ones(len(self.frame), dtype=bool)
         self.reasons = np.full(len(self.frame), "", dtype=object)
         self.values = {}
+        self.reordered = 0
         for column in self.columns:
+            text = self.frame[column].str.strip()
             if column in TEXT_COLUMNS:
-                text = self.frame[column].str.strip()
-                self._reject(text == "", f"{column} is empty")
-                self.values[column] = text
-            else:
-                text = self.frame[column].str.strip()
-                number = pd.to_numeric(text, errors="coerce").to_numpy(float)
-                bad = ~np.isfinite(number)
-                if column in self.optional:          # an optional value may be left empty (NaN)
-                    bad &= (text != "").to_numpy()
-                self._reject(bad, f"{column} is not a finite number")
-                self.values[column] = number
+                self._reject(text == "", text, f"{column} is empty")
+                self.values[column] = text.to_numpy(dtype=object)
+                continue
+            number = pd.to_numeric(text, errors="coerce").to_numpy(float)
+            bad = ~np.isfinite(number)
+            if column in optional:          # an optional value may be left empty (NaN)
+                bad &= (text != "").to_numpy()
+            self._reject(bad, text, f"{column} {{value!r}} is not a finite number")
+            if column in NON_NEGATIVE_COLUMNS:
+                self._reject(number < 0, text, f"{column} {{value!r}} is negative")
+            self.values[column] = number
 
-    def _reject(self, mask, reason: str) -> None:
-        mask = np.asarray(mask) & self.ok
-        self.reasons[mask] = reason
-        self.ok &= ~mask
+    def _reject(self, mask, text: pd.Series, reason: str) -> None:
+        """Refuse the rows of `mask` not refused yet; `reason` may name the row's {value}."""
+        rows = np.flatnonzero(np.asarray(mask) & self.ok)
+        values = text.to_numpy(dtype=object)[rows]
+        self.reasons[rows] = [reason.format(value=value) for value in values]
+        self.ok[rows] = False
 
-    def known_anchors(self, anchors: set[str]) -> None:
-        ids = self.values["anchor_id"].to_numpy()
-        self._reject(~np.isin(ids, list(anchors)), "unknown anchor (not in anchors table)")
-
-    def monotonic_time(self) -> None:
-        t = np.where(self.ok, self.values["t"], -np.inf)
-        previous = np.maximum.accumulate(np.concatenate([[-np.inf], t[:-1]]))
-        self._reject(t < previous, "time goes backwards")
+    def known_anchors(self, anchors: set[str], anchors_file: str) -> dict[str, int]:
+        """Refuse rows whose anchor is not in the anchors table; returns the count per such anchor."""
+        ids = self.values["anchor_id"]
+        unknown = ~np.isin(ids, list(anchors)) & self.ok
+        self._reject(unknown, pd.Series(ids), f"unknown anchor {{value!r}} (not in {anchors_file})")
+        return dict(Counter(ids[unknown].tolist()))
 
     def usable(self) -> pd.DataFrame:
-        out = pd.DataFrame({c: (v[self.ok] if isinstance(v, np.ndarray) else v[self.ok].to_numpy())
-                            for c, v in self.values.items()})
+        """The rows kept, sorted by time (stable) when the table has one; counts `reordered`."""
+        out = pd.DataFrame({c: v[self.ok] for c, v in self.values.items()})
         out["line"] = self.lines[self.ok].astype(np.int32)
+        if "t" in out:
+            self.reordered = int((~longest_ordered(out["t"].to_numpy(), strict=False)).sum())
+            if self.reordered:
+                out = out.sort_values("t", kind="stable")
         return out.reset_index(drop=True)
 
     def quarantined(self) -> list[tuple]:
-        raw = self.frame.astype(str).agg(",".join, axis=1).to_numpy()
-        return [(self.path.name, int(self.lines[i]), raw[i], self.reasons[i]) for i in np.flatnonzero(~self.ok)]
+        bad = np.flatnonzero(~self.ok)
+        texts = self.frame.iloc[bad].astype(str).agg(",".join, axis=1).to_numpy() if len(bad) else []
+        rows = [(self.path.name, int(self.lines[i]), text, self.reasons[i]) for i, text in zip(bad, texts)]
+        rows += [(self.path.name, line, text, reason) for line, text, reason in self.refused]
+        return sorted(rows, key=lambda row: row[1])
+
+    def inventory(self) -> dict:
+        return {"sha256": hashlib.sha256(self.path.read_bytes()).hexdigest(), "lines": self.n_lines,
+                "data_lines": self.n_records, "quarantined": int((~self.ok).sum()) + len(self.refused),
+                "reordered": self.reordered}
 
 
-def ingest_run(run_dir: str | Path, campaign: Campaign) -> tuple[dict[str, pd.DataFrame], dict]:
-    """Parse one generic run directory into the canonical tables and an inventory."""
+def _unique_anchors(table: _Table, anchors: pd.DataFrame) -> None:
+    """A duplicate anchor id makes every later lookup ambiguous: refuse the file."""
+    repeated = anchors["anchor_id"][anchors["anchor_id"].duplicated()]
+    if len(repeated):
+        anchor = repeated.iloc[0]
+        lines = anchors.loc[anchors["anchor_id"] == anchor, "line"].tolist()
+        raise IngestError(f"{table.path}: duplicate anchor id {anchor!r} (lines {', '.join(map(str, lines))})")
+
+
+def ingest_run(run_dir: str | Path, campaign: Campaign | None = None) -> tuple[dict[str, pd.DataFrame], dict]:
+    """Parse one generic run directory into the canonical tables and an inventory.
+
+    The campaign is not needed (walls and tag height matter only to the estimators).
+    """
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
         raise IngestError(f"{run_dir}: not a directory")
@@ -119,15 +159,11 @@ def ingest_run(run_dir: str | Path, campaign: Campaign) -> tuple[dict[str, pd.Da
         raise IngestError(f"{run_dir}: needs ranges.csv/.parquet or rss.csv/.parquet")
     parsed = {name: _Table(path, name) for name, path in paths.items() if path is not None}
     anchors = parsed["anchors"].usable()
+    _unique_anchors(parsed["anchors"], anchors)
     if "z" not in anchors:
         anchors["z"] = np.nan
-    known = set(anchors["anchor_id"])
-    for name in ("ranges", "rss"):
-        if name in parsed:
-            parsed[name].known_anchors(known)
-    for name in ("ranges", "rss", "imu", "truth"):
-        if name in parsed:
-            parsed[name].monotonic_time()
+    unknown = {name: parsed[name].known_anchors(set(anchors["anchor_id"]), paths["anchors"].name)
+               for name in ("ranges", "rss") if name in parsed}
     result = {name: (parsed[name].usable() if name in parsed else tables.empty(name))
               for name in ("ranges", "rss", "imu", "truth")}
     if "status" not in result["ranges"]:
@@ -142,7 +178,8 @@ def ingest_run(run_dir: str | Path, campaign: Campaign) -> tuple[dict[str, pd.Da
     rows = [row for table in parsed.values() for row in table.quarantined()]
     result["quarantine"] = pd.DataFrame(rows, columns=["file", "line", "text", "reason"]).astype(
         {"file": str, "line": "int32", "text": str, "reason": str})
-    inventory = {p.name: {"sha256": hashlib.sha256(p.read_bytes()).hexdigest(), "lines": len(parsed[n].frame) + 1,
-                          "data_lines": len(parsed[n].frame), "quarantined": int((~parsed[n].ok).sum())}
-                 for n, p in paths.items() if p is not None}
+    inventory = {paths[name].name: table.inventory() for name, table in parsed.items()}
+    for name, counts in unknown.items():
+        if counts:
+            inventory[paths[name].name]["unknown_anchors"] = counts
     return result, inventory

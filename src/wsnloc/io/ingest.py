@@ -1,7 +1,9 @@
 """Ingest raw run directories of any supported format into the canonical Parquet tables.
 
 Layout written: <out>/<run>/<table>.parquet for the tables of wsnloc.io.tables.RAW_TABLES,
-plus <out>/inventory.json (per run and file: SHA-256, lines, quarantined lines).
+plus <out>/inventory.json (per run and file: SHA-256, lines, quarantined lines, and
+where the format has them: RF-only records, rows reordered by time, unknown anchors).
+A run over the quarantine limits (wsnloc.io.limits) stops the scenario.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import pandas as pd
 from wsnloc.campaign import Campaign
 from wsnloc.errors import IngestError
 from wsnloc.io import cricket, generic, newcom, tables
+from wsnloc.io.limits import QuarantineLimits, check_quarantine_limits
 
 PARSERS: dict[str, Callable[[Path, Campaign], tuple[dict[str, pd.DataFrame], dict]]] = {
     "newcom": newcom.ingest_run,
@@ -30,36 +33,39 @@ def parser_for(fmt: str):
         raise IngestError(f"unknown raw format {fmt!r} (known: {', '.join(sorted(PARSERS))})") from None
 
 
-def quarantine_share(inventory: dict) -> float:
-    """Quarantined records / all records of a run (0 when the run has no records)."""
-    records = sum(f["data_lines"] for f in inventory.values())
-    bad = sum(f["quarantined"] for f in inventory.values())
-    return bad / records if records else 0.0
+def ingest_one(fmt: str, run_dir: str | Path, campaign: Campaign | None, out_dir: str | Path) -> dict:
+    """Parse one run directory and write its tables to out_dir; returns its inventory.
 
-
-def ingest_one(fmt: str, run_dir: str | Path, campaign: Campaign, out_dir: str | Path) -> dict:
-    """Parse one run directory and write its tables to out_dir; returns its inventory."""
+    `campaign` may be None for the generic format only (it needs no campaign).
+    """
+    if campaign is None and fmt != "generic":
+        raise IngestError(f"the {fmt} format needs a campaign file (anchors, path, radio parameters)")
     result, inventory = parser_for(fmt)(Path(run_dir), campaign)
     out_dir = Path(out_dir)
     for name, frame in result.items():
         tables.write(name, frame, out_dir / f"{name}.parquet",
-                     {"source_dir": str(run_dir), "format": fmt, "campaign": campaign.name})
+                     {"source_dir": str(run_dir), "format": fmt, "campaign": campaign.name if campaign else "none"})
     return inventory
 
 
-def ingest_scenario(fmt: str, run_dirs: dict[str, str], campaign: Campaign, out_dir: str | Path,
-                    max_quarantine_share: float) -> dict:
-    """Ingest every run of a scenario. Fails loudly if a run's quarantined share exceeds the limit."""
+def ingest_scenario(fmt: str, run_dirs: dict[str, str], campaign: Campaign | None, out_dir: str | Path,
+                    limits: QuarantineLimits, keep_dir: str | Path) -> dict:
+    """Ingest every run of a scenario; stops at the first run over the quarantine limits.
+
+    That run's quarantine table is copied to <keep_dir>/<run>.quarantine.csv first, since a
+    failed job's outputs (out_dir) are deleted by Snakemake; the error names that copy.
+    """
     out_dir = Path(out_dir)
     inventory = {}
     for run, run_dir in run_dirs.items():
         inventory[run] = ingest_one(fmt, run_dir, campaign, out_dir / run)
-        share = quarantine_share(inventory[run])
-        if share > max_quarantine_share:
-            worst = max(inventory[run].items(), key=lambda kv: kv[1]["quarantined"])[0]
-            raise IngestError(
-                f"{run_dir}: {share:.1%} of the lines are quarantined (most in {worst}), more than "
-                f"config key 'ingest.max_quarantine_share' = {max_quarantine_share:.1%} allows; "
-                f"see {out_dir / run / 'quarantine.parquet'}")
+        quarantine = tables.read(out_dir / run / "quarantine.parquet")
+        kept = Path(keep_dir) / f"{run}.quarantine.csv"
+        try:
+            check_quarantine_limits(run_dir, inventory[run], quarantine, limits, kept)
+        except IngestError:
+            kept.parent.mkdir(parents=True, exist_ok=True)
+            quarantine.to_csv(kept, index=False)
+            raise
     (out_dir / "inventory.json").write_text(json.dumps(inventory, indent=1, sort_keys=True))
     return inventory

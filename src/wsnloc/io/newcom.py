@@ -19,6 +19,7 @@ from wsnloc.campaign import Campaign
 from wsnloc.errors import IngestError
 from wsnloc.io import tables
 from wsnloc.io.rawlines import Quarantine, RawFile, check_magic, header_value, iter_fields, read_raw
+from wsnloc.io.timeorder import keep_in_time_order, longest_ordered, out_of_order_reasons
 
 FILES = ("uwb.log", "zigbee.log", "imu.log", "truth.log")
 TRUTH_TOLERANCE_M = 0.05
@@ -45,22 +46,6 @@ def _integer(text: str, what: str) -> int:
         raise _LineError(f"{what} is not an integer: {text!r}") from None
 
 
-class _Clock:
-    """Rejects lines whose time goes backwards (or repeats, when strict)."""
-
-    def __init__(self, strict: bool):
-        self.last = -math.inf
-        self.strict = strict
-
-    def check(self, t: float) -> None:
-        if t < self.last or (self.strict and t == self.last):
-            word = "repeats" if t == self.last else "goes backwards"
-            raise _LineError(f"time {word}: {t:g} ms after {self.last:g} ms")
-
-    def accept(self, t: float) -> None:
-        self.last = t
-
-
 def _anchor(anchor_id: str, techs: dict[str, str], tech: str) -> str:
     known = techs.get(anchor_id)
     if known is None:
@@ -75,8 +60,7 @@ def parse_uwb(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.Da
     check_magic(raw, "-uwb")
     c = campaign.spec["speed_of_light_mps"]
     techs = dict(zip(campaign.anchors["anchor_id"], campaign.anchors["tech"]))
-    clock = _Clock(strict=False)
-    rows = []
+    accepted, rejected = [], []
     for number, text, fields in iter_fields(raw):
         try:
             if len(fields) != 4:
@@ -85,12 +69,11 @@ def parse_uwb(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.Da
             anchor = _anchor(fields[1], techs, "uwb")
             tw_toa_ps = _integer(fields[2], "tw_toa_ps")
             status = _integer(fields[3], "status")
-            clock.check(t_ms)
         except _LineError as reason:
-            quarantine.add(raw.name, number, text, str(reason))
+            rejected.append((number, text, str(reason)))
             continue
-        clock.accept(t_ms)
-        rows.append((t_ms / 1000.0, anchor, c * tw_toa_ps * 1e-12 / 2.0, status, number))
+        accepted.append((number, text, t_ms, (t_ms / 1000.0, anchor, c * tw_toa_ps * 1e-12 / 2.0, status, number)))
+    rows = keep_in_time_order(raw.name, accepted, rejected, quarantine, strict=False)
     return pd.DataFrame(rows, columns=["t", "anchor_id", "range_m", "status", "line"]) if rows else tables.empty("ranges")
 
 
@@ -98,8 +81,7 @@ def parse_zigbee(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd
     """zigbee.log: `t_ms seq n anchor:rssi_dbm ...` with n matching the number of pairs."""
     check_magic(raw, "-zigbee")
     techs = dict(zip(campaign.anchors["anchor_id"], campaign.anchors["tech"]))
-    clock = _Clock(strict=False)
-    rows = []
+    accepted, rejected = [], []
     for number, text, fields in iter_fields(raw):
         try:
             if len(fields) < 3:
@@ -121,12 +103,12 @@ def parse_zigbee(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd
                 seen.add(anchor)
                 rssi = _integer(value, f"rssi of {anchor}")
                 line_rows.append((t_ms / 1000.0, seq, anchor, float(rssi), number))
-            clock.check(t_ms)
         except _LineError as reason:
-            quarantine.add(raw.name, number, text, str(reason))
+            rejected.append((number, text, str(reason)))
             continue
-        clock.accept(t_ms)
-        rows.extend(line_rows)
+        accepted.append((number, text, t_ms, line_rows))
+    kept = keep_in_time_order(raw.name, accepted, rejected, quarantine, strict=False)
+    rows = [row for line_rows in kept for row in line_rows]
     return pd.DataFrame(rows, columns=["t", "seq", "anchor_id", "rss_dbm", "line"]) if rows else tables.empty("rss")
 
 
@@ -166,14 +148,15 @@ def _imu_line(fields: list[str]) -> tuple[float, list[int]]:
 def parse_imu(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.DataFrame:
     """imu.log: `t_ms ax ay az gz` raw counts; a = counts / lsb_per_g * g, w = counts / lsb_per_dps (deg/s -> rad/s).
 
-    Time must increase strictly from one accepted line to the next.
+    Time must increase strictly from one accepted line to the next (wsnloc.io.timeorder).
     """
     check_magic(raw, "-imu")
     accel_lsb, gyro_lsb = imu_scales(raw)
     numbers, values, rejected = _imu_candidates(raw)
-    accepted, clock_reasons = _strictly_increasing(values[:, 0])
-    texts = dict(raw.lines) if clock_reasons else {}
-    rejected += [(int(numbers[i]), texts[int(numbers[i])], reason) for i, reason in clock_reasons]
+    accepted = longest_ordered(values[:, 0], strict=True)
+    order_reasons = out_of_order_reasons(values[:, 0], accepted, strict=True)
+    texts = dict(raw.lines) if order_reasons else {}
+    rejected += [(int(numbers[i]), texts[int(numbers[i])], reason) for i, reason in order_reasons.items()]
     for number, text, reason in sorted(rejected):
         quarantine.add(raw.name, number, text, reason)
     if not accepted.any():
@@ -220,31 +203,11 @@ def _imu_candidates(raw: RawFile) -> tuple[np.ndarray, np.ndarray, list[tuple[in
     return numbers[order], values[order], rejected
 
 
-def _strictly_increasing(t_ms: np.ndarray) -> tuple[np.ndarray, list[tuple[int, str]]]:
-    """Which samples a strict clock accepts (each later than the last accepted one), and why
-    the others were refused: (index, reason)."""
-    if np.all(np.diff(t_ms) > 0):
-        return np.ones(len(t_ms), dtype=bool), []
-    clock = _Clock(strict=True)
-    accepted = np.zeros(len(t_ms), dtype=bool)
-    reasons = []
-    for i, t in enumerate(t_ms.tolist()):
-        try:
-            clock.check(t)
-        except _LineError as reason:
-            reasons.append((i, str(reason)))
-            continue
-        clock.accept(t)
-        accepted[i] = True
-    return accepted, reasons
-
-
 def parse_truth(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.DataFrame:
     """truth.log: `t_ms rail_m` (or `path_m`); (x, y) from the campaign's path at that arc length."""
     check_magic(raw, "-truth")
     length = campaign.path.length
-    clock = _Clock(strict=True)
-    rows = []
+    accepted, rejected = [], []
     for number, text, fields in iter_fields(raw):
         try:
             if len(fields) != 2:
@@ -253,12 +216,11 @@ def parse_truth(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.
             s = _finite(fields[1], "rail_m")
             if not -TRUTH_TOLERANCE_M <= s <= length + TRUTH_TOLERANCE_M:
                 raise _LineError(f"rail_m = {s:g} is outside the path [0, {length:.2f}] m")
-            clock.check(t_ms)
         except _LineError as reason:
-            quarantine.add(raw.name, number, text, str(reason))
+            rejected.append((number, text, str(reason)))
             continue
-        clock.accept(t_ms)
-        rows.append((t_ms / 1000.0, s, number))
+        accepted.append((number, text, t_ms, (t_ms / 1000.0, s, number)))
+    rows = keep_in_time_order(raw.name, accepted, rejected, quarantine, strict=True)
     if not rows:
         return tables.empty("truth")
     frame = pd.DataFrame(rows, columns=["t", "s", "line"])
