@@ -138,7 +138,9 @@ def _noisy_generic_run(folder, rng):
 
 
 def test_unsorted_generic_ranges_lose_nothing_and_give_the_same_estimates(tmp_path):
-    from wsnloc.experiments import generic_ekf
+    from wsnloc.estimators import registry
+    from wsnloc.estimators.run_data import RunData
+    from wsnloc.metrics.tracking import score
 
     rng = np.random.default_rng(14)
     ranges = _noisy_generic_run(tmp_path / "sorted", rng)
@@ -147,16 +149,15 @@ def test_unsorted_generic_ranges_lose_nothing_and_give_the_same_estimates(tmp_pa
     shuffled = ranges.iloc[rng.permutation(len(ranges))]
     shuffled.to_csv(tmp_path / "unsorted" / "ranges.csv", index=False)
     campaign = Campaign.load(ROOT / "config" / "campaigns" / "cucudasluv.yaml")
-    spec = dict(epoch_s=0.5, max_range_m=100.0, range_sigma_m=0.2, accel_sigma_mps2=0.5, initial_sigma_m=1.0,
-                initial_speed_sigma_mps=0.5, rss_model={"p0_dbm": -60.0, "path_loss_exponent": 2.0, "sigma_db": 4.0})
+    params = {"range_sigma_m": 0.2, "accel_sigma_mps2": 0.5}
     sorted_tables, _ = generic.ingest_run(tmp_path / "sorted", campaign)
     unsorted_tables, inventory = generic.ingest_run(tmp_path / "unsorted", campaign)
     assert len(unsorted_tables["ranges"]) == len(ranges) and len(unsorted_tables["quarantine"]) == 0
     assert inventory["ranges.csv"]["reordered"] > len(ranges) // 2
     columns = ["t", "anchor_id", "range_m"]
     pd.testing.assert_frame_equal(unsorted_tables["ranges"][columns], sorted_tables["ranges"][columns])
-    a = generic_ekf.run(sorted_tables, campaign, spec, spec["rss_model"])
-    b = generic_ekf.run(unsorted_tables, campaign, spec, spec["rss_model"])
+    a = score(registry.run("tracker", RunData(sorted_tables, campaign), params), sorted_tables["truth"])
+    b = score(registry.run("tracker", RunData(unsorted_tables, campaign), params), unsorted_tables["truth"])
     pd.testing.assert_frame_equal(a, b)
     assert np.nanmedian(a["error_m"]) < 0.5
 

@@ -5,8 +5,11 @@ nothing to do, a damaged raw line ends up in quarantine and is counted in the re
 and a bad config value stops the run before any job with the key named.
 """
 
+import re
+
 import pandas as pd
 import pytest
+import yaml
 
 from conftest import small_workflow, snakemake
 
@@ -29,6 +32,16 @@ def test_builds_report_and_results(workdir):
     html = (workdir / "reports" / "index.html").read_text()
     assert "SIMULATED campaign" in html and "data:image/png;base64," in html
     assert all(f'id="paper-{p}"' in html for p in "ABCD") and "cricket/speed_40" in html
+    assert 'id="study-workbench"' in html
+    study = results[results["experiment"] == "study:workbench"]
+    assert set(study["row"]) == {"tracker", "ekf_epoch", "multilateration"}
+    assert set(study["scenario"]) == {"newcom/constant", "cricket/speed_40"}
+    availability = study[study["column"] == "availability"].set_index(["row", "scenario"])["value"]
+    assert (availability[["tracker", "ekf_epoch"]] > 0.9).all()
+    # Cricket beacons range one at a time: an epoch of 0.5 s often holds fewer than 3 ranges
+    assert availability[("multilateration", "cricket/speed_40")] < availability[("tracker", "cricket/speed_40")]
+    for paper in ("a", "c"):        # per-epoch estimates of every paper, one file per scenario
+        assert list((workdir / "data" / "processed").glob(f"*/*/paper_{paper}/estimates.parquet"))
     assert {"data", "A", "B", "C", "D"} <= set(results["experiment"])
     assert "http://" not in html and "https://" not in html.replace("https://json-schema.org", "")
 
@@ -71,3 +84,17 @@ def test_report_in_a_headless_browser(workdir):
     outcome = check_report(workdir / "reports" / "index.html", workdir / "reports" / "screenshot.png")
     assert outcome["problems"] == [] and outcome["images"] > 10
     assert (workdir / "reports" / "screenshot.png").stat().st_size > 10_000
+
+
+def test_adding_an_estimator_to_a_study_reruns_only_its_cells(workdir):
+    config = yaml.safe_load((workdir / "config" / "config.yaml").read_text())
+    config["studies"]["workbench"]["estimators"]["ekf_p"] = {}
+    (workdir / "config" / "config.yaml").write_text(yaml.safe_dump(config))
+    try:
+        result = snakemake(workdir, "-n", "--quiet", "rules")
+        planned = result.stdout + result.stderr
+        counts = dict(re.findall(r"^(\w+)\s+(\d+)$", planned, flags=re.MULTILINE))
+        assert counts.get("study_cell") == "2" and "paper_a" not in counts and "ingest" not in counts, planned
+    finally:
+        del config["studies"]["workbench"]["estimators"]["ekf_p"]
+        (workdir / "config" / "config.yaml").write_text(yaml.safe_dump(config))

@@ -1,4 +1,5 @@
-"""Command line for use outside Snakemake: simulate, ingest, convert, validate-config.
+"""Command line for use outside Snakemake: simulate, ingest, convert, validate-config,
+estimators (the registry) and estimate (one estimator on one run).
 
 Exit codes: 0 success, 2 bad input (unreadable log, invalid config) with a one-line
 message naming the file/line or key.
@@ -7,12 +8,14 @@ message naming the file/line or key.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
 from wsnloc.campaign import Campaign
 from wsnloc.config import read_yaml, validate_config
 from wsnloc.errors import WsnlocError
+from wsnloc.estimators.parameters import parse_assignment
 from wsnloc.io.ingest import PARSERS, ingest_one
 from wsnloc.io import tables
 from wsnloc.io.limits import (DEFAULT_PER_FILE, DEFAULT_PER_RUN, QuarantineLimits, check_quarantine_limits,
@@ -84,6 +87,36 @@ def cmd_convert(args) -> int:
     return 0
 
 
+def cmd_estimators(args) -> int:
+    from wsnloc.estimators import registry
+
+    described = [e.describe() for e in registry.ESTIMATORS.values()]
+    if args.json:
+        print(json.dumps(described, indent=1))
+        return 0
+    for e in described:
+        default = " (default of `wsnloc estimate`)" if e["name"] == registry.DEFAULT_ESTIMATOR else ""
+        print(f"{e['name']}{default}: {e['summary']}")
+        for p in e["parameters"]:
+            unit = f" [{p['unit']}]" if p["unit"] else ""
+            choices = f" ({' | '.join(p['choices'])})" if p.get("choices") else ""
+            print(f"    {p['name']} = {p['default']!r}{unit}{choices}: {p['doc']}")
+    return 0
+
+
+def cmd_estimate(args) -> int:
+    from wsnloc.estimate import estimate_run
+
+    overrides = dict(parse_assignment(text) for text in args.set or [])
+    campaign = _ingest_campaign(args)
+    metrics = estimate_run(args.format, Path(args.run_dir), campaign, Path(args.out), args.estimator, overrides,
+                           Path(args.calibration) if args.calibration else None)
+    print(f"{args.estimator}: {metrics.pop('n_estimates')} estimates written to {Path(args.out) / 'estimates.parquet'}")
+    if metrics:
+        print("  " + ", ".join(f"{k} {v:.3f}" for k, v in metrics.items()))
+    return 0
+
+
 def cmd_validate(args) -> int:
     config = read_yaml(args.config)
     validate_config(config if config is not None else {}, args.schema)
@@ -103,7 +136,7 @@ def parser() -> argparse.ArgumentParser:
     sim.add_argument("--seed", type=int, default=20130101, help="base seed (default: %(default)s)")
     sim.add_argument("--dataset", default="newcom", help="dataset name entering the seed (default: %(default)s)")
     sim.add_argument("--detector", choices=["first_path", "strongest_path"], help="UWB detector override")
-    sim.add_argument("--imu-noise", choices=["mems", "snr60"], help="IMU noise model override")
+    sim.add_argument("--imu-noise", choices=["mems", "snr"], help="IMU noise model override")
     sim.add_argument("--out", required=True, help="output directory; runs go to OUT/run-NN")
     sim.set_defaults(func=cmd_simulate)
 
@@ -126,6 +159,23 @@ def parser() -> argparse.ArgumentParser:
     conv.add_argument("src", help="the dataset's folder (e.g. ../shared/realdata/cucudasluv-uwb)")
     conv.add_argument("out", help="output folder; runs go to OUT/<scenario>/<run>")
     conv.set_defaults(func=cmd_convert)
+
+    est = sub.add_parser("estimators", help="list the estimator registry with each parameter, default and unit")
+    est.add_argument("--json", action="store_true", help="machine-readable: a list of {name, summary, parameters}")
+    est.set_defaults(func=cmd_estimators)
+
+    run = sub.add_parser("estimate", help="run one estimator on one raw run directory")
+    run.add_argument("--format", required=True, choices=sorted(PARSERS))
+    run.add_argument("run_dir", help="a raw run directory (e.g. data/raw/newcom/constant/run-01)")
+    run.add_argument("--out", required=True, help="output folder: estimates.parquet, metrics.json, tables/")
+    run.add_argument("--estimator", default="tracker",
+                     help="registry name (default: %(default)s, the recommended tracker; see `wsnloc estimators`)")
+    run.add_argument("--set", action="append", metavar="KEY=VALUE", help="parameter override (repeatable)")
+    run.add_argument("--campaign", help="campaign file (default: config/campaigns/<format>.yaml; optional for "
+                                        "generic runs: no walls, 3-D ranges only where anchors have z)")
+    run.add_argument("--calibration", help="a donor run directory with truth, same format and site: the RSS "
+                                           "model is fitted on it")
+    run.set_defaults(func=cmd_estimate)
 
     val = sub.add_parser("validate-config", help="validate a workflow configuration file")
     val.add_argument("config", nargs="?", default="config/config.yaml")

@@ -224,7 +224,6 @@ def finish(estimates: pd.DataFrame) -> pd.DataFrame:
     """Standard columns (NaN covariance, n_meas and nis where the estimator has none), sorted by time."""
     out = estimates.copy()
     for column in OUTPUT_COLUMNS:
-        if column not in out:
-            out[column] = np.nan
+        out[column] = out[column].astype(float) if column in out else np.nan
     out.attrs = dict(estimates.attrs)
     return out.sort_values("t", kind="stable").reset_index(drop=True)

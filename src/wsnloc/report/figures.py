@@ -167,7 +167,7 @@ def imu_resampling(raw: pd.DataFrame, resampled: pd.DataFrame, title: str, windo
 def error_cdf(panels: dict[str, dict[str, np.ndarray]], xmax: float | None = 4.0) -> bytes:
     """Empirical CDFs of position error (m), one panel per title, one curve per label;
     xmax None: 1.2 x the largest 95th percentile of the panel's curves."""
-    fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 3.8), squeeze=False)
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 3.8), squeeze=False, layout="constrained")
     for ax, (title, curves) in zip(axes[0], panels.items()):
         finite = [np.asarray(e, dtype=float)[np.isfinite(e)] for e in curves.values()]
         limit = xmax if xmax is not None else 1.2 * max([np.percentile(e, 95) for e in finite if len(e)] or [1.0])
@@ -187,7 +187,7 @@ def error_cdf(panels: dict[str, dict[str, np.ndarray]], xmax: float | None = 4.0
 
 def trajectories(panels: dict[str, tuple[pd.DataFrame, dict[str, pd.DataFrame]]]) -> bytes:
     """True path and estimated tracks (x, y in m), one panel per title."""
-    fig, axes = plt.subplots(len(panels), 1, figsize=(10, 3.3 * len(panels)), squeeze=False)
+    fig, axes = plt.subplots(len(panels), 1, figsize=(10, 3.3 * len(panels)), squeeze=False, layout="constrained")
     for ax, (title, (truth, tracks)) in zip(axes[:, 0], panels.items()):
         ax.plot(truth["x"], truth["y"], color="k", lw=2.2, label="truth")
         for label, track in tracks.items():
@@ -202,7 +202,7 @@ def trajectories(panels: dict[str, tuple[pd.DataFrame, dict[str, pd.DataFrame]]]
 
 def error_over_time(panels: dict[str, dict[str, pd.DataFrame]]) -> bytes:
     """Position error (m) against time (s from the start), one panel per title."""
-    fig, axes = plt.subplots(len(panels), 1, figsize=(9, 2.8 * len(panels)), squeeze=False)
+    fig, axes = plt.subplots(len(panels), 1, figsize=(9, 2.8 * len(panels)), squeeze=False, layout="constrained")
     for ax, (title, curves) in zip(axes[:, 0], panels.items()):
         start = min(c["t"].min() for c in curves.values() if len(c))
         for label, curve in curves.items():
@@ -230,8 +230,8 @@ def rmse_vs_anchors(curves: dict[str, tuple[list[int], list[float]]], title: str
 
 def error_histograms(errors: dict[str, pd.Series], title: str, xmax: float = 1.5) -> bytes:
     """Histograms of position error (m), one per label, side by side."""
-    fig, axes = plt.subplots(1, max(1, len(errors)), figsize=(4.2 * max(1, len(errors)), 3.2), squeeze=False,
-                             sharey=True)
+    fig, axes = plt.subplots(1, max(1, len(errors)), figsize=(4.2 * max(1, len(errors)), 3.4), squeeze=False,
+                             sharey=True, layout="constrained")
     bins = np.linspace(0, xmax, 31)
     for ax, (label, e) in zip(axes[0], errors.items()):
         e = np.asarray(e, dtype=float)

@@ -64,7 +64,10 @@ def data_banner(config: dict) -> list[str]:
 
 
 def results_table(results: pd.DataFrame, experiment: str, table: str, scenario: str) -> list[dict]:
-    sel = results[(results["experiment"] == experiment) & (results["table"] == table) & (results["scenario"] == scenario)]
+    """The rows of one table and scenario that have a value (a statistic the data cannot give,
+    such as NLOS errors without NLOS links or RSS fits without RSS, is left out)."""
+    sel = results[(results["experiment"] == experiment) & (results["table"] == table) & (results["scenario"] == scenario)
+                  & results["value"].notna()]
     return sel.to_dict(orient="records")
 
 

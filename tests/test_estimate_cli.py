@@ -1,0 +1,89 @@
+"""`wsnloc estimators` and `wsnloc estimate`: the registry and one estimator on one raw run."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from synthetic import SQUARE, bursts, one_at_a_time, tables_for, walk
+from wsnloc.cli import main
+
+
+def write_generic(folder, tables, shuffle_seed=None):
+    """A generic-format run directory (CSV) from canonical tables; rows shuffled if asked."""
+    folder.mkdir(parents=True)
+    ranges = tables["ranges"][["t", "anchor_id", "range_m"]]
+    if shuffle_seed is not None:
+        ranges = ranges.sample(frac=1.0, random_state=shuffle_seed)
+    ranges.to_csv(folder / "ranges.csv", index=False, float_format="%.6f")
+    tables["truth"][["t", "x", "y"]].to_csv(folder / "truth.csv", index=False, float_format="%.6f")
+    tables["anchors"][["anchor_id", "tech", "x", "y"]].to_csv(folder / "anchors.csv", index=False)
+    return folder
+
+
+def test_estimators_lists_the_registry_as_json(capsys):
+    assert main(["estimators", "--json"]) == 0
+    listed = json.loads(capsys.readouterr().out)
+    assert len(listed) >= 12 and {"name", "parameters"} <= set(listed[0])
+    ekf = next(e for e in listed if e["name"] == "ekf")
+    motion = next(p for p in ekf["parameters"] if p["name"] == "motion")
+    assert motion["default"] == "pv" and motion["choices"] == ["p", "pv", "pva"]
+    assert main(["estimators"]) == 0 and "tracker (default of `wsnloc estimate`)" in capsys.readouterr().out
+
+
+def test_estimate_tracks_ranges_one_anchor_at_a_time_with_default_settings(tmp_path):
+    """Acceptance: 4 anchors, about 2 Hz in total, one anchor at a time, unsorted rows and a
+    60 s gap; the same walk ranged in bursts (4 ranges every 2 s) is the reference."""
+    rng = np.random.default_rng(21)
+    duration, gap = 1500.0, (700.0, 760.0)
+    times, ids = one_at_a_time(duration, 2.0, rng, SQUARE, gap)
+    single = write_generic(tmp_path / "single" / "run", tables_for(times, ids, walk, SQUARE, 0.1, rng), 3)
+    t_burst, id_burst = bursts(duration, 2.0, SQUARE)
+    keep = (t_burst < gap[0]) | (t_burst > gap[1])
+    burst = write_generic(tmp_path / "burst" / "run", tables_for(t_burst[keep], id_burst[keep], walk, SQUARE, 0.1, rng))
+    for run in (single, burst):
+        assert main(["estimate", "--format", "generic", str(run), "--out", str(run.parent / "out")]) == 0
+    a = json.loads((single.parent / "out" / "metrics.json").read_text())
+    b = json.loads((burst.parent / "out" / "metrics.json").read_text())
+    assert set(a) >= {"rmse_m", "median_m", "p75_m", "p90_m", "p95_m", "max_m", "n", "availability"}
+    assert a["availability"] >= 0.95
+    assert a["median_m"] <= 2.0 * b["median_m"]
+    estimates = pd.read_parquet(single.parent / "out" / "estimates.parquet")
+    assert {"t", "x", "y"} <= set(estimates.columns) and estimates["t"].is_monotonic_increasing
+
+
+def test_estimate_on_a_simulated_newcom_run_with_another_estimator(simulated_run, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["estimate", "--format", "newcom", str(simulated_run), "--out", str(out), "--estimator", "fmix",
+                 "--set", "solver=multilateration", "--set", "rss_calibration=configured",
+                 "--set", "p0_dbm=-50", "--set", "path_loss_exponent=3", "--set", "k_smallest=6"]) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["median_m"] < 1.5 and metrics["availability"] > 0.9
+    assert "fmix:" in capsys.readouterr().out
+
+
+def test_estimate_refuses_unknown_parameters_and_estimators(simulated_run, tmp_path, capsys):
+    assert main(["estimate", "--format", "newcom", str(simulated_run), "--out", str(tmp_path / "a"),
+                 "--set", "accel=1"]) == 2
+    assert "'--set.accel': unknown parameter" in capsys.readouterr().err
+    assert main(["estimate", "--format", "newcom", str(simulated_run), "--out", str(tmp_path / "b"),
+                 "--estimator", "kalman"]) == 2
+    assert "unknown estimator 'kalman'" in capsys.readouterr().err
+
+
+def test_estimate_fails_loudly_when_there_is_nothing_to_estimate(tmp_path, capsys):
+    rng = np.random.default_rng(1)
+    times = np.sort(rng.uniform(0, 100, 200))
+    run = write_generic(tmp_path / "run", tables_for(times, np.full(200, "A1", dtype=object), walk, SQUARE, 0.1, rng))
+    assert main(["estimate", "--format", "generic", str(run), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "no estimates" in err and "from 1 anchors" in err
+
+
+@pytest.mark.parametrize("estimator", ["dr_sskf", "ekf_pva"])
+def test_estimate_runs_the_imu_estimators_with_a_resampled_imu(simulated_run, tmp_path, estimator):
+    out = tmp_path / estimator
+    assert main(["estimate", "--format", "newcom", str(simulated_run), "--out", str(out),
+                 "--estimator", estimator]) == 0
+    assert json.loads((out / "metrics.json").read_text())["median_m"] < 2.0
