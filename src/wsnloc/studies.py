@@ -35,8 +35,15 @@ REPORTED = RUN_METRICS + ("resets",)         # per cell and run; results.csv giv
 UNIT = {"n": "count", "availability": "share", "resets": "count"}
 
 
+def study_cells(config: dict) -> dict[str, list[tuple[str, str, str]]]:
+    """{study: [(dataset, scenario, cell)]}: the jobs of every study."""
+    return {study: [(*label.split("/", 1), cell) for label in spec["scenarios"] for cell in spec["estimators"]]
+            for study, spec in (config.get("studies") or {}).items()}
+
+
 def estimator_of(spec: dict, cell: str) -> str:
-    return spec["estimators"][cell].get("estimator", cell) if spec["estimators"][cell] else cell
+    """The registry entry of a cell: its `estimator` key, else the cell's own name."""
+    return (spec["estimators"][cell] or {}).get("estimator", cell)
 
 
 def cell_params(spec: dict, cell: str, dataset: str, scenario: str, where: str) -> dict:

@@ -2,6 +2,8 @@
 from pathlib import Path
 
 
+from wsnloc.estimators import registry as _registry
+from wsnloc.studies import cell_params, estimator_of, reads_rss, study_cells
 from wsnloc.workflow import (
     dataset_runs,
     processed_dirs,
@@ -78,3 +80,30 @@ def scenario_outputs(pattern):
 
 def all_tables(pairs):
     return [p for d, s in pairs for p in tables_of(d, s)]
+
+
+# ---- studies ----
+STUDIES = config.get("studies") or {}
+STUDY_CELLS = study_cells(config)   # study: [(dataset, scenario, cell)]
+
+
+def study_cell_spec(w):
+    """Estimator name, resolved parameters and subsets of one cell (its Snakemake params)."""
+    spec = STUDIES[w.study]
+    params = cell_params(spec, w.cell, w.dataset, w.scenario, f"studies.{w.study}")
+    return {"estimator": estimator_of(spec, w.cell), "parameters": params, "subsets": spec.get("subsets") or ["all"]}
+
+
+def study_cell_inputs(w):
+    """Tables of the scenario (+ 5 Hz IMU when read), and RSS donors of the same dataset
+    when the scenario has a single run."""
+    cell = study_cell_spec(w)
+    estimator = _registry.get(cell["estimator"])
+    inputs = {"tables": tables_of(w.dataset, w.scenario), "campaign": campaign_file(w), "donors": []}
+    if "imu_5hz" in estimator.tables(cell["parameters"]):
+        inputs["imu_5hz"] = imu_of(w.dataset, w.scenario)
+    single = len(dataset_runs(config, w.dataset, w.scenario)) < 2
+    if single and reads_rss(cell["estimator"], cell["parameters"]):
+        inputs["donors"] = [p for s in config["datasets"][w.dataset]["scenarios"] if s != w.scenario
+                            for p in tables_of(w.dataset, s)]
+    return inputs

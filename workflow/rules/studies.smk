@@ -1,35 +1,5 @@
 # Studies (config `studies`): one job per cell (study, dataset/scenario, estimator) with all
-# its runs and anchor subsets, then one summary job per study.
-from wsnloc.estimators import registry as _registry
-from wsnloc.studies import cell_params, estimator_of, reads_rss
-
-STUDIES = config.get("studies") or {}
-STUDY_CELLS = {   # study: [(dataset, scenario, cell)]
-    study: [(*label.split("/", 1), cell) for label in spec["scenarios"] for cell in spec["estimators"]]
-    for study, spec in STUDIES.items()
-}
-
-
-def study_cell_spec(w):
-    """Estimator name, resolved parameters and subsets of one cell (its Snakemake params)."""
-    spec = STUDIES[w.study]
-    params = cell_params(spec, w.cell, w.dataset, w.scenario, f"studies.{w.study}")
-    return {"estimator": estimator_of(spec, w.cell), "parameters": params, "subsets": spec.get("subsets") or ["all"]}
-
-
-def study_cell_inputs(w):
-    """Tables of the scenario (+ 5 Hz IMU when read), and RSS donors of the same dataset
-    when the scenario has a single run."""
-    cell = study_cell_spec(w)
-    estimator = _registry.get(cell["estimator"])
-    inputs = {"tables": tables_of(w.dataset, w.scenario), "campaign": campaign_file(w), "donors": []}
-    if "imu_5hz" in estimator.tables(cell["parameters"]):
-        inputs["imu_5hz"] = imu_of(w.dataset, w.scenario)
-    single = len(dataset_runs(config, w.dataset, w.scenario)) < 2
-    if single and reads_rss(cell["estimator"], cell["parameters"]):
-        inputs["donors"] = [p for s in config["datasets"][w.dataset]["scenarios"] if s != w.scenario
-                            for p in tables_of(w.dataset, s)]
-    return inputs
+# its runs and anchor subsets, then one summary job per study. Helpers in common.smk.
 
 
 rule study_cell:
