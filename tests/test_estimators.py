@@ -210,3 +210,39 @@ def test_motion_detection_skips_the_prediction_while_the_accelerometer_is_still(
     plain = registry.run("ekf", data)
     assert np.all(np.diff(detected["p_xx"].to_numpy()) < 0)
     assert detected["p_xx"].iloc[-1] < 0.2 * plain["p_xx"].iloc[-1]
+
+
+def _accelerating_line_run(seconds=40.0, accel=0.01):
+    """A cart starting at rest at (2, 10) heading east with constant acceleration: a campaign
+    path gives the start pose, the 5 Hz IMU is noise-free (constant input: dead reckoning is
+    exact), ranges to the square's anchors are noise-free."""
+    from wsnloc.campaign import Campaign
+
+    def position(t):
+        t = np.asarray(t, dtype=float)
+        return np.column_stack([2.0 + 0.5 * accel * t**2, np.full(len(t), 10.0)])
+
+    times, ids = bursts(seconds, 0.5, SQUARE)
+    tables = tables_for(times, ids, position, SQUARE)
+    t5 = np.arange(0.0, seconds + 0.2, 0.2)
+    tables["imu_5hz"] = pd.DataFrame({"t": t5, "ax": accel, "ay": 0.0, "az": 9.81, "gz": 0.0, "in_gap": False})
+    campaign = Campaign(name="line", format="generic", spec={"path": {"points": [[2.0, 10.0], [60.0, 10.0]]}})
+    data = run_data(tables)
+    data.campaign = campaign
+    return data, position
+
+
+def test_inertial_pipelines_on_a_noise_free_imu():
+    data, position = _accelerating_line_run()
+    dr = registry.run("dead_reckoning", data, {"static_start_s": 0.0})
+    np.testing.assert_allclose(dr[["x", "y"]].to_numpy(), position(dr["t"]), atol=1e-9)
+    for name in ("dr_sskf", "dr_kf"):   # fixes weigh little against an exact dead reckoning
+        fused = registry.run(name, data, {"static_start_s": 0.0, "process_sigma_m": 1e-5, "fix_sigma_m": 1.0})
+        assert np.abs(fused[["x", "y"]].to_numpy() - position(fused["t"])).max() < 0.01, name
+
+
+def test_pva_filter_with_the_measured_acceleration_converges():
+    data, position = _accelerating_line_run(60.0)
+    pva = registry.run("ekf_pva", data, {"static_start_s": 0.0, "update": "sequential", "range_sigma_m": 0.05})
+    final = pva[["x", "y"]].to_numpy()[-1]
+    assert np.hypot(*(final - position([pva["t"].iloc[-1]])[0])) < 1e-3

@@ -6,12 +6,14 @@ and a bad config value stops the run before any job with the key named.
 """
 
 import re
+import subprocess
+import sys
 
 import pandas as pd
 import pytest
 import yaml
 
-from conftest import small_workflow, snakemake
+from conftest import ROOT, small_workflow, snakemake
 
 
 @pytest.fixture(scope="module")
@@ -98,3 +100,39 @@ def test_adding_an_estimator_to_a_study_reruns_only_its_cells(workdir):
     finally:
         del config["studies"]["workbench"]["estimators"]["ekf_p"]
         (workdir / "config" / "config.yaml").write_text(yaml.safe_dump(config))
+
+
+def uncomment_block(text: str, first: str) -> str:
+    """The config text with the commented block starting at the line `  # <first>` uncommented."""
+    lines = text.splitlines()
+    start = lines.index(f"  # {first}")
+    end = start + 1
+    while end < len(lines) and lines[end].startswith("  #   "):
+        end += 1
+    return "\n".join(lines[:start] + [line.replace("  # ", "  ", 1) for line in lines[start:end]] + lines[end:]) + "\n"
+
+
+@pytest.mark.skipif(not (ROOT.parent / "shared" / "realdata" / "cucudasluv-uwb").is_dir(),
+                    reason="the shared real dataset is not beside the project")
+def test_real_data_study_runs_by_uncommenting_the_config(tmp_path):
+    """The shipped example: convert the real dataset as the README says, uncomment the dataset
+    and the study, keep only them, run; the report shows the study with >= 6 estimators."""
+    work = small_workflow(tmp_path / "real")
+    text = (work / "config" / "config.yaml").read_text()
+    config = yaml.safe_load(uncomment_block(uncomment_block((ROOT / "config" / "config.yaml").read_text(),
+                                                            "cucudasluv:"), "realdata:"))
+    config["datasets"] = {"cucudasluv": config["datasets"]["cucudasluv"]}
+    config["studies"] = {"realdata": config["studies"]["realdata"]}
+    config["experiments"] = {}
+    assert text and len(config["studies"]["realdata"]["estimators"]) >= 6
+    (work / "config" / "config.yaml").write_text(yaml.safe_dump(config))
+    converted = subprocess.run([sys.executable, "-m", "wsnloc.cli", "convert", "cucudasluv",
+                                str(ROOT.parent / "shared" / "realdata" / "cucudasluv-uwb"), "data/raw/cucudasluv"],
+                               cwd=work, capture_output=True, text=True)
+    assert converted.returncode == 0, converted.stderr
+    result = snakemake(work, "--cores", "2")
+    assert result.returncode == 0, result.stderr[-3000:]
+    results = pd.read_csv(work / "reports" / "results.csv")
+    study = results[results["experiment"] == "study:realdata"]
+    assert study["row"].nunique() >= 6 and set(study["scenario"]) == {"cucudasluv/los", "cucudasluv/nlos"}
+    assert 'id="study-realdata"' in (work / "reports" / "index.html").read_text()
