@@ -2,8 +2,7 @@
 # Edit config/config.yaml, then run `snakemake --cores 2`.
 from snakemake.utils import min_version
 
-from wsnloc.config import validate_config
-from wsnloc.studies import validate_studies
+from wsnloc.validation import validate_config
 
 min_version("8.20")
 
@@ -11,9 +10,9 @@ min_version("8.20")
 configfile: "config/config.yaml"
 
 
-# Validated (and defaults filled in) before any job is planned; errors name the key.
+# Validated (and defaults filled in) before any job is planned: schema, campaigns, real-log
+# folders, experiments' subsets, studies. Errors name the key.
 validate_config(config, "config/schema.yaml")
-validate_studies(config)
 
 
 include: "workflow/rules/common.smk"

@@ -7,7 +7,8 @@ import pytest
 import yaml
 
 from wsnloc.campaign import Campaign
-from wsnloc.config import read_yaml, validate_config
+from wsnloc.config import read_yaml
+from wsnloc.validation import validate_config
 from wsnloc.errors import ConfigError
 
 from conftest import NEWCOM, ROOT
@@ -162,6 +163,7 @@ def test_real_log_scenario_without_runs_is_named(config, tmp_path):
     for experiment in ("paper_a", "paper_b", "paper_d"):
         config["experiments"][experiment]["scenarios"] = ["newcom/constant"]
     config["experiments"]["paper_b"]["simulation_scenarios"] = []
+    config["studies"]["workbench"]["scenarios"] = ["newcom/constant"]
     validate_config(config, SCHEMA)
     config["datasets"]["newcom"]["scenarios"] = ["constant", "variable"]
     with pytest.raises(ConfigError, match=r"'datasets.newcom.scenarios': 'variable' has no run directories"):

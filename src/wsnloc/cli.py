@@ -13,7 +13,8 @@ import sys
 from pathlib import Path
 
 from wsnloc.campaign import Campaign
-from wsnloc.config import read_yaml, validate_config
+from wsnloc.config import read_yaml
+from wsnloc.validation import validate_config
 from wsnloc.errors import WsnlocError
 from wsnloc.estimators.parameters import parse_assignment
 from wsnloc.io.ingest import PARSERS, ingest_one

@@ -1,0 +1,103 @@
+"""The workflow configuration checked before any job runs (Snakefile, `wsnloc validate-config`).
+
+The schema (wsnloc.config.validate, filling defaults) first, then what the schema cannot
+know: campaign files and their scenarios, real-log directories, the scenarios and anchor
+subsets the experiments name, and the studies. Every error names the config key.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from wsnloc.campaign import Campaign
+from wsnloc.config import read_yaml, validate
+from wsnloc.errors import ConfigError
+from wsnloc.studies import validate_studies
+
+SUBSET_KEYS = {
+    "paper_a": ("rows[].uwb", "rows[].zigbee"),
+    "paper_b": ("uwb_subset",),
+    "paper_c": ("table_1_subset", "table_2_subsets[]"),
+    "paper_d": ("subsets.uwb", "subsets.narrowband"),
+}
+
+
+def _values_at(node, path: str, prefix: str):
+    """(dotted key, value) of every value at `path` ('a.b', 'rows[].uwb') under `node`."""
+    head, _, rest = path.partition(".")
+    name, every = head.removesuffix("[]"), head.endswith("[]")
+    if not isinstance(node, dict) or name not in node:
+        return
+    children = [(f"{prefix}.{name}[{i}]", item) for i, item in enumerate(node[name])] if every \
+        else [(f"{prefix}.{name}", node[name])]
+    for key, child in children:
+        if rest:
+            yield from _values_at(child, rest, key)
+        else:
+            yield key, child
+
+
+def _check_datasets(config: dict) -> dict:
+    """Campaign files load, simulated scenarios exist in them, real logs are on disk.
+
+    Returns the loaded campaign of each dataset.
+    """
+    campaigns = {}
+    for name, dataset in config["datasets"].items():
+        if not Path(dataset["campaign"]).is_file():
+            raise ConfigError(f"config key 'datasets.{name}.campaign': no such file {dataset['campaign']!r}")
+        campaigns[name] = campaign = Campaign.load(dataset["campaign"])
+        if dataset["source"] == "simulate":
+            defined = campaign.spec.get("scenarios", {})
+            for scenario in dataset["scenarios"]:
+                if scenario not in defined:
+                    raise ConfigError(f"config key 'datasets.{name}.scenarios': {scenario!r} is not a scenario of "
+                                      f"{dataset['campaign']} (defined there: {', '.join(defined) or 'none'})")
+            continue
+        if not dataset.get("raw_dir"):
+            raise ConfigError(f"config key 'datasets.{name}.raw_dir': required when source is 'logs'")
+        if not Path(dataset["raw_dir"]).is_dir():
+            raise ConfigError(f"config key 'datasets.{name}.raw_dir': no such directory {dataset['raw_dir']!r}")
+        for scenario in dataset["scenarios"]:
+            folder = Path(dataset["raw_dir"]) / scenario
+            if not folder.is_dir() or not any(p.is_dir() for p in folder.iterdir()):
+                raise ConfigError(f"config key 'datasets.{name}.scenarios': {scenario!r} has no run directories "
+                                  f"in {folder}")
+    return campaigns
+
+
+def _check_experiments(config: dict, campaigns: dict) -> None:
+    """Experiments run on declared scenarios, and name subsets their campaigns define."""
+    declared = {f"{d}/{s}" for d, spec in config["datasets"].items() for s in spec["scenarios"]}
+    for experiment, spec in config.get("experiments", {}).items():
+        used = []
+        for key in ("scenarios", "simulation_scenarios"):
+            for label in spec.get(key, []):
+                if label not in declared:
+                    raise ConfigError(f"config key 'experiments.{experiment}.{key}': {label!r} is not a declared "
+                                      f"dataset/scenario (declared: {', '.join(sorted(declared))})")
+                used.append(label.split("/")[0])
+        if "table_2_scenario" in spec and spec["table_2_scenario"] not in spec["scenarios"]:
+            raise ConfigError(f"config key 'experiments.{experiment}.table_2_scenario': "
+                              f"{spec['table_2_scenario']!r} is not one of its scenarios "
+                              f"({', '.join(spec['scenarios'])})")
+        for path in SUBSET_KEYS.get(experiment, ()):
+            for key, subset in _values_at(spec, path, f"experiments.{experiment}"):
+                for dataset in dict.fromkeys(used):
+                    defined = campaigns[dataset].spec.get("subsets", {})
+                    if subset not in defined:
+                        raise ConfigError(f"config key '{key}': {subset!r} is not an anchor subset of "
+                                          f"{config['datasets'][dataset]['campaign']} (dataset {dataset}; "
+                                          f"defined there: {', '.join(defined) or 'none'})")
+
+
+def validate_config(config: dict, schema_path: str | Path) -> dict:
+    """Validate the workflow configuration against the schema, then everything else that
+    can be known before a job runs: campaign files and their scenarios, real-log
+    directories, the scenarios experiments run on and the anchor subsets they name, and
+    the studies' estimators, parameters, overrides and subsets (wsnloc.studies)."""
+    validate(config, read_yaml(schema_path), source="config")
+    campaigns = _check_datasets(config)
+    _check_experiments(config, campaigns)
+    validate_studies(config)
+    return config
