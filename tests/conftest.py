@@ -49,6 +49,7 @@ def small_workflow(target: Path, shards: int = 1) -> Path:
     experiments["paper_c"]["scenarios"] = ["cricket/speed_40"]
     experiments["paper_c"]["table_2_scenario"] = "cricket/speed_40"
     config["studies"]["workbench"]["scenarios"] = ["newcom/constant", "cricket/speed_40"]
+    config["studies"]["filters"]["scenarios"] = ["newcom/constant", "cricket/speed_40"]
     (target / "config" / "config.yaml").write_text(yaml.safe_dump(config))
     return target
 
