@@ -192,7 +192,8 @@ def bench_estimators(repeats: int, scenarios=("constant", "variable")) -> list[d
     campaign = Campaign.load(ROOT / "config" / "campaigns" / "newcom.yaml")
     rows = []
     for scenario in scenarios:
-        raw = simulate_run(campaign, scenario, run_seed_sequence(1, "bench", scenario, 1), OUT / f"estimators-{scenario}")
+        raw = simulate_run(campaign, scenario, run_seed_sequence(1, "bench", scenario, 1),
+                           OUT / f"estimators-{scenario}")
         run_tables = load_run("newcom", raw, campaign, OUT / f"estimators-{scenario}-tables")
         for label, name, params in ESTIMATOR_CASES:
             p = dict(params, max_range_m=50.0)

@@ -40,6 +40,11 @@ def test_builds_report_and_results(workdir):
     assert (availability[["tracker", "ekf_epoch"]] > 0.9).all()
     # Cricket beacons range one at a time: an epoch of 0.5 s often holds fewer than 3 ranges
     assert availability[("multilateration", "cricket/speed_40")] < availability[("tracker", "cricket/speed_40")]
+    family = results[results["experiment"] == "study:filters"]
+    assert set(family["row"]) == {"ekf", "ukf", "pf", "ekf_rts", "sliding_window"}
+    timing = family[family["metric"] == "time_per_step_us"]
+    assert len(timing) == 10 and (timing["value"] > 0).all()
+    assert (family[family["column"] == "availability"]["value"] > 0.9).all()
     for paper in ("a", "c"):        # per-epoch estimates of every paper, one file per scenario
         assert list((workdir / "data" / "processed").glob(f"*/*/paper_{paper}/estimates.parquet"))
     assert {"data", "A", "B", "C", "D"} <= set(results["experiment"])
