@@ -2,6 +2,8 @@
 noise-free geometry, agreement with filterpy on the same measurements, the smoother's
 forward pass in both update modes, the particle filter's seed, robustness to outliers."""
 
+import json
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -12,9 +14,13 @@ from filterpy.kalman import UnscentedKalmanFilter as FilterpyUKF
 
 from synthetic import SQUARE, bursts, one_at_a_time, run_data, tables_for, walk
 from test_estimators import CONFIGURED_RSS, TARGET, static_run
+from test_smoother import _block_row
+from wsnloc.cli import main
 from wsnloc.estimators import registry
 from wsnloc.estimators.measurements import MeasurementSource
-from wsnloc.filters.motion_models import constant_velocity
+from wsnloc.estimators.smoothing import ForwardPass
+from wsnloc.filters.kalman import KalmanFilter
+from wsnloc.filters.motion_models import constant_velocity, pva
 from wsnloc.metrics.tracking import score
 from wsnloc.studies import run_cell
 
@@ -219,3 +225,59 @@ def test_study_cells_report_their_time_per_output_step():
 def test_new_estimators_are_listed_with_documented_parameters(name):
     description = registry.get(name).describe()
     assert description["summary"] and all(p["doc"] for p in description["parameters"])
+
+
+def test_pva_smoother_on_a_simulated_run_improves_on_the_forward_filter(simulated_run, tmp_path):
+    """PVA (measured acceleration as input, bias states) through `wsnloc estimate` on a
+    simulated Newcom++ run: the smoother's last estimate is the forward filter's (no future
+    to use), and using the whole run lowers the median error. (The inputs' handling is
+    checked against the batch solution above; here they are small: ~1 cm per step.)"""
+    metrics = {}
+    for estimator in ("ekf_pva", "ekf_rts"):
+        out = tmp_path / estimator
+        assert main(["estimate", "--format", "newcom", str(simulated_run), "--out", str(out), "--estimator",
+                     estimator, "--set", "motion=pva"]) == 0
+        metrics[estimator] = (json.loads((out / "metrics.json").read_text()), pd.read_parquet(out / "estimates.parquet"))
+    (forward, forward_estimates), (smoothed, smoothed_estimates) = metrics["ekf_pva"], metrics["ekf_rts"]
+    assert len(smoothed_estimates) == len(forward_estimates) > 100
+    assert smoothed_estimates["x"].iloc[-1] == pytest.approx(forward_estimates["x"].iloc[-1], abs=1e-12)
+    assert smoothed["median_m"] < forward["median_m"] < 2.0
+
+
+def _batch_smoothed(x0, P0, F, Q, H, R, zs, inputs, B):
+    """Whole-segment least squares: prior on x_0, measurements z_k (k >= 1) and dynamics with
+    the input B u_k where given; its minimiser is the smoothed trajectory."""
+    n, N = len(x0), len(zs) + 1
+    Wp, Wq, Wr = (np.linalg.inv(np.linalg.cholesky(c)) for c in (P0, Q, R))
+    rows, rhs = [_block_row([(0, Wp)], N, n)], [Wp @ x0]
+    for k in range(1, N):
+        rows += [_block_row([(k, Wr @ H)], N, n), _block_row([(k, Wq), (k - 1, -Wq @ F)], N, n)]
+        rhs += [Wr @ zs[k - 1], Wq @ (B @ inputs[k - 1] if inputs[k - 1] is not None else np.zeros(n))]
+    return np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)[0].reshape(N, n)
+
+
+def test_forward_pass_smooths_each_track_segment_like_the_batch_solution_with_mixed_inputs():
+    """Two track segments (a reset between them), PVA steps with an input on every other step,
+    an output repeated on one node: each output is the batch solution of its own segment."""
+    rng = np.random.default_rng(6)
+    F, B, Q = pva(0.5, 0.2, 0.05)
+    Q = Q + np.eye(6) * 1e-4                                     # positive definite for the batch whitening
+    H, R = np.hstack([np.eye(2), np.zeros((2, 4))]), np.eye(2) * 0.3
+    forward, expected = ForwardPass(), []
+    for length in (12, 9):
+        x0, P0 = rng.normal(0, 1, 6), np.eye(6)
+        kf = KalmanFilter(x0, P0, F, Q, H, R)
+        forward.start(kf)
+        forward.output()
+        zs = rng.normal(0, 1, (length, 2)) + np.arange(length)[:, None] * 0.4
+        inputs = [rng.normal(0, 2.0, 2) if k % 2 else None for k in range(length)]
+        for z, u in zip(zs, inputs):
+            kf.predict(F, Q, u=u, B=None if u is None else B)
+            kf.update(z)
+            forward.node(kf, (F, Q, None if u is None else B, u))
+            forward.output()
+        forward.output()                                          # the last node output twice
+        batch = _batch_smoothed(x0, P0, F, Q, H, R, zs, inputs, B)
+        expected += list(batch) + [batch[-1]]
+    smoothed = np.array([x for x, _ in forward.smooth()])
+    np.testing.assert_allclose(smoothed, np.array(expected), rtol=0, atol=1e-9)
