@@ -231,7 +231,7 @@ def test_pva_smoother_on_a_simulated_run_improves_on_the_forward_filter(simulate
     """PVA (measured acceleration as input, bias states) through `wsnloc estimate` on a
     simulated Newcom++ run: the smoother's last estimate is the forward filter's (no future
     to use), and using the whole run lowers the median error. (The inputs' handling is
-    checked against the batch solution above; here they are small: ~1 cm per step.)"""
+    checked against the batch solution in the next test; here they are small: ~1 cm per step.)"""
     metrics = {}
     for estimator in ("ekf_pva", "ekf_rts"):
         out = tmp_path / estimator
