@@ -166,6 +166,48 @@ def bench_filters(repeats: int) -> list[tuple[str, float, float]]:
     return rows
 
 
+ESTIMATOR_CASES = (   # (label, registry name, parameters): the filter family of issue 17 and the EKF baselines
+    ("EKF, epoch updates", "ekf", {}),
+    ("EKF, sequential updates (tracker)", "tracker", {}),
+    ("UKF, epoch updates", "ukf", {}),
+    ("particle filter, 1000 particles, epoch updates", "pf", {"n_particles": 1000}),
+    ("particle filter, 1000 particles, sequential updates", "pf", {"n_particles": 1000, "update": "sequential"}),
+    ("EKF + RTS smoother, epoch updates", "ekf_rts", {}),
+    ("sliding-window batch, W = 2 s", "sliding_window", {}),
+)
+
+
+def bench_estimators(repeats: int, scenarios=("constant", "variable")) -> list[dict]:
+    """Time per output step (us) of each registry estimator on one simulated Newcom++ run per
+    scenario (all 12 UWB anchors, 0.5 s epochs; a fresh RunData per repeat, so building the
+    epochs and measurement models is counted), and the real-time factor: the run's duration
+    covered by the estimates (steps x 0.5 s) over the compute time (> 1: faster than real time)."""
+    from wsnloc.campaign import Campaign
+    from wsnloc.estimate import load_run
+    from wsnloc.estimators import registry
+    from wsnloc.estimators.run_data import RunData
+    from wsnloc.sim.newcom import simulate_run
+    from wsnloc.sim.seeding import run_seed_sequence
+
+    campaign = Campaign.load(ROOT / "config" / "campaigns" / "newcom.yaml")
+    rows = []
+    for scenario in scenarios:
+        raw = simulate_run(campaign, scenario, run_seed_sequence(1, "bench", scenario, 1),
+                           OUT / f"estimators-{scenario}")
+        run_tables = load_run("newcom", raw, campaign, OUT / f"estimators-{scenario}-tables")
+        for label, name, params in ESTIMATOR_CASES:
+            p = dict(params, max_range_m=50.0)
+
+            def once(name=name, p=p, scenario=scenario):
+                return registry.run(name, RunData(run_tables, campaign, None, scenario), p)
+            steps = len(once())
+            seconds = median_time(once, repeats)
+            epoch_s = registry.get(name).resolve(p)["epoch_s"]
+            rows.append({"scenario": scenario, "estimator": label, "steps": steps, "us_per_step": seconds / steps * 1e6,
+                         "realtime_factor": steps * epoch_s / seconds})
+    return rows
+
+
 def bench_ingest(repeats: int) -> dict:
     """Our imu.log parser (with per-line quarantine) against pyarrow.csv.read_csv on the same bytes."""
     from wsnloc.campaign import Campaign
@@ -233,6 +275,7 @@ def _met(ok: bool) -> str:
 
 def write(results: dict, path: Path, command: str) -> None:
     w, f, i, s = results["workflow"], results["filters"], results["ingest"], results["scaling"]
+    e = results["estimators"]
     lines = [
         "# wsnloc benchmarks", "",
         f"Machine: {machine()}  ", f"Command: `{command}`  ",
@@ -253,6 +296,13 @@ def write(results: dict, path: Path, command: str) -> None:
         "| filter | wsnloc [us/step] | filterpy [us/step] | ratio (ours / filterpy) |", "|---|---|---|---|",
         *[f"| {name} | {a:.1f} | {b:.1f} | {a / b:.2f} |" for name, a, b in f],
         "", f"Target: no slower than filterpy (ratio <= 1): {_met(all(a <= b for _, a, b in f))}.",
+        "", "## Estimators: time per step on a simulated Newcom++ run (registry, 12 UWB anchors, 0.5 s epochs)", "",
+        "| scenario | estimator | output steps | time per step [us] | real-time factor |", "|---|---|---|---|---|",
+        *[f"| {r['scenario']} | {r['estimator']} | {r['steps']} | {r['us_per_step']:.0f} | {r['realtime_factor']:.0f} |"
+          for r in e],
+        "", "Real-time factor: the run time covered by the estimates over the compute time. Target: the particle "
+        "filter at 1000 particles faster than real time on the Newcom++ scenarios: "
+        f"{_met(all(r['realtime_factor'] > 1 for r in e if r['estimator'].startswith('particle')))}.",
         "", "## Ingest and resampling", "",
         "| measure | value |", "|---|---|",
         f"| imu.log parse ({i['mb']:.1f} MB, per-line validation + quarantine) | {i['ours_mbps']:.1f} MB/s |",
@@ -274,7 +324,8 @@ def main() -> int:
     parser.add_argument("--scaling", type=int, nargs="*", default=[20, 100, 500])
     args = parser.parse_args()
     OUT.mkdir(parents=True, exist_ok=True)
-    results = {"filters": bench_filters(args.repeats), "ingest": bench_ingest(args.repeats),
+    results = {"filters": bench_filters(args.repeats), "estimators": bench_estimators(args.repeats),
+               "ingest": bench_ingest(args.repeats),
                "workflow": bench_workflow(args.repeats), "scaling": bench_scaling(args.scaling)}
     command = "python benchmarks/run.py " + " ".join(sys.argv[1:])
     write(results, ROOT / "benchmarks" / "RESULTS.md", command.strip())

@@ -36,12 +36,15 @@ def test_builds_report_and_results(workdir):
     assert all(f'id="paper-{p}"' in html for p in "ABCD") and "cricket/speed_40" in html
     assert 'id="study-workbench"' in html
     study = results[results["experiment"] == "study:workbench"]
-    assert set(study["row"]) == {"tracker", "ekf_epoch", "multilateration"}
+    assert set(study["row"]) == {"tracker", "ekf", "ukf", "pf", "ekf_rts", "sliding_window", "multilateration"}
     assert set(study["scenario"]) == {"newcom/constant", "cricket/speed_40"}
     availability = study[study["column"] == "availability"].set_index(["row", "scenario"])["value"]
-    assert (availability[["tracker", "ekf_epoch"]] > 0.9).all()
+    filters = ["tracker", "ekf", "ukf", "pf", "ekf_rts", "sliding_window"]
+    assert (availability[filters] > 0.9).all()
     # Cricket beacons range one at a time: an epoch of 0.5 s often holds fewer than 3 ranges
     assert availability[("multilateration", "cricket/speed_40")] < availability[("tracker", "cricket/speed_40")]
+    timing = study[study["metric"] == "time_per_step_us"]
+    assert len(timing) == 14 and (timing["value"] > 0).all()
     for paper in ("a", "c"):        # per-epoch estimates of every paper, one file per scenario
         assert list((workdir / "data" / "processed").glob(f"*/*/paper_{paper}/estimates.parquet"))
     assert {"data", "A", "B", "C", "D"} <= set(results["experiment"])

@@ -19,6 +19,8 @@ overrides[dataset/scenario] (within one, a cell's own mapping after the shared k
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pandas as pd
 
@@ -31,8 +33,10 @@ from wsnloc.experiments import calibration
 from wsnloc.metrics.tracking import RUN_METRICS, run_metrics, score
 
 EXPERIMENT_PREFIX = "study:"
-REPORTED = RUN_METRICS + ("resets",)         # per cell and run; results.csv gives mean and 95% interval
-UNIT = {"n": "count", "availability": "share", "resets": "count"}
+REPORTED = RUN_METRICS + ("resets", "time_per_step")   # per cell and run; results.csv: mean and 95% interval
+UNIT = {"n": "count", "availability": "share", "resets": "count", "time_per_step": "us"}
+# wall-clock time of the estimator per output step (us): measured in the cell job, so it varies from
+# build to build and is left out of byte-reproducibility checks (metric time_per_step_us)
 
 
 def study_cells(config: dict) -> dict[str, list[tuple[str, str, str]]]:
@@ -136,7 +140,9 @@ def run_cell(label: str, cell: str, name: str, p: dict, subsets: list[str], runs
     for run, run_tables in runs.items():
         data = RunData(run_tables, campaign, models[run], f"{label}/{run}")
         for subset in subsets:
+            started = time.perf_counter()
             est = registry.run(name, data, dict(p, anchors=subset) if "anchors" in p else p)
+            elapsed_us = (time.perf_counter() - started) * 1e6
             finite = est[np.isfinite(est["x"]) & np.isfinite(est["y"])]
             if len(finite) == 0:
                 raise WsnlocError(f"cell {cell} ({name}) on {label}, {run}, subset {subset!r}: no estimates; "
@@ -144,7 +150,7 @@ def run_cell(label: str, cell: str, name: str, p: dict, subsets: list[str], runs
             scored = score(est, run_tables["truth"]).assign(run=run, subset=subset)
             estimates.append(scored)
             metrics.append({"run": run, "subset": subset, **run_metrics(scored, run_tables["truth"]),
-                            "resets": est.attrs.get("resets", 0),
+                            "resets": est.attrs.get("resets", 0), "time_per_step": elapsed_us / len(est),
                             "rss_model": (models[run] or {}).get("source", "configured") if reads_rss(name, p) else ""})
     return pd.concat(estimates, ignore_index=True), pd.DataFrame(metrics)
 

@@ -91,7 +91,8 @@ def study_cell_spec(w):
     """Estimator name, resolved parameters and subsets of one cell (its Snakemake params)."""
     spec = STUDIES[w.study]
     params = cell_params(spec, w.cell, w.dataset, w.scenario, f"studies.{w.study}")
-    return {"estimator": estimator_of(spec, w.cell), "parameters": params, "subsets": spec.get("subsets") or ["all"]}
+    return {"estimator": estimator_of(spec, w.cell), "parameters": params, "subsets": spec.get("subsets") or ["all"],
+            "runs": spec.get("runs")}
 
 
 def study_cell_inputs(w):

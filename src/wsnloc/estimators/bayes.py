@@ -17,9 +17,19 @@ Coasting limit: after `max_coast_s` seconds without an update the track is dropp
   so a long gap shows as lower availability instead of unbounded drift.
 Motion detection (paper A): in epochs declared static by the accelerometer the predict
   step is skipped (state and covariance frozen).
+Filters (`FILTERS`, parameter `filter`): `ekf` (filters.kalman), `ukf` (scaled sigma points,
+  filters.ukf: alpha, beta, kappa) and `pf` (bootstrap particle filter, filters.particle:
+  n_particles, resample_threshold, outlier_probability, outlier_span_m, seed); all share the
+  predict(F, Q, u, B) / update_model(model) interface, so every loop above runs any of them.
+  The particle filter draws from one numpy Generator per run, seeded with
+  (seed, CRC-32 of the run's name): reproducible, and independent between runs.
+Smoothing (`run_smoother`): the forward pass is recorded (smoothing.ForwardPass) and the
+  fixed-interval RTS smoother runs over each track segment offline; see smoothing.py.
 """
 
 from __future__ import annotations
+
+import zlib
 
 import numpy as np
 import pandas as pd
@@ -28,21 +38,48 @@ from wsnloc.estimators.inertial import epoch_inputs, floor_input
 from wsnloc.estimators.measurements import MeasurementSource, rss_params
 from wsnloc.estimators.motion import MotionModel
 from wsnloc.estimators.run_data import RunData
+from wsnloc.estimators.smoothing import ForwardPass
 from wsnloc.filters.kalman import ExtendedKalmanFilter
+from wsnloc.filters.particle import ParticleFilter
+from wsnloc.filters.ukf import UnscentedKalmanFilter
 from wsnloc.inertial.motion_detection import static_epochs
 
 COLUMNS = ["t", "x", "y", "p_xx", "p_xy", "p_yy", "n_meas", "nis"]
 
 
-def ekf_factory(x0: np.ndarray, P0: np.ndarray, motion: MotionModel):
-    F, Q, _ = motion.matrices(motion.period_s)
-    return ExtendedKalmanFilter(x0, P0, F, Q)
+def ekf_factory(p: dict, data: RunData):
+    def make(x0: np.ndarray, P0: np.ndarray, motion: MotionModel):
+        F, Q, _ = motion.matrices(motion.period_s)
+        return ExtendedKalmanFilter(x0, P0, F, Q)
+    return make
 
 
-FILTERS = {"ekf": ekf_factory}
+def ukf_factory(p: dict, data: RunData):
+    def make(x0: np.ndarray, P0: np.ndarray, motion: MotionModel):
+        return UnscentedKalmanFilter(x0, P0, p["alpha"], p["beta"], p["kappa"])
+    return make
 
 
-class _Track:
+def run_generator(seed: int, data: RunData) -> np.random.Generator:
+    """The random stream of one run: numpy Generator seeded with (seed, CRC-32 of the run's name)."""
+    return np.random.default_rng([seed, zlib.crc32(data.name.encode())])
+
+
+def pf_factory(p: dict, data: RunData):
+    rng = run_generator(p["seed"], data)           # one stream per run: a restarted track continues it
+
+    def make(x0: np.ndarray, P0: np.ndarray, motion: MotionModel):
+        return ParticleFilter(x0, P0, p["n_particles"], rng, p["resample_threshold"], p["outlier_probability"],
+                              p["outlier_span_m"])
+    return make
+
+
+# filter name -> factory(parameters, run) -> make(x0, P0, motion) -> a filter with x, P, nis,
+# predict(F, Q, u, B) and update_model(model)
+FILTERS = {"ekf": ekf_factory, "ukf": ukf_factory, "pf": pf_factory}
+
+
+class Track:
     """Output rows and counters of one filter run."""
 
     def __init__(self):
@@ -65,6 +102,25 @@ def motion_model(p: dict) -> MotionModel:
 
 def run_filter(data: RunData, p: dict) -> pd.DataFrame:
     """Estimates (COLUMNS) of one run; `attrs['resets']` counts coasting-limit resets."""
+    return _run(data, p, None)
+
+
+def run_smoother(data: RunData, p: dict) -> pd.DataFrame:
+    """The fixed-interval RTS-smoothed estimates of one run (same rows as the forward pass;
+    n_meas and nis are the forward pass's). In sequential mode the recorded forward pass
+    steps the filter to every output time (see smoothing.py)."""
+    forward = ForwardPass()
+    out = _run(data, p, forward)
+    smoothed = forward.smooth()
+    if len(out):
+        xs = np.array([x for x, _ in smoothed])
+        Ps = np.array([P for _, P in smoothed])
+        out["x"], out["y"] = xs[:, 0], xs[:, 1]
+        out["p_xx"], out["p_xy"], out["p_yy"] = Ps[:, 0, 0], Ps[:, 0, 1], Ps[:, 1, 1]
+    return out
+
+
+def _run(data: RunData, p: dict, forward: ForwardPass | None) -> pd.DataFrame:
     source = MeasurementSource(data, p["measurements"], p["anchors"], p["range_sigma_m"], p["preliminary_filter"],
                                p["max_range_m"], rss_params(data, p) if p["measurements"] != "toa" else None)
     times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
@@ -73,41 +129,46 @@ def run_filter(data: RunData, p: dict) -> pd.DataFrame:
                             p["motion_threshold_mps2"], p["static_start_s"])
               if p["motion_detection"] else np.zeros(len(times), dtype=bool))
     inputs = epoch_inputs(floor_input(data, p["static_start_s"]), times) if motion.kind == "pva" else None
-    make = FILTERS[p["filter"]]
-    if p["update"] == "epoch":
-        return _epoch_loop(source, times, p, motion, static, inputs, make)
-    return _sequential_loop(source, times, p, motion, static, inputs, make)
+    make = FILTERS[p["filter"]](p, data)
+    loop = _epoch_loop if p["update"] == "epoch" else _sequential_loop
+    return loop(source, times, p, motion, static, inputs, make, forward)
 
 
-def _start(fix: np.ndarray, motion: MotionModel, make):
+def _start(fix: np.ndarray, motion: MotionModel, make, forward: ForwardPass | None):
     x0 = np.zeros(motion.dim)
     x0[:2] = fix
-    return make(x0, motion.initial_covariance(), motion)
+    filt = make(x0, motion.initial_covariance(), motion)
+    if forward is not None:
+        forward.start(filt)
+    return filt
 
 
-def _predict(filt, motion: MotionModel, dt: float, u: np.ndarray | None) -> None:
+def _predict(filt, motion: MotionModel, dt: float, u: np.ndarray | None) -> tuple:
+    """Predict over dt (s) with the input u when it is finite; returns the step (F, Q, B, u) used."""
     F, Q, B = motion.matrices(dt)
     if B is not None and u is not None and np.all(np.isfinite(u)):
         filt.predict(F, Q, u=u, B=B)
-    else:
-        filt.predict(F, Q)
+        return F, Q, B, u
+    filt.predict(F, Q)
+    return F, Q, None, None
 
 
-def _epoch_loop(source, times, p, motion, static, inputs, make) -> pd.DataFrame:
+def _epoch_loop(source, times, p, motion, static, inputs, make, forward) -> pd.DataFrame:
     period, window = p["epoch_s"], p["init_window_s"] or p["epoch_s"]
     models = source.epoch_models(times, period)
     records = source.records()
-    track, filt, last_update = _Track(), None, -np.inf
+    track, filt, last_update = Track(), None, -np.inf
     for k, (t, model) in enumerate(zip(times, models)):
         if filt is None:
             fix = _window_fix(source, records, t, window)
             if fix is None:
                 continue
-            filt, last_update = _start(fix, motion, make), t
+            filt, last_update = _start(fix, motion, make, forward), t
             track.emit(t, filt.x, filt.P, 0, np.nan)
+            if forward is not None:
+                forward.output()
             continue
-        if not static[k]:
-            _predict(filt, motion, period, None if inputs is None else inputs[k])
+        step = None if static[k] else _predict(filt, motion, period, None if inputs is None else inputs[k])
         nis = np.nan
         if model is not None:
             filt.update_model(model)
@@ -117,6 +178,9 @@ def _epoch_loop(source, times, p, motion, static, inputs, make) -> pd.DataFrame:
             track.resets += 1
             continue
         track.emit(t, filt.x, filt.P, 0 if model is None else len(model.z), nis)
+        if forward is not None:
+            forward.node(filt, step)
+            forward.output()
     return track.frame()
 
 
@@ -128,12 +192,12 @@ def _window_fix(source: MeasurementSource, records, t: float, window: float) -> 
     return source.fix(*records.window_means(a, b))
 
 
-def _sequential_loop(source, times, p, motion, static, inputs, make) -> pd.DataFrame:
+def _sequential_loop(source, times, p, motion, static, inputs, make, forward) -> pd.DataFrame:
     records = source.records()
     bounds = records.groups()
     window = p["init_window_s"] or p["epoch_s"]
     epoch_of = np.searchsorted(times, records.t, side="left")        # epoch (t_k - T, t_k] of each record
-    track, filt, t_filter, last_update = _Track(), None, -np.inf, -np.inf
+    track, filt, t_filter, last_update = Track(), None, -np.inf, -np.inf
     g = 0
     for k, t_k in enumerate(times):
         n_meas, nis = 0, np.nan
@@ -147,19 +211,28 @@ def _sequential_loop(source, times, p, motion, static, inputs, make) -> pd.DataF
             if filt is None:
                 fix = _window_fix(source, records, t, window)
                 if fix is not None:
-                    filt, t_filter, last_update = _start(fix, motion, make), t, t
+                    filt, t_filter, last_update = _start(fix, motion, make, forward), t, t
                 continue
+            step = None
             if t > t_filter and not static[min(epoch_of[a], len(times) - 1)]:
-                _predict(filt, motion, t - t_filter, None if inputs is None else inputs[min(epoch_of[a], len(times) - 1)])
+                step = _predict(filt, motion, t - t_filter,
+                                None if inputs is None else inputs[min(epoch_of[a], len(times) - 1)])
             t_filter = max(t, t_filter)
             filt.update_model(source.model(*records.split(a, b)))
             n_meas, nis, last_update = n_meas + b - a, filt.nis, t
+            if forward is not None:
+                forward.node(filt, step)
         if filt is None:
             continue
         if t_k - last_update > p["max_coast_s"]:
             filt = None
             track.resets += 1
             continue
+        if forward is not None:       # smoothing: the output time becomes a node of the recorded chain
+            if t_k > t_filter and not static[k]:
+                forward.node(filt, _predict(filt, motion, t_k - t_filter, None if inputs is None else inputs[k]))
+                t_filter = t_k
+            forward.output()
         x, P = filt.x, filt.P
         if t_k > t_filter and not static[k]:
             F, Q, B = motion.matrices(t_k - t_filter)

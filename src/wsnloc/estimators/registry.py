@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from wsnloc.errors import ConfigError
-from wsnloc.estimators import bayes, fixes, inertial, trackers
+from wsnloc.estimators import batch, bayes, fixes, inertial, trackers
 from wsnloc.estimators.motion import MOTIONS
 from wsnloc.estimators.parameters import Param, resolve
 from wsnloc.estimators.run_data import RunData
@@ -62,7 +62,7 @@ KALMAN_FIXES = (
     Param("initial_speed_sigma_mps", 0.5, "m/s", "initial speed sigma"),
 )
 FILTER = (
-    Param("filter", "ekf", "", "Bayesian filter", str, tuple(bayes.FILTERS)),
+    Param("filter", "ekf", "", "Bayesian filter (ukf and pf have their own estimators)", str, ("ekf",)),
     Param("measurements", "toa", "", "toa: ranges; rss: RSS; hybrid: both stacked", str, tuple(KINDS)),
     Param("motion", "pv", "", "p: random walk; pv: constant velocity; pva: measured acceleration input + bias",
           str, MOTIONS),
@@ -86,6 +86,42 @@ FILTER = (
     Param("static_start_s", 4.0, "s", "the mobile rests during the first S s (gravity reference, IMU bias)",
           minimum=0.0),
 )
+UKF = (
+    Param("alpha", 1.0, "1", "UKF sigma-point spread; 1 with kappa = 0 gives lambda = 0: non-negative weights, "
+          "S and P stay positive semi-definite (a small alpha such as 1e-3 amplifies round-off)", minimum=1e-6),
+    Param("beta", 2.0, "1", "UKF prior-distribution term of the centre weight Wc_0; 2 is optimal for a Gaussian "
+          "prior"),
+    Param("kappa", 0.0, "1", "UKF secondary scaling, lambda = alpha^2 (n + kappa) - n"),
+)
+PARTICLE = (
+    Param("n_particles", 1000, "1", "particle filter size N: Monte Carlo error of the mean ~ spread / sqrt(N), "
+          "a few cm for a 1 m posterior spread at 1000; cost grows linearly", int, minimum=1),
+    Param("resample_threshold", 0.5, "1", "systematic resampling when the effective sample size 1 / sum w^2 "
+          "falls below this share of N (0..1; the usual N/2 rule)", minimum=0.0),
+    Param("outlier_probability", 0.0, "1", "heavy-tailed range likelihood (1 - eps) N(r; 0, sigma^2) + eps / span "
+          "(0..1; 0: Gaussian, the EKF's likelihood; ~0.05 for NLOS-heavy UWB)", minimum=0.0),
+    Param("outlier_span_m", 50.0, "m", "span of the uniform outlier component: the longest range error "
+          "possible (site diagonal plus the largest NLOS excess)", minimum=1e-3),
+    Param("seed", 0, "1", "random stream of each run: numpy Generator seeded with (seed, CRC-32 of the run's "
+          "name), so results are reproducible and runs independent", int, minimum=0),
+)
+SLIDING_WINDOW = (
+    Param("range_sigma_m", 0.3, "m", "range noise standard deviation (residuals are whitened by it)", minimum=1e-6),
+    Param("window_s", 2.0, "s", "window W: ranges of the last W seconds are solved jointly (4 rounds at 2 Hz; "
+          "cost and latency grow with W)", minimum=1e-3),
+    Param("knot_s", 0.5, "s", "spacing of the constant-velocity knots (one per 2 Hz round); at most window_s",
+          minimum=1e-3),
+    Param("accel_sigma_mps2", 0.5, "m/s^2/sqrt(Hz)", "constant-velocity prior between knots: white acceleration "
+          "of spectral density sigma^2 (m^2/s^3)", minimum=1e-6),
+    Param("loss", "huber", "", "robust loss on the range residuals (scipy.optimize.least_squares)", str,
+          ("huber", "soft_l1", "cauchy", "linear")),
+    Param("f_scale", 1.345, "sigma", "where the robust loss turns from quadratic, in units of range_sigma_m "
+          "(1.345: Huber's 95% efficiency under Gaussian noise)", minimum=1e-6),
+    Param("prior_inflation", 10.0, "1", "the previous window's solution enters as a prior with its covariance "
+          "times this (its overlapping ranges are not counted twice at full weight)", minimum=1e-6),
+    Param("max_coast_s", 10.0, "s", "drop the solution after this long without a range; restart by "
+          "multilateration on a window", minimum=0.0),
+)
 INERTIAL = (
     Param("static_start_s", 4.0, "s", "the mobile rests during the first S s: IMU bias measured then", minimum=0.0),
     Param("process_sigma_m", 0.05, "m", "dead-reckoning displacement error per 5 Hz step", minimum=1e-6),
@@ -102,6 +138,11 @@ def _with(params: tuple[Param, ...], **defaults) -> tuple[Param, ...]:
 
 def _drop(params: tuple[Param, ...], *names: str) -> tuple[Param, ...]:
     return tuple(p for p in params if p.name not in names)
+
+
+def _filter(params: tuple[Param, ...], *filters: str) -> tuple[Param, ...]:
+    """The parameter group with `filter` restricted to the given filters (the first is the default)."""
+    return tuple(replace(p, default=filters[0], choices=filters) if p.name == "filter" else p for p in params)
 
 
 # ---- estimator entries --------------------------------------------------------------------
@@ -193,6 +234,19 @@ ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
     Estimator("tracker", "Recommended tracker for any range data: PV EKF with sequential updates (ranges used "
               "at their own times, one anchor at a time is fine), window initiator, coasting limit",
               COMMON + RSS + _with(FILTER, **TRACKER_DEFAULTS), bayes.run_filter, _filter_inputs),
+    Estimator("ukf", "Unscented Kalman filter (scaled sigma points) with the EKF's motion models, measurements, "
+              "update modes, initiator and coasting limit", COMMON + RSS + _filter(FILTER, "ukf") + UKF,
+              bayes.run_filter, _filter_inputs),
+    Estimator("pf", "Bootstrap particle filter (systematic resampling on ESS, optional heavy-tailed range "
+              "likelihood) with the EKF's motion models, measurements, update modes, initiator and coasting limit",
+              COMMON + RSS + _filter(FILTER, "pf") + PARTICLE, bayes.run_filter, _filter_inputs),
+    Estimator("ekf_rts", "EKF followed by the fixed-interval RTS smoother (offline: each estimate uses the "
+              "whole run)", COMMON + RSS + FILTER, bayes.run_smoother, _filter_inputs),
+    Estimator("ukf_rts", "UKF followed by the fixed-interval RTS smoother (offline: each estimate uses the "
+              "whole run)", COMMON + RSS + _filter(FILTER, "ukf") + UKF, bayes.run_smoother, _filter_inputs),
+    Estimator("sliding_window", "Sliding-window batch: robust non-linear least squares over the ranges of the "
+              "last W seconds with a constant-velocity prior (factor-graph style)",
+              COMMON + SLIDING_WINDOW, batch.sliding_window),
     Estimator("dead_reckoning", "Dead reckoning of the 5 Hz IMU from the start pose (paper B)",
               _drop(INERTIAL, "process_sigma_m", "fix_sigma_m"), _dead_reckoning_run, lambda p: ("imu_5hz",)),
     Estimator("dr_sskf", "Dead reckoning fused with Min-Max fixes by a steady-state KF (paper B)",

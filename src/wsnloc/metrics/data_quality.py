@@ -27,14 +27,16 @@ def reason_category(reason: str) -> str:
     return re.sub(r"-?\d+(\.\d+)?(e-?\d+)?", "N", text)
 
 
-def load_runs(tables_dirs, names=tables.RAW_TABLES, imu_dirs=None) -> dict[str, dict[str, pd.DataFrame]]:
+def load_runs(tables_dirs, names=tables.RAW_TABLES, imu_dirs=None, first: int | None = None
+              ) -> dict[str, dict[str, pd.DataFrame]]:
     """{run: {table: DataFrame}} for every run directory under the (shard) folder(s), in run order.
 
     names: the tables to read (default all; an estimator without IMU input skips the large
-    500 Hz table); "imu_5hz" is read from `imu_dirs` (the resample stage's folders).
+    500 Hz table); "imu_5hz" is read from `imu_dirs` (the resample stage's folders);
+    first: only the first N runs.
     """
     dirs = [tables_dirs] if isinstance(tables_dirs, (str, Path)) else list(tables_dirs)
-    run_dirs = sorted((p for d in dirs for p in Path(d).iterdir() if p.is_dir()), key=lambda p: p.name)
+    run_dirs = sorted((p for d in dirs for p in Path(d).iterdir() if p.is_dir()), key=lambda p: p.name)[:first]
     imu = imu_files(imu_dirs) if "imu_5hz" in names else {}
     return {p.name: {name: tables.read(imu[p.name] if name == "imu_5hz" else p / f"{name}.parquet")
                      for name in names} for p in run_dirs}
