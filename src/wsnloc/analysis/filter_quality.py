@@ -1,0 +1,88 @@
+"""A Bayesian filter's estimates against its bound and its own uncertainty: efficiency,
+NEES / NIS per epoch, and their Monte Carlo summaries over the runs of a cell.
+
+Per epoch of a run (`epoch_quality`):
+- pcrb_m2 = trace of the PCRB position block (m^2) at the epoch (analysis.filter_bounds);
+- nees = e^T P^-1 e, e the position error (m), P the filter's position covariance (m^2):
+  position NEES, chi2(2) for a consistent filter;
+- nis and n_meas as the filter output them (NIS of the last update, its measurement count).
+Per run (`run_efficiency`): pcrb_m = sqrt(mean over the run's estimates of pcrb_m2) (m), and
+efficiency = RMSE / pcrb_m (>= 1 when the filter's model is the data's; see docs/bounds.md).
+Over the runs of a cell, epochs are matched by their index k = round(t / T) (T the epoch
+period; the runs' grids have different phases): RMSE(k) = sqrt(mean_r error^2) and
+sqrt(PCRB)(k) = sqrt(mean_r pcrb_m2) (the bound of the cell is the mean of the runs' bounds),
+and ANEES / ANIS with their chi-square bands (metrics.consistency). ANIS needs the dof of
+the NIS: n_meas in epoch updates; in sequential updates a filter's output NIS is that of
+its last record group while n_meas counts the whole epoch, so ANIS is not computed there.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from wsnloc.metrics.consistency import consistency_test, normalized_squared
+
+NEES_DOF = 2   # position NEES
+QUALITY_COLUMNS = ["t", "error_m", "pcrb_m2", "nees", "nis", "n_meas"]
+
+
+def epoch_quality(scored: pd.DataFrame, bound: pd.DataFrame) -> pd.DataFrame:
+    """QUALITY_COLUMNS of the finite estimates of one run: scored filter output (t, x, y,
+    true_x, true_y, error_m, p_xx, p_xy, p_yy, nis, n_meas) beside its bound (filter_bounds)."""
+    est = scored[np.isfinite(scored["x"]) & np.isfinite(scored["y"])]
+    merged = est.merge(bound, on="t", how="left", validate="many_to_one")
+    error = merged[["x", "y"]].to_numpy(float) - merged[["true_x", "true_y"]].to_numpy(float)
+    covariance = merged[["p_xx", "p_xy", "p_xy", "p_yy"]].to_numpy(float).reshape(-1, 2, 2)
+    return pd.DataFrame({"t": merged["t"], "error_m": merged["error_m"],
+                         "pcrb_m2": merged["pcrb_xx"] + merged["pcrb_yy"],
+                         "nees": normalized_squared(error, covariance), "nis": merged["nis"],
+                         "n_meas": merged["n_meas"]}, index=est.index)
+
+
+def run_efficiency(quality: pd.DataFrame) -> dict[str, float]:
+    """pcrb_m (m) and efficiency = RMSE / pcrb_m of one run's epoch_quality rows."""
+    usable = quality[np.isfinite(quality["error_m"]) & np.isfinite(quality["pcrb_m2"])]
+    if usable.empty:
+        return {"pcrb_m": np.nan, "efficiency": np.nan}
+    bound = float(np.sqrt(usable["pcrb_m2"].mean()))
+    return {"pcrb_m": bound, "efficiency": float(np.sqrt((usable["error_m"] ** 2).mean())) / bound}
+
+
+def _epoch_index(t: pd.Series, period: float) -> np.ndarray:
+    return np.round(t.to_numpy(float) / period).astype(np.int64)
+
+
+def over_time(quality: pd.DataFrame, period: float) -> pd.DataFrame:
+    """Per epoch index over runs (rows with a `run` column): t (mean time, s), rmse (m),
+    sqrt_pcrb (m) and the number of runs, over the estimates scored against the truth."""
+    quality = quality[np.isfinite(quality["error_m"])]
+    frame = quality.assign(k=_epoch_index(quality["t"], period), sq=quality["error_m"] ** 2)
+    grouped = frame.groupby("k", sort=True)
+    return pd.DataFrame({"t": grouped["t"].mean(), "rmse": np.sqrt(grouped["sq"].mean()),
+                         "sqrt_pcrb": np.sqrt(grouped["pcrb_m2"].mean()), "runs": grouped["run"].nunique()}
+                        ).reset_index(drop=True)
+
+
+def _runs_by_epoch(quality: pd.DataFrame, column: str, period: float) -> tuple[np.ndarray, np.ndarray]:
+    """(runs, epochs) matrix of a column (NaN where a run has no value) and the epochs' mean times."""
+    frame = quality.assign(k=_epoch_index(quality["t"], period))
+    table = frame.pivot_table(index="run", columns="k", values=column, aggfunc="first", dropna=False)
+    times = frame.groupby("k")["t"].mean().reindex(table.columns)
+    return table.to_numpy(float), times.to_numpy(float)
+
+
+def consistency(quality: pd.DataFrame, period: float, epoch_updates: bool) -> dict[str, tuple]:
+    """{'ANEES': (t, ConsistencyTest), 'ANIS': (t, ConsistencyTest)} over the runs of a cell
+    (ANIS only with epoch updates, see the module docstring)."""
+    out = {}
+    nees, t = _runs_by_epoch(quality, "nees", period)
+    if np.isfinite(nees).any():
+        out["ANEES"] = (t, consistency_test(nees, NEES_DOF))
+    if epoch_updates:
+        with_update = quality[np.isfinite(quality["nis"]) & (quality["n_meas"] > 0)]
+        if len(with_update):
+            nis, t = _runs_by_epoch(with_update, "nis", period)
+            dof, _ = _runs_by_epoch(with_update, "n_meas", period)
+            out["ANIS"] = (t, consistency_test(nis, np.nan_to_num(dof)))
+    return out
