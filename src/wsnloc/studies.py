@@ -23,6 +23,8 @@ import numpy as np
 import pandas as pd
 
 from wsnloc import results
+from wsnloc.analysis.filter_bounds import bound_model, is_bayesian
+from wsnloc.analysis.filter_quality import QUALITY_COLUMNS, consistency, consistency_rows, over_time, run_quality
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError, WsnlocError
 from wsnloc.estimators import registry
@@ -31,8 +33,10 @@ from wsnloc.experiments import calibration
 from wsnloc.metrics.tracking import RUN_METRICS, run_metrics, score
 
 EXPERIMENT_PREFIX = "study:"
+QUALITY_TABLE = ["run", "subset"] + QUALITY_COLUMNS   # a cell's per-epoch bound and consistency values
 REPORTED = RUN_METRICS + ("resets",)         # per cell and run; results.csv gives mean and 95% interval
-UNIT = {"n": "count", "availability": "share", "resets": "count"}
+BOUND_METRICS = ("sqrt_pcrb", "efficiency")  # Bayesian filters only
+UNIT = {"n": "count", "availability": "share", "resets": "count", "efficiency": "ratio"}
 
 
 def estimator_of(spec: dict, cell: str) -> str:
@@ -123,21 +127,30 @@ def diagnose(data: RunData, p: dict) -> str:
 
 def run_cell(label: str, cell: str, name: str, p: dict, subsets: list[str], runs: dict[str, dict],
              campaign: Campaign | None, donors: dict[str, dict] | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """(estimates, metrics) of one cell over every run and subset; raises when any yields nothing."""
+    """(estimates, metrics) of one cell over every run and subset; raises when any yields nothing.
+
+    For a Bayesian filter the estimates also carry pcrb_m2 and nees, and the metrics sqrt_pcrb
+    and efficiency (analysis.filter_quality)."""
     models = donor_models(runs, donors or {}, campaign, p, reads_rss(name, p))
+    bayesian = is_bayesian(registry.get(name).function)
     estimates, metrics = [], []
     for run, run_tables in runs.items():
         data = RunData(run_tables, campaign, models[run], f"{label}/{run}")
         for subset in subsets:
-            est = registry.run(name, data, dict(p, anchors=subset) if "anchors" in p else p)
+            q = dict(p, anchors=subset) if "anchors" in p else p
+            est = registry.run(name, data, q)
             finite = est[np.isfinite(est["x"]) & np.isfinite(est["y"])]
             if len(finite) == 0:
                 raise WsnlocError(f"cell {cell} ({name}) on {label}, {run}, subset {subset!r}: no estimates; "
                                   f"{diagnose(data, dict(p, anchors=subset))}")
             scored = score(est, run_tables["truth"]).assign(run=run, subset=subset)
+            efficiency = {}
+            if bayesian:
+                quality, efficiency = run_quality(data, q, scored)
+                scored = scored.join(quality[["pcrb_m2", "nees"]])
             estimates.append(scored)
             metrics.append({"run": run, "subset": subset, **run_metrics(scored, run_tables["truth"]),
-                            "resets": est.attrs.get("resets", 0),
+                            "resets": est.attrs.get("resets", 0), **efficiency,
                             "rss_model": (models[run] or {}).get("source", "configured") if reads_rss(name, p) else ""})
     return pd.concat(estimates, ignore_index=True), pd.DataFrame(metrics)
 
@@ -147,7 +160,7 @@ def results_rows(study: str, cell: str, label: str, metrics: pd.DataFrame) -> li
     """results.csv rows of one cell: every reported metric, mean over runs with its 95% interval."""
     rows = []
     for subset, group in metrics.groupby("subset", sort=False):
-        for metric in REPORTED:
+        for metric in REPORTED + tuple(m for m in BOUND_METRICS if m in group and group[m].notna().any()):
             rows.append(results.row_over_runs(group[metric], experiment=EXPERIMENT_PREFIX + study, table=subset,
                                               row=cell, column=metric, scenario=label,
                                               metric=f"{metric}_{UNIT.get(metric, 'm')}"))
@@ -170,3 +183,30 @@ def study_panels(estimates: dict[tuple[str, str], pd.DataFrame]) -> tuple[dict, 
         truth = first[["true_x", "true_y"]].rename(columns={"true_x": "x", "true_y": "y"})
         tracks.setdefault(title, (truth, {}))[1][cell] = first
     return cdf, errors, tracks
+
+
+def quality_table(estimates: pd.DataFrame) -> pd.DataFrame:
+    """The QUALITY_TABLE columns of a cell's estimates (empty unless the cell is a Bayesian filter)."""
+    if "pcrb_m2" not in estimates:
+        return pd.DataFrame({c: pd.Series(dtype=object if c in ("run", "subset") else float) for c in QUALITY_TABLE})
+    return estimates.loc[np.isfinite(estimates["x"]) & np.isfinite(estimates["y"]), QUALITY_TABLE]
+
+
+def bound_summary(study: str, cells: list[dict], qualities: list[pd.DataFrame]) -> tuple[list, list, list]:
+    """Over the Bayesian cells (each {label, cell, parameters}) and their quality tables:
+    results rows of ANEES / ANIS (metrics.consistency bands), and the panels of the figures
+    sqrt(PCRB) beside the RMSE (report.bound_figures.pcrb_panels) and ANEES / ANIS over time
+    (consistency_panels), one per cell and subset."""
+    rows, bound_panels, consistency_panels = [], [], []
+    for cell, quality in zip(cells, qualities):
+        p = cell["parameters"]
+        for subset, group in quality.groupby("subset", sort=False):
+            tests = consistency(group, p["epoch_s"], p["update"] == "epoch")
+            rows += consistency_rows(tests, group["run"].nunique(), experiment=EXPERIMENT_PREFIX + study,
+                                     table=subset, row=cell["cell"], scenario=cell["label"])
+            title = f"{cell['label']}: {cell['cell']} [{subset}], {group['run'].nunique()} runs"
+            series = over_time(group, p["epoch_s"])
+            bound_panels.append((series["t"], {cell["cell"]: series["rmse"]}, series["sqrt_pcrb"],
+                                 bound_model(dict(p, anchors=subset)), title))
+            consistency_panels += [(t, test, name, title) for name, (t, test) in tests.items()]
+    return rows, bound_panels, consistency_panels

@@ -1,5 +1,6 @@
 # One self-contained HTML report and the results contract (reports/results.csv).
-STUDY_OUTPUTS = ["results.csv", "figures/error_cdf.png", "figures/error_over_time.png", "figures/trajectories.png"]
+STUDY_OUTPUTS = ["results.csv", "figures/error_cdf.png", "figures/error_over_time.png", "figures/trajectories.png",
+                 "figures/pcrb_vs_rmse.png", "figures/consistency.png"]
 
 
 rule report:

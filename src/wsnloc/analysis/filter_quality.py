@@ -6,8 +6,8 @@ Per epoch of a run (`epoch_quality`):
 - nees = e^T P^-1 e, e the position error (m), P the filter's position covariance (m^2):
   position NEES, chi2(2) for a consistent filter;
 - nis and n_meas as the filter output them (NIS of the last update, its measurement count).
-Per run (`run_efficiency`): pcrb_m = sqrt(mean over the run's estimates of pcrb_m2) (m), and
-efficiency = RMSE / pcrb_m (>= 1 when the filter's model is the data's; see docs/bounds.md).
+Per run (`run_efficiency`): sqrt_pcrb = sqrt(mean over the run's estimates of pcrb_m2) (m), and
+efficiency = RMSE / sqrt_pcrb (>= 1 when the filter's model is the data's; see docs/bounds.md).
 Over the runs of a cell, epochs are matched by their index k = round(t / T) (T the epoch
 period; the runs' grids have different phases): RMSE(k) = sqrt(mean_r error^2) and
 sqrt(PCRB)(k) = sqrt(mean_r pcrb_m2) (the bound of the cell is the mean of the runs' bounds),
@@ -21,6 +21,9 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from wsnloc import results
+from wsnloc.analysis.filter_bounds import filter_pcrb
+from wsnloc.estimators.run_data import RunData
 from wsnloc.metrics.consistency import consistency_test, normalized_squared
 
 NEES_DOF = 2   # position NEES
@@ -41,12 +44,31 @@ def epoch_quality(scored: pd.DataFrame, bound: pd.DataFrame) -> pd.DataFrame:
 
 
 def run_efficiency(quality: pd.DataFrame) -> dict[str, float]:
-    """pcrb_m (m) and efficiency = RMSE / pcrb_m of one run's epoch_quality rows."""
+    """sqrt_pcrb (m) and efficiency = RMSE / sqrt_pcrb of one run's epoch_quality rows."""
     usable = quality[np.isfinite(quality["error_m"]) & np.isfinite(quality["pcrb_m2"])]
     if usable.empty:
-        return {"pcrb_m": np.nan, "efficiency": np.nan}
+        return {"sqrt_pcrb": np.nan, "efficiency": np.nan}
     bound = float(np.sqrt(usable["pcrb_m2"].mean()))
-    return {"pcrb_m": bound, "efficiency": float(np.sqrt((usable["error_m"] ** 2).mean())) / bound}
+    return {"sqrt_pcrb": bound, "efficiency": float(np.sqrt((usable["error_m"] ** 2).mean())) / bound}
+
+
+def run_quality(data: RunData, p: dict, scored: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, float]]:
+    """epoch_quality of one run of a Bayesian filter (resolved registry parameters p, its
+    scored output) and the run's run_efficiency."""
+    quality = epoch_quality(scored, filter_pcrb(data, p))
+    return quality, run_efficiency(quality)
+
+
+def consistency_rows(tests: dict[str, tuple], runs: int, **keys) -> list[dict]:
+    """results.csv rows of consistency(...): metric `anees` / `anis`, value the time average,
+    ci95_low / ci95_high its 95% chi-square band (with the time-correlation inflation), runs
+    the number of Monte Carlo runs; keys: experiment, table, row, scenario (column = the statistic)."""
+    out = []
+    for name, (_, test) in tests.items():
+        row = results.single_row(test.time_average, column=name.lower(), metric=name.lower(), **keys)
+        row.update(ci95_low=test.time_low, ci95_high=test.time_high, runs=runs)
+        out.append(row)
+    return out
 
 
 def _epoch_index(t: pd.Series, period: float) -> np.ndarray:

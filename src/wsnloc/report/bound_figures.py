@@ -66,24 +66,15 @@ def bound_maps(campaign: Campaign, anchors: pd.DataFrame, x, y, panels: dict[str
     return to_png(fig)
 
 
-def pcrb_vs_rmse(t, rmse: dict[str, np.ndarray], sqrt_pcrb: np.ndarray, bound_model: str, title: str) -> bytes:
-    """Monte Carlo RMSE curves (m) of estimators and sqrt(PCRB) (m) over time t (s).
-
-    bound_model states the motion and noise model the bound assumes (printed under the title).
-    """
-    fig, ax = plt.subplots(figsize=(8, 3.8))
+def _draw_pcrb(ax, t, rmse: dict[str, np.ndarray], sqrt_pcrb: np.ndarray, bound_model: str, title: str) -> None:
     for label, values in rmse.items():
         ax.plot(t, values, lw=1.2, label=f"{label} RMSE")
     ax.plot(t, sqrt_pcrb, color="k", lw=1.8, ls="--", label="sqrt(PCRB)")
     ax.set_yscale("log")
     _finish_time_axes(ax, "position error [m]", f"{title}\nbound for: {bound_model}")
-    return to_png(fig)
 
 
-def consistency_over_time(t, test: ConsistencyTest, statistic: str, title: str) -> bytes:
-    """ANEES or ANIS (statistic names which) over time t (s) with its 95% band, and the time
-    average with its band and the verdict in the legend."""
-    fig, ax = plt.subplots(figsize=(8, 3.6))
+def _draw_consistency(ax, t, test: ConsistencyTest, statistic: str, title: str) -> None:
     ax.fill_between(t, test.low, test.high, color="tab:green", alpha=0.25, lw=0, label="95% band")
     ax.plot(t, test.average, color="tab:blue", lw=1.0, label=statistic)
     ax.axhline(test.time_average, color="tab:red", lw=1.2,
@@ -91,4 +82,36 @@ def consistency_over_time(t, test: ConsistencyTest, statistic: str, title: str) 
                      f"(band {test.time_low:.2f}-{test.time_high:.2f}): {test.verdict}")
     ax.set_yscale("log")
     _finish_time_axes(ax, statistic, title)
+
+
+def _stacked(draw, panels: list[tuple], height: float) -> bytes:
+    """One axes per panel (the arguments of draw after the axes), stacked vertically."""
+    fig, axes = plt.subplots(len(panels), 1, figsize=(8, height * len(panels)), squeeze=False)
+    for ax, args in zip(axes[:, 0], panels):
+        draw(ax, *args)
+    fig.tight_layout()
     return to_png(fig)
+
+
+def pcrb_vs_rmse(t, rmse: dict[str, np.ndarray], sqrt_pcrb: np.ndarray, bound_model: str, title: str) -> bytes:
+    """Monte Carlo RMSE curves (m) of estimators and sqrt(PCRB) (m) over time t (s).
+
+    bound_model states the motion and noise model the bound assumes (printed under the title).
+    """
+    return pcrb_panels([(t, rmse, sqrt_pcrb, bound_model, title)])
+
+
+def pcrb_panels(panels: list[tuple]) -> bytes:
+    """pcrb_vs_rmse for several cells, one panel each: (t, rmse, sqrt_pcrb, bound_model, title)."""
+    return _stacked(_draw_pcrb, panels, 3.8)
+
+
+def consistency_over_time(t, test: ConsistencyTest, statistic: str, title: str) -> bytes:
+    """ANEES or ANIS (statistic names which) over time t (s) with its 95% band, and the time
+    average with its band and the verdict in the legend."""
+    return consistency_panels([(t, test, statistic, title)])
+
+
+def consistency_panels(panels: list[tuple]) -> bytes:
+    """consistency_over_time for several cells and statistics: (t, test, statistic, title)."""
+    return _stacked(_draw_consistency, panels, 3.6)

@@ -150,6 +150,22 @@ def paper_c_section(results: pd.DataFrame, claims: dict, figures: dict[str, str]
 
 
 STUDY_STATS = ("median", "p75", "rmse", "availability", "resets")
+BOUND_STATS = ("sqrt_pcrb", "efficiency", "anees", "anis")     # Bayesian filter cells only
+
+
+def with_verdict(cell: dict) -> dict:
+    """An ANEES / ANIS cell (value, band in low / high) with its verdict (metrics.consistency)."""
+    from wsnloc.metrics.consistency import verdict
+
+    if cell["value"] is None or cell["low"] is None:
+        return dict(cell, verdict=None)
+    return dict(cell, verdict=verdict(cell["value"], cell["low"], cell["high"]))
+
+
+def _study_cell(results: pd.DataFrame, cell: str, scenario: str) -> dict:
+    stats = {stat: _cell(results, row=cell, scenario=scenario, column=stat) for stat in STUDY_STATS + BOUND_STATS}
+    stats.update({stat: with_verdict(stats[stat]) for stat in ("anees", "anis")})
+    return stats
 
 
 def study_section(results: pd.DataFrame, study: str, spec: dict, figures: dict[str, str]) -> dict:
@@ -161,8 +177,7 @@ def study_section(results: pd.DataFrame, study: str, spec: dict, figures: dict[s
     tables = []
     for subset in dict.fromkeys(sel["table"]):
         in_subset = sel[sel["table"] == subset]
-        rows = [{"label": cell, "cells": [{stat: _cell(in_subset, row=cell, scenario=sc, column=stat)
-                                           for stat in STUDY_STATS} for sc in scenarios]} for cell in cells]
+        rows = [{"label": cell, "cells": [_study_cell(in_subset, cell, sc) for sc in scenarios]} for cell in cells]
         tables.append({"subset": subset, "scenarios": scenarios, "rows": rows})
     estimators = [{"cell": c, "estimator": estimator_of(spec, c),
                    "overrides": {k: v for k, v in (spec["estimators"][c] or {}).items() if k != "estimator"}}
