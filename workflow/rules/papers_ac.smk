@@ -13,6 +13,7 @@ rule paper_a:
     output:
         estimates="data/processed/{dataset}/{scenario}/paper_a/estimates.parquet",
         metrics="data/processed/{dataset}/{scenario}/paper_a/metrics.csv",
+        quality="data/processed/{dataset}/{scenario}/paper_a/quality.parquet",
     params:
         settings=PAPER_A,
     priority: PRIORITY["estimator"]
@@ -57,6 +58,7 @@ rule paper_c:
     output:
         estimates="data/processed/{dataset}/{scenario}/paper_c/estimates.parquet",
         metrics="data/processed/{dataset}/{scenario}/paper_c/metrics.csv",
+        quality="data/processed/{dataset}/{scenario}/paper_c/quality.parquet",
     params:
         settings=PAPER_C,
         label="{dataset}/{scenario}",

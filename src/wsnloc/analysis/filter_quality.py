@@ -108,3 +108,21 @@ def consistency(quality: pd.DataFrame, period: float, epoch_updates: bool) -> di
             dof, _ = _runs_by_epoch(with_update, "n_meas", period)
             out["ANIS"] = (t, consistency_test(nis, np.nan_to_num(dof)))
     return out
+
+
+def grouped_quality(data: RunData, scored: pd.DataFrame, keys: list[str], params_of) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """run_quality of every Bayesian filter in one run's scored estimates, grouped by keys
+    (e.g. a paper's table and row); params_of(*key values) gives that filter's resolved
+    registry parameters. Returns (quality rows with the keys, per group sqrt_pcrb and efficiency)."""
+    qualities, efficiencies = [], []
+    for key, group in scored.groupby(keys, sort=False):
+        quality, efficiency = run_quality(data, params_of(*key), group)
+        qualities.append(quality.assign(**dict(zip(keys, key))))
+        efficiencies.append({**dict(zip(keys, key)), **efficiency})
+    return pd.concat(qualities, ignore_index=True), pd.DataFrame(efficiencies)
+
+
+def summary_of(quality: pd.DataFrame, keys: list[str], period: float, epoch_updates: bool) -> dict:
+    """Per group of a quality table with a `run` column: (over_time series, consistency tests, runs)."""
+    return {key: (over_time(group, period), consistency(group, period, epoch_updates), group["run"].nunique())
+            for key, group in quality.groupby(keys, sort=False)}

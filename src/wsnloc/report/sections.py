@@ -119,10 +119,13 @@ def paper_a_section(results: pd.DataFrame, claims: dict, figures: dict[str, str]
     tables = [grid_table(results, experiment="A", table=t, rows=rows, columns=_columns(results, "A", t),
                          metric="rmse_m", title=f"{t}: RMSE [m] {title}", scenario=", ".join(scenarios))
               for t, title in (("Table I", "(plain EKF)"), ("Table II", "(with motion detection)"))]
-    details = [{"title": f"{t} detail", "metrics": ["median_m", "p95_m", "max_m"],
+    from wsnloc.experiments.paper_a import DETAIL_METRICS
+
+    metrics = [m for m in DETAIL_METRICS.values() if (results["metric"] == m).any()]
+    details = [{"title": f"{t} detail", "metrics": metrics,
                 "lines": [{"label": f"{r} / {c}", "cells": [
-                    _cell(results, experiment="A", table=f"{t} detail", row=r, scenario=sc, column=m.removesuffix("_m"),
-                          metric=m) for m in ("median_m", "p95_m", "max_m")]}
+                    _cell(results, experiment="A", table=f"{t} detail", row=r, scenario=sc, column=column,
+                          metric=m) for column, m in DETAIL_METRICS.items() if m in metrics]}
                           for r in rows for sc, c in zip(scenarios, _columns(results, "A", t))]}
                for t in ("Table I", "Table II")]
     return {"id": "A", "title": paper["title"], "citation": paper["citation"], "published": True, "tables": tables,
