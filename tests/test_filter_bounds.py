@@ -8,7 +8,7 @@ import pytest
 
 from synthetic import bursts, run_data, tables_for
 from wsnloc.analysis.filter_bounds import bound_model, filter_pcrb, is_bayesian
-from wsnloc.analysis.filter_quality import consistency, epoch_quality, over_time, run_efficiency
+from wsnloc.analysis.filter_quality import consistency, epoch_quality, grouped_quality, over_time, run_efficiency
 from wsnloc.estimators import registry
 from wsnloc.filters.motion_models import constant_velocity
 from wsnloc.metrics.bounds import toa_crlb
@@ -111,3 +111,22 @@ def test_overconfident_epoch_filter_is_optimistic_in_nees_and_nis():
         frames.append(epoch_quality(scored, filter_pcrb(data, p)).assign(run=f"run-{r}"))
     tests = consistency(pd.concat(frames, ignore_index=True), PERIOD, epoch_updates=True)
     assert tests["ANEES"][1].verdict == "optimistic" and tests["ANIS"][1].verdict == "optimistic"
+
+
+def test_grouped_quality_keeps_each_rows_values_and_index():
+    """Two filters in one scored frame (interleaved rows, as a paper's run): each group's
+    quality rows carry its own times, errors and bound, aligned with the estimates' index."""
+    times, ids = bursts(10.0, PERIOD, FIELD)
+    data = run_data(tables_for(times, ids, np.array([20.0, 25.0]), FIELD))
+    params = {"loose": registry.get("ekf_p").resolve({"range_sigma_m": 1.0}),
+              "tight": registry.get("ekf_p").resolve({"range_sigma_m": 0.1})}
+    frames = [registry.run("ekf_p", data, p).assign(row=name) for name, p in params.items()]
+    scored = score(pd.concat(frames).sort_values("t", kind="stable").reset_index(drop=True), data.table("truth"))
+    quality, efficiency = grouped_quality(data, scored, ["row"], lambda row: params[row])
+    for name, p in params.items():
+        rows = quality[quality["row"] == name]
+        np.testing.assert_array_equal(rows["t"], scored.loc[scored["row"] == name, "t"])
+        expected = epoch_quality(scored[scored["row"] == name].reset_index(drop=True), filter_pcrb(data, p))
+        np.testing.assert_allclose(rows["pcrb_m2"], expected["pcrb_m2"])
+    loose, tight = (efficiency.set_index("row").loc[n, "sqrt_pcrb"] for n in ("loose", "tight"))
+    assert loose > 5 * tight

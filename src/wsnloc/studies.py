@@ -23,8 +23,8 @@ import numpy as np
 import pandas as pd
 
 from wsnloc import results
-from wsnloc.analysis.filter_bounds import bound_model, is_bayesian
-from wsnloc.analysis.filter_quality import QUALITY_COLUMNS, consistency, consistency_rows, over_time, run_quality
+from wsnloc.analysis.filter_bounds import is_bayesian
+from wsnloc.analysis.filter_quality import QUALITY_COLUMNS, cell_outputs, run_quality
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError, WsnlocError
 from wsnloc.estimators import registry
@@ -199,14 +199,11 @@ def bound_summary(study: str, cells: list[dict], qualities: list[pd.DataFrame]) 
     (consistency_panels), one per cell and subset."""
     rows, bound_panels, consistency_panels = [], [], []
     for cell, quality in zip(cells, qualities):
-        p = cell["parameters"]
         for subset, group in quality.groupby("subset", sort=False):
-            tests = consistency(group, p["epoch_s"], p["update"] == "epoch")
-            rows += consistency_rows(tests, group["run"].nunique(), experiment=EXPERIMENT_PREFIX + study,
-                                     table=subset, row=cell["cell"], scenario=cell["label"])
-            title = f"{cell['label']}: {cell['cell']} [{subset}], {group['run'].nunique()} runs"
-            series = over_time(group, p["epoch_s"])
-            bound_panels.append((series["t"], {cell["cell"]: series["rmse"]}, series["sqrt_pcrb"],
-                                 bound_model(dict(p, anchors=subset)), title))
-            consistency_panels += [(t, test, name, title) for name, (t, test) in tests.items()]
+            cell_rows, bound, panels = cell_outputs(
+                group, dict(cell["parameters"], anchors=subset), cell["cell"], f"{cell['label']}: {cell['cell']} [{subset}]",
+                experiment=EXPERIMENT_PREFIX + study, table=subset, row=cell["cell"], scenario=cell["label"])
+            rows += cell_rows
+            bound_panels.append(bound)
+            consistency_panels += panels
     return rows, bound_panels, consistency_panels

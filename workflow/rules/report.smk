@@ -21,6 +21,8 @@ rule report:
                 "data/processed/paper_a/figures/error_cdf.png",
                 "data/processed/paper_a/figures/trajectories.png",
                 "data/processed/paper_a/figures/rmse_vs_anchors.png",
+                "data/processed/paper_a/figures/pcrb_vs_rmse.png",
+                "data/processed/paper_a/figures/consistency.png",
             ]
             if PAPER_A_PAIRS
             else []
@@ -33,6 +35,8 @@ rule report:
                 "data/processed/paper_c/figures/error_cdf.png",
                 "data/processed/paper_c/figures/trajectories.png",
                 "data/processed/paper_c/figures/rmse_vs_anchors.png",
+                "data/processed/paper_c/figures/pcrb_vs_rmse.png",
+                "data/processed/paper_c/figures/consistency.png",
             ]
             if PAPER_C_PAIRS
             else []

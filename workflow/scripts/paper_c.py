@@ -3,8 +3,8 @@
 import pandas as pd
 
 from wsnloc.analysis.filter_quality import grouped_quality
+from wsnloc.analysis.paper_bounds import PAPER_C_KEYS, paper_c_params
 from wsnloc.campaign import Campaign
-from wsnloc.estimators import registry
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import paper_c
 from wsnloc.io import tables
@@ -17,21 +17,14 @@ campaign = Campaign.load(sm.input.campaign)
 settings = paper_c.Settings.from_config(sm.params.settings)
 settings.check_against(campaign)
 subsets = paper_c.subsets_of(settings, sm.params.label)
-
-
-def filter_params(subset, model):
-    """The `ekf` parameters of a model and beacon subset, for its PCRB."""
-    return registry.get("ekf").resolve(paper_c.estimator_params(settings, model, subset))
-
-
 estimates, metrics, qualities = [], [], []
 for name, run_tables in load_runs(sm.input.tables, paper_c.INPUT_TABLES, sm.input.imu_5hz).items():
     data = RunData(run_tables, campaign, None, name)
     est = paper_c.run(data, settings, subsets).assign(run=name)
-    quality, efficiency = grouped_quality(data, est, ["subset", "model"], filter_params)
+    quality, efficiency = grouped_quality(data, est, PAPER_C_KEYS, paper_c_params(settings))
     estimates.append(est)
     qualities.append(quality.assign(run=name))
-    metrics.append(paper_c.run_metrics(est, run_tables["truth"]).merge(efficiency, on=["subset", "model"])
+    metrics.append(paper_c.run_metrics(est, run_tables["truth"]).merge(efficiency, on=PAPER_C_KEYS)
                    .assign(run=name))
     log.info("%s done", name)
 tables.write("estimates_paper_c", pd.concat(estimates, ignore_index=True), sm.output.estimates)

@@ -47,9 +47,11 @@ for study, spec in sm.params.studies.items():
     context["studies"].append(study_section(final_results, study, spec, figures_uri))
 
 SECTIONS = {   # paper: (section builder, figure names, labels)
-    "A": (paper_a_section, ("error_cdf", "trajectories", "rmse_vs_anchors"), sm.params.paper_a_labels),
+    "A": (paper_a_section, ("error_cdf", "trajectories", "rmse_vs_anchors", "pcrb_vs_rmse", "consistency"),
+          sm.params.paper_a_labels),
     "B": (paper_b_section, ("trajectories", "error_over_time", "error_cdf"), sm.params.paper_b_labels),
-    "C": (paper_c_section, ("error_histogram", "error_cdf", "trajectories", "rmse_vs_anchors"), sm.params.paper_c_labels),
+    "C": (paper_c_section, ("error_histogram", "error_cdf", "trajectories", "rmse_vs_anchors", "pcrb_vs_rmse",
+                            "consistency"), sm.params.paper_c_labels),
     "D": (paper_d_section, ("error_cdf", "trajectories"), sm.params.paper_d_labels),
 }
 context["papers"] = []

@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 
 from wsnloc import results
-from wsnloc.analysis.filter_bounds import filter_pcrb
+from wsnloc.analysis.filter_bounds import bound_model, filter_pcrb
 from wsnloc.estimators.run_data import RunData
 from wsnloc.metrics.consistency import consistency_test, normalized_squared
 
@@ -37,10 +37,9 @@ def epoch_quality(scored: pd.DataFrame, bound: pd.DataFrame) -> pd.DataFrame:
     merged = est.merge(bound, on="t", how="left", validate="many_to_one")
     error = merged[["x", "y"]].to_numpy(float) - merged[["true_x", "true_y"]].to_numpy(float)
     covariance = merged[["p_xx", "p_xy", "p_xy", "p_yy"]].to_numpy(float).reshape(-1, 2, 2)
-    return pd.DataFrame({"t": merged["t"], "error_m": merged["error_m"],
-                         "pcrb_m2": merged["pcrb_xx"] + merged["pcrb_yy"],
-                         "nees": normalized_squared(error, covariance), "nis": merged["nis"],
-                         "n_meas": merged["n_meas"]}, index=est.index)
+    columns = {"t": merged["t"], "error_m": merged["error_m"], "pcrb_m2": merged["pcrb_xx"] + merged["pcrb_yy"],
+               "nees": normalized_squared(error, covariance), "nis": merged["nis"], "n_meas": merged["n_meas"]}
+    return pd.DataFrame({k: np.asarray(v, dtype=float) for k, v in columns.items()}, index=est.index)
 
 
 def run_efficiency(quality: pd.DataFrame) -> dict[str, float]:
@@ -122,7 +121,14 @@ def grouped_quality(data: RunData, scored: pd.DataFrame, keys: list[str], params
     return pd.concat(qualities, ignore_index=True), pd.DataFrame(efficiencies)
 
 
-def summary_of(quality: pd.DataFrame, keys: list[str], period: float, epoch_updates: bool) -> dict:
-    """Per group of a quality table with a `run` column: (over_time series, consistency tests, runs)."""
-    return {key: (over_time(group, period), consistency(group, period, epoch_updates), group["run"].nunique())
-            for key, group in quality.groupby(keys, sort=False)}
+def cell_outputs(quality: pd.DataFrame, p: dict, label: str, title: str, **keys) -> tuple[list, tuple, list]:
+    """Report outputs of one Bayesian filter cell over its runs (quality rows with `run`,
+    resolved parameters p): results rows of ANEES / ANIS (consistency_rows with keys
+    experiment, table, row, scenario), the panel of sqrt(PCRB) beside the RMSE (labelled
+    label; bound_figures.pcrb_panels) and the ANEES / ANIS panels (consistency_panels)."""
+    runs = quality["run"].nunique()
+    tests = consistency(quality, p["epoch_s"], p["update"] == "epoch")
+    series = over_time(quality, p["epoch_s"])
+    title = f"{title}, {runs} runs"
+    bound = (series["t"], {label: series["rmse"]}, series["sqrt_pcrb"], bound_model(p), title)
+    return consistency_rows(tests, runs, **keys), bound, [(t, test, name, title) for name, (t, test) in tests.items()]

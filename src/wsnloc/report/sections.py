@@ -111,6 +111,18 @@ def _columns(results: pd.DataFrame, experiment: str, table: str) -> list[str]:
     return list(dict.fromkeys(sel["column"]))
 
 
+def bound_line(results: pd.DataFrame, label: str, experiment: str, scenario: str, detail: dict, consistency: dict) -> dict:
+    """One line of a paper's bound table: sqrt(PCRB), efficiency (results rows selected by
+    detail plus column = `<prefix>sqrt_pcrb` / `<prefix>efficiency`), ANEES and ANIS with their
+    bands and verdicts (selected by consistency)."""
+    prefix = detail.pop("prefix", "")
+    keys = dict(experiment=experiment, scenario=scenario)
+    return {"label": label,
+            "sqrt_pcrb": _cell(results, **keys, **detail, column=f"{prefix}sqrt_pcrb"),
+            "efficiency": _cell(results, **keys, **detail, column=f"{prefix}efficiency"),
+            **{stat: with_verdict(_cell(results, **keys, **consistency, column=stat)) for stat in ("anees", "anis")}}
+
+
 def paper_a_section(results: pd.DataFrame, claims: dict, figures: dict[str, str], paper: dict,
                     scenarios: list[str], settings: dict) -> dict:
     from wsnloc.experiments.paper_a import row_label
@@ -128,8 +140,11 @@ def paper_a_section(results: pd.DataFrame, claims: dict, figures: dict[str, str]
                           metric=m) for column, m in DETAIL_METRICS.items() if m in metrics]}
                           for r in rows for sc, c in zip(scenarios, _columns(results, "A", t))]}
                for t in ("Table I", "Table II")]
+    bounds = [bound_line(results, f"{t}: {r} / {sc}", "A", sc, {"table": f"{t} detail", "row": r},
+                         {"table": f"consistency: {t}", "row": r}) for t in ("Table I", "Table II") for r in rows
+              for sc in scenarios]
     return {"id": "A", "title": paper["title"], "citation": paper["citation"], "published": True, "tables": tables,
-            "details": details, "claims": claims["claims"], "cost": [], "figures": figures, "settings": settings}
+            "bounds": bounds, "details": details, "claims": claims["claims"], "cost": [], "figures": figures, "settings": settings}
 
 
 def paper_c_section(results: pd.DataFrame, claims: dict, figures: dict[str, str], paper: dict,
@@ -148,8 +163,12 @@ def paper_c_section(results: pd.DataFrame, claims: dict, figures: dict[str, str]
     details = [{"title": "Table I detail (median, p95, max per speed)", "metrics": detail_columns,
                 "lines": [{"label": m, "cells": [_cell(results, experiment="C", table="Table I detail", row=m, column=c)
                                                  for c in detail_columns]} for m in MODELS]}]
+    speeds = [c.removesuffix(" efficiency") for c in detail_columns if c.endswith(" efficiency")]   # scenario order
+    bounds = [bound_line(results, f"{m} / {sc}", "C", sc, {"table": "Table I detail", "row": m, "prefix": f"{speed} "},
+                         {"table": f"consistency: {settings['table_1_subset']}", "row": m})
+              for m in MODELS for sc, speed in zip(scenarios, speeds)]
     return {"id": "C", "title": paper["title"], "citation": paper["citation"], "published": True, "tables": tables,
-            "details": details, "claims": claims["claims"], "cost": [], "figures": figures, "settings": settings}
+            "bounds": bounds, "details": details, "claims": claims["claims"], "cost": [], "figures": figures, "settings": settings}
 
 
 STUDY_STATS = ("median", "p75", "rmse", "availability", "resets")
