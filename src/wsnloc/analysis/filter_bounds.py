@@ -69,15 +69,14 @@ def _measurement_steps(source, times: np.ndarray, p: dict):
 
 
 def _transitions(motion: MotionModel, steps: np.ndarray, static_of_step: np.ndarray):
-    """F, Q (len(steps) - 1, n, n) of the steps s_{j-1} -> s_j; identity and zero where static."""
-    n = motion.dim
-    F = np.empty((max(len(steps) - 1, 0), n, n))
-    Q = np.zeros_like(F)
-    for j, dt in enumerate(np.diff(steps)):
-        if static_of_step[j + 1]:
-            F[j] = np.eye(n)
-            continue
-        F[j], Q[j], _ = motion.matrices(float(dt))
+    """F, Q (len(steps) - 1, n, n) of the steps s_{j-1} -> s_j; identity and zero where static.
+    The matrices are built once per distinct step length."""
+    lengths, which = np.unique(np.diff(steps), return_inverse=True)
+    built = [motion.matrices(float(dt))[:2] for dt in lengths]
+    F = np.array([f for f, _ in built]).reshape(-1, motion.dim, motion.dim)[which]
+    Q = np.array([q for _, q in built]).reshape(-1, motion.dim, motion.dim)[which]
+    static = static_of_step[1:]
+    F[static], Q[static] = np.eye(motion.dim), 0.0
     return F, Q
 
 

@@ -34,11 +34,16 @@ def epoch_quality(scored: pd.DataFrame, bound: pd.DataFrame) -> pd.DataFrame:
     """QUALITY_COLUMNS of the finite estimates of one run: scored filter output (t, x, y,
     true_x, true_y, error_m, p_xx, p_xy, p_yy, nis, n_meas) beside its bound (filter_bounds)."""
     est = scored[np.isfinite(scored["x"]) & np.isfinite(scored["y"])]
-    merged = est.merge(bound, on="t", how="left", validate="many_to_one")
-    error = merged[["x", "y"]].to_numpy(float) - merged[["true_x", "true_y"]].to_numpy(float)
-    covariance = merged[["p_xx", "p_xy", "p_xy", "p_yy"]].to_numpy(float).reshape(-1, 2, 2)
-    columns = {"t": merged["t"], "error_m": merged["error_m"], "pcrb_m2": merged["pcrb_xx"] + merged["pcrb_yy"],
-               "nees": normalized_squared(error, covariance), "nis": merged["nis"], "n_meas": merged["n_meas"]}
+    t, bound_t = est["t"].to_numpy(float), bound["t"].to_numpy(float)
+    at = np.searchsorted(bound_t, t)                 # the bound at the estimate's epoch end (same grid)
+    found = at < len(bound_t)
+    found[found] = bound_t[at[found]] == t[found]
+    trace = np.full(len(t), np.nan)
+    trace[found] = (bound["pcrb_xx"].to_numpy(float) + bound["pcrb_yy"].to_numpy(float))[at[found]]
+    error = est[["x", "y"]].to_numpy(float) - est[["true_x", "true_y"]].to_numpy(float)
+    covariance = est[["p_xx", "p_xy", "p_xy", "p_yy"]].to_numpy(float).reshape(-1, 2, 2)
+    columns = {"t": t, "error_m": est["error_m"], "pcrb_m2": trace, "nees": normalized_squared(error, covariance),
+               "nis": est["nis"], "n_meas": est["n_meas"]}
     return pd.DataFrame({k: np.asarray(v, dtype=float) for k, v in columns.items()}, index=est.index)
 
 
