@@ -42,6 +42,8 @@ rule report:
             else []
         ),
         studies=[f"data/processed/studies/{study}/{name}" for study in STUDIES for name in STUDY_OUTPUTS],
+        bounds=[f"data/processed/{d}/bounds/{name}" for d in BOUND_DATASETS
+                for name in ("results.csv", "figures/crlb_maps.png")],
         paper_b=(
             [
                 "data/processed/paper_b/results.csv",

@@ -206,3 +206,22 @@ def study_section(results: pd.DataFrame, study: str, spec: dict, figures: dict[s
                   for c in cells]
     return {"id": study, "tables": tables, "estimators": estimators, "overrides": spec.get("overrides") or {},
             "figures": figures}
+
+
+def static_bounds_section(results: pd.DataFrame, dataset: str, maps: str) -> dict:
+    """Context of a dataset's static bounds (analysis.static_bounds): the mean and max CRLB
+    along the path per subset, each subset search's named / best / worst subsets with their
+    rank and mean CRLB, and the map figure (data URI)."""
+    from wsnloc.analysis.static_bounds import EXPERIMENT
+
+    sel = results[(results["experiment"] == EXPERIMENT) & (results["scenario"] == dataset)]
+    path = sel[sel["table"] == "CRLB along the path"]
+    path_lines = [{"label": row, "mean": _cell(path, row=row, column="mean"), "max": _cell(path, row=row, column="max")}
+                  for row in dict.fromkeys(path["row"])]
+    searches = []
+    for table in dict.fromkeys(sel.loc[sel["table"].str.startswith("subset search"), "table"]):
+        rows = sel[sel["table"] == table]
+        searches.append({"title": table, "lines": [
+            {"label": row, "rank": _cell(rows, row=row, column="rank"), "mean": _cell(rows, row=row, column="mean CRLB")}
+            for row in dict.fromkeys(rows["row"])]})
+    return {"path": path_lines, "searches": searches, "maps": maps}
