@@ -16,8 +16,8 @@ dataset = sm.wildcards.dataset
 campaign = Campaign.load(sm.input.campaign)
 model = NoiseModel(**sm.params.model)
 subsets = list(sm.params.subsets)
-x, y, panels = floor_maps(campaign, subsets, model, sm.params.grid_m)
-Path(sm.output.maps).write_bytes(bound_figures.bound_maps(campaign, campaign.anchors, x, y, panels))
+x, y, panels, anchors = floor_maps(campaign, subsets, model, sm.params.grid_m)
+Path(sm.output.maps).write_bytes(bound_figures.bound_maps(campaign, anchors, x, y, panels))
 rows = path_rows(campaign, subsets, model, dataset)
 rankings = []
 for tech, sizes in sm.params.sizes.items():

@@ -98,27 +98,45 @@ def path_points(campaign: Campaign) -> np.ndarray:
     return np.column_stack([pose["x"], pose["y"]])
 
 
-def floor_maps(campaign: Campaign, expressions: list[str], model: NoiseModel,
-               spacing_m: float) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-    """Grid x (nx,), y (ny,) (m) and map panels (title -> (ny, nx) values): the CRLB of each
-    subset expression, and the GDOP of each ranging-only one."""
+def distinct(campaign: Campaign, expressions: list[str]) -> list[str]:
+    """The expressions without those naming the same anchors as an earlier one (e.g. 'all'
+    after the subset of every anchor)."""
+    seen, out = set(), []
+    for expression in expressions:
+        key = tuple(map(tuple, members(campaign, expression)))
+        if key not in seen:
+            seen.add(key)
+            out.append(expression)
+    return out
+
+
+def floor_maps(campaign: Campaign, expressions: list[str], model: NoiseModel, spacing_m: float
+               ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], dict[str, pd.DataFrame]]:
+    """Grid x (nx,), y (ny,) (m), map panels (title -> (ny, nx) values) and the anchors of each
+    panel: per distinct subset expression, the GDOP of a ranging-only subset (its CRLB is
+    sigma x GDOP, said in the title) and the CRLB (m) of an RSS or hybrid one."""
     floor = campaign.spec["floor"]
     x, y, points = grid_points(floor["width_m"], floor["height_m"], spacing_m)
-    panels = {}
-    for expression in expressions:
-        kind, values = crlb(campaign, expression, model, points)
-        panels[f"{expression}: {kind.upper()} CRLB [m] ({model.describe(kind)})"] = values.reshape(len(y), len(x))
-        if kind == "toa":
-            xy, dz = _geometry(campaign, members(campaign, expression)[0])
-            panels[f"{expression}: GDOP [1]"] = gdop(points, xy, dz).reshape(len(y), len(x))
-    return x, y, panels
+    panels, anchors = {}, {}
+    for expression in distinct(campaign, expressions):
+        toa_ids, rss_ids = members(campaign, expression)
+        if rss_ids:
+            kind, values = crlb(campaign, expression, model, points)
+            title = f"{expression}: {kind.upper()} CRLB [m] ({model.describe(kind)})"
+        else:
+            xy, dz = _geometry(campaign, toa_ids)
+            values = gdop(points, xy, dz)
+            title = f"{expression}: GDOP [1] (TOA CRLB = {model.range_sigma_m:g} m x GDOP)"
+        panels[title] = values.reshape(len(y), len(x))
+        anchors[title] = campaign.anchors[campaign.anchors["anchor_id"].isin(toa_ids + rss_ids)]
+    return x, y, panels, anchors
 
 
 def path_rows(campaign: Campaign, expressions: list[str], model: NoiseModel, dataset: str) -> list[dict]:
     """results rows: mean and max CRLB (m) along the path of each subset expression."""
     points = path_points(campaign)
     out = []
-    for expression in expressions:
+    for expression in distinct(campaign, expressions):
         kind, values = crlb(campaign, expression, model, points)
         for statistic, value in (("mean", np.mean(values)), ("max", np.max(values))):
             out.append(results.single_row(float(value), experiment=EXPERIMENT, table="CRLB along the path",

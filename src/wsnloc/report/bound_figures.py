@@ -41,10 +41,12 @@ def _overlay_floor(ax, campaign: Campaign, anchors: pd.DataFrame) -> None:
                         fontsize=7, color="w")
 
 
-def bound_maps(campaign: Campaign, anchors: pd.DataFrame, x, y, panels: dict[str, np.ndarray]) -> bytes:
+def bound_maps(campaign: Campaign, anchors: pd.DataFrame | dict[str, pd.DataFrame], x, y,
+               panels: dict[str, np.ndarray]) -> bytes:
     """One floor map per panel (title with units -> values (len(y), len(x)) on the grid of
-    cell centres x, y in m). The colour scale runs from the minimum to the 95th percentile
-    (values above are drawn in the top colour); infinite values (singular geometry) are grey."""
+    cell centres x, y in m), with the anchors drawn (one frame, or one per panel title). The
+    colour scale runs from the minimum to the 95th percentile (values above are drawn in the
+    top colour); infinite values (singular geometry) are grey."""
     width, height = campaign.spec["floor"]["width_m"], campaign.spec["floor"]["height_m"]
     fig, axes = plt.subplots(len(panels), 1, figsize=(9, (9 * height / width + 0.9) * len(panels)), squeeze=False)
     for ax, (title, values) in zip(axes[:, 0], panels.items()):
@@ -53,8 +55,8 @@ def bound_maps(campaign: Campaign, anchors: pd.DataFrame, x, y, panels: dict[str
         cmap = plt.get_cmap("viridis").with_extremes(bad="0.6")
         image = ax.pcolormesh(x, y, np.ma.masked_invalid(values), cmap=cmap, shading="nearest", vmin=low, vmax=high)
         fig.colorbar(image, cax=make_axes_locatable(ax).append_axes("right", size="2.5%", pad=0.1),
-                     label=title, extend="max")
-        _overlay_floor(ax, campaign, anchors)
+                     label=title.split(": ", 1)[-1].split(" (")[0], extend="max")   # quantity [unit]
+        _overlay_floor(ax, campaign, anchors[title] if isinstance(anchors, dict) else anchors)
         ax.set_xlim(0, width)
         ax.set_ylim(0, height)
         ax.set_aspect("equal")
