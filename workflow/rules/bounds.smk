@@ -4,6 +4,8 @@ from wsnloc.analysis.static_bounds import check_config as _check_bounds, configu
 
 _check_bounds(config)
 BOUND_DATASETS = list((config.get("bounds") or {}).get("models") or {})
+SUBSET_MONTE_CARLO = [label.split("/", 1) for label in ((config.get("bounds") or {}).get("monte_carlo") or {})
+                      .get("scenarios", [])]
 
 
 rule static_bounds:
@@ -26,3 +28,24 @@ rule static_bounds:
         ENV
     script:
         "../scripts/static_bounds.py"
+
+
+rule subset_monte_carlo:
+    input:
+        tables=lambda w: tables_of(w.dataset, w.scenario),
+        campaign=campaign_file,
+    output:
+        results="data/processed/{dataset}/{scenario}/bounds/subset_monte_carlo.csv",
+    params:
+        label="{dataset}/{scenario}",
+        model=lambda w: config["bounds"]["models"][w.dataset],
+        sizes=lambda w: config["bounds"]["subset_sizes"][w.dataset],
+        shown=config.get("bounds", {}).get("shown", 3),
+        estimators=config.get("bounds", {}).get("monte_carlo", {}).get("estimators", {}),
+    priority: PRIORITY["estimator"]
+    log:
+        "logs/subset_monte_carlo/{dataset}-{scenario}.log",
+    conda:
+        ENV
+    script:
+        "../scripts/subset_monte_carlo.py"

@@ -43,7 +43,8 @@ rule report:
         ),
         studies=[f"data/processed/studies/{study}/{name}" for study in STUDIES for name in STUDY_OUTPUTS],
         bounds=[f"data/processed/{d}/bounds/{name}" for d in BOUND_DATASETS
-                for name in ("results.csv", "figures/crlb_maps.png")],
+                for name in ("results.csv", "figures/crlb_maps.png")]
+        + [f"data/processed/{d}/{s}/bounds/subset_monte_carlo.csv" for d, s in SUBSET_MONTE_CARLO],
         paper_b=(
             [
                 "data/processed/paper_b/results.csv",

@@ -21,7 +21,8 @@ config = sm.params.config
 
 summaries = [json.loads(Path(p).read_text()) for p in sm.input.summaries]
 paper_outputs = list(sm.input.studies) + list(sm.input.paper_a) + list(sm.input.paper_b) + list(sm.input.paper_c) + list(sm.input.paper_d)
-result_files = list(sm.input.results) + [p for p in paper_outputs + list(sm.input.bounds) if p.endswith("results.csv")]
+result_files = list(sm.input.results) + [p for p in paper_outputs if p.endswith("results.csv")] \
+    + [p for p in sm.input.bounds if p.endswith(".csv")]   # static bounds and subset Monte Carlo rows
 all_results = pd.concat([results.read(p) for p in result_files], ignore_index=True)
 results.write(all_results, sm.output.results)
 

@@ -19,7 +19,7 @@ import pandas as pd
 
 from wsnloc import results
 from wsnloc.campaign import Campaign
-from wsnloc.errors import ConfigError
+from wsnloc.errors import ConfigError, WsnlocError
 from wsnloc.estimators.run_data import ALL_ANCHORS
 from wsnloc.metrics.bounds import (gdop, grid_points, hybrid_crlb, rss_crlb, rss_information_terms, toa_crlb,
                                    toa_information_terms)
@@ -166,22 +166,69 @@ def subset_search(campaign: Campaign, tech: str, k: int, model: NoiseModel) -> t
     return table, named
 
 
+def picked_subsets(table: pd.DataFrame, named: dict[str, str], shown: int) -> dict[str, str]:
+    """Label -> members key of the subsets a search reports: the named ones, then the
+    `shown` best and worst ('best 1: U01,...', 'worst 1: ...')."""
+    picks = dict(named)
+    picks.update({f"best {i + 1}: {key}": key for i, key in enumerate(table["members"].head(shown))})
+    picks.update({f"worst {i + 1}: {key}": key for i, key in enumerate(table["members"].tail(shown)[::-1])})
+    return picks
+
+
+def search_label(tech: str, k: int, count: int) -> str:
+    return f"subset search: {tech}, {k} anchors, {count} subsets"
+
+
 def subset_rows(table: pd.DataFrame, named: dict[str, str], tech: str, k: int, dataset: str,
                 shown: int) -> list[dict]:
-    """results rows of a subset search: rank and mean CRLB along the path (m) of each named
-    subset and of the `shown` best and worst subsets (row: their anchor ids)."""
-    label = f"subset search: {tech}, {k} anchors, {len(table)} subsets"
+    """results rows of a subset search: rank and mean CRLB along the path (m) of each picked
+    subset (picked_subsets)."""
+    label = search_label(tech, k, len(table))
     by_members = table.set_index("members")
-    picks = [(name, by_members.loc[key]) for name, key in named.items()]
-    picks += [(f"best {i + 1}: {r['members']}", r) for i, (_, r) in enumerate(table.head(shown).iterrows())]
-    picks += [(f"worst {i + 1}: {r['members']}", r) for i, (_, r) in enumerate(table.tail(shown)[::-1].iterrows())]
     out = []
-    for row, record in picks:
+    for row, key in picked_subsets(table, named, shown).items():
+        record = by_members.loc[key]
         out.append(results.single_row(int(record["rank"]), experiment=EXPERIMENT, table=label, row=row,
                                       column="rank", scenario=dataset, metric="rank"))
         out.append(results.single_row(float(record["mean_bound_m"]), experiment=EXPERIMENT, table=label, row=row,
                                       column="mean CRLB", scenario=dataset, metric="crlb_mean_m"))
     return out
+
+
+def with_subsets(campaign: Campaign, subsets: dict[str, str]) -> Campaign:
+    """The campaign with extra named subsets (label -> comma-joined anchor ids), so that an
+    estimator can read any searched subset by its label (estimators' `anchors`)."""
+    spec = dict(campaign.spec, subsets={**campaign.spec.get("subsets", {}),
+                                        **{label: key.split(",") for label, key in subsets.items()}})
+    return Campaign(name=campaign.name, format=campaign.format, spec=spec, source=campaign.source)
+
+
+def monte_carlo_rows(campaign: Campaign, runs: dict[str, dict], label: str, dataset: str, tech: str, k: int,
+                     model: NoiseModel, shown: int, estimator: dict) -> tuple[list[dict], list[str]]:
+    """The picked subsets of one search run through a registry estimator on every run of a
+    scenario (studies.run_cell; estimator: {estimator: name, parameter: value, ...}): results
+    rows of the RMSE (m) per subset, mean over runs with its 95% interval (empty when the
+    estimator gives no estimate on some run), and the reasons of those failures."""
+    from wsnloc.estimators import registry
+    from wsnloc.studies import run_cell
+
+    table, named = subset_search(campaign, tech, k, model)
+    picks = picked_subsets(table, named, shown)
+    where = f"bounds.monte_carlo.estimators.{tech}"
+    name = estimator.get("estimator", "tracker")
+    p = registry.get(name, f"{where}.estimator").resolve({key: v for key, v in estimator.items()
+                                                         if key != "estimator"}, where)
+    extended = with_subsets(campaign, picks)
+    out, failures = [], []
+    for row in picks:
+        try:
+            rmse = run_cell(label, f"{tech} k={k}", name, p, [row], runs, extended)[1]["rmse"]
+        except WsnlocError as error:   # e.g. collinear anchors: the initiator's multilateration never fixes
+            failures.append(str(error))
+            rmse = []
+        out.append(results.row_over_runs(rmse, experiment=EXPERIMENT, table=search_label(tech, k, len(table)),
+                                         row=row, column=f"RMSE {label}", scenario=dataset, metric="rmse_m"))
+    return out, failures
 
 
 def configured_subsets(config: dict, dataset: str) -> list[str]:
@@ -217,3 +264,9 @@ def check_config(config: dict) -> None:
     for dataset in spec.get("subset_sizes") or {}:
         if dataset not in (spec.get("models") or {}):
             raise ConfigError(f"config key 'bounds.subset_sizes.{dataset}': needs 'bounds.models.{dataset}'")
+    for label in (spec.get("monte_carlo") or {}).get("scenarios", []):
+        dataset, scenario = label.split("/", 1)
+        if scenario not in config["datasets"].get(dataset, {}).get("scenarios", []):
+            raise ConfigError(f"config key 'bounds.monte_carlo.scenarios': {label!r} is not a declared dataset/scenario")
+        if dataset not in (spec.get("subset_sizes") or {}):
+            raise ConfigError(f"config key 'bounds.monte_carlo.scenarios': {label!r} needs 'bounds.subset_sizes.{dataset}'")

@@ -221,7 +221,9 @@ def static_bounds_section(results: pd.DataFrame, dataset: str, maps: str) -> dic
     searches = []
     for table in dict.fromkeys(sel.loc[sel["table"].str.startswith("subset search"), "table"]):
         rows = sel[sel["table"] == table]
-        searches.append({"title": table, "lines": [
-            {"label": row, "rank": _cell(rows, row=row, column="rank"), "mean": _cell(rows, row=row, column="mean CRLB")}
+        monte_carlo = [c for c in dict.fromkeys(rows["column"]) if c.startswith("RMSE ")]   # opt-in runs
+        searches.append({"title": table, "monte_carlo": monte_carlo, "lines": [
+            {"label": row, "rank": _cell(rows, row=row, column="rank"), "mean": _cell(rows, row=row, column="mean CRLB"),
+             "rmse": [_cell(rows, row=row, column=c) for c in monte_carlo]}
             for row in dict.fromkeys(rows["row"])]})
     return {"path": path_lines, "searches": searches, "maps": maps}
