@@ -6,7 +6,8 @@ import pytest
 import yaml
 
 from wsnloc.analysis.static_bounds import (NoiseModel, check_config, configured_subsets, crlb, distinct, floor_maps,
-                                           members, path_points, subset_rows, subset_search)
+                                           members, path_points, picked_subsets, subset_rows, subset_search,
+                                           with_subsets)
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
 from wsnloc.metrics.bounds import toa_crlb
@@ -86,3 +87,13 @@ def test_bounds_config_names_declared_datasets(config):
         check_config(dict(config, bounds={"models": {"nosuch": {"range_sigma_m": 0.1}}}))
     with pytest.raises(ConfigError, match="'bounds.subset_sizes.cricket': needs 'bounds.models.cricket'"):
         check_config(dict(config, bounds={"subset_sizes": {"cricket": {"cricket": [3]}}}))
+
+
+def test_picked_subsets_become_campaign_subsets(cricket):
+    table, named = subset_search(cricket, "cricket", 3, NoiseModel(0.05))
+    picks = picked_subsets(table, named, 2)
+    assert list(picks)[0] == "3: B1,B3,B4" and len(picks) == 5
+    assert picks["worst 1: " + table["members"].iloc[-1]] == table["members"].iloc[-1]
+    extended = with_subsets(cricket, picks)
+    assert members(extended, "best 1: " + table["members"][0])[0] == table["members"][0].split(",")
+    assert "best 1: " + table["members"][0] not in cricket.spec["subsets"]     # the campaign itself is unchanged
