@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-from matplotlib.ticker import StrMethodFormatter
+from matplotlib.ticker import NullFormatter, StrMethodFormatter
 from mpl_toolkits.axes_grid1 import make_axes_locatable
 
 from wsnloc.campaign import Campaign
 from wsnloc.metrics.consistency import ConsistencyTest
-from wsnloc.report.figures import TECH_STYLE, plt, to_png
+from wsnloc.report.figures import LABEL_OFFSET, TECH_STYLE, plt, to_png
 
 
 def _finish_time_axes(ax, ylabel: str, title: str) -> None:
@@ -20,7 +20,8 @@ def _finish_time_axes(ax, ylabel: str, title: str) -> None:
     ax.set_title(title, fontsize=9)
     ax.grid(alpha=0.3, which="both")
     ax.yaxis.set_major_formatter(StrMethodFormatter("{x:g}"))
-    ax.yaxis.set_minor_formatter(StrMethodFormatter("{x:g}"))
+    low, high = ax.get_ylim()   # minor labels only within a decade (more would overlap)
+    ax.yaxis.set_minor_formatter(StrMethodFormatter("{x:g}") if high < 10 * low else NullFormatter())
     ax.tick_params(axis="y", which="minor", labelsize=7)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, frameon=False)
 
@@ -36,9 +37,9 @@ def _overlay_floor(ax, campaign: Campaign, anchors: pd.DataFrame) -> None:
         color, marker = TECH_STYLE.get(tech, ("tab:gray", "D"))
         ax.scatter(group["x"], group["y"], c=color, marker=marker, s=40, edgecolors="w", zorder=3,
                    label=f"{tech} ({len(group)})")
-        for _, a in group.iterrows():
-            ax.annotate(a["anchor_id"], (a["x"], a["y"]), xytext=(4, 3), textcoords="offset points",
-                        fontsize=7, color="w")
+        for _, a in group.iterrows():   # co-located anchors of two technologies: labels above / below
+            ax.annotate(a["anchor_id"], (a["x"], a["y"]), xytext=LABEL_OFFSET.get(tech, (4, 3)),
+                        textcoords="offset points", fontsize=7, color="w")
 
 
 def bound_maps(campaign: Campaign, anchors: pd.DataFrame | dict[str, pd.DataFrame], x, y,
@@ -62,7 +63,7 @@ def bound_maps(campaign: Campaign, anchors: pd.DataFrame | dict[str, pd.DataFram
         ax.set_aspect("equal")
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
-        ax.set_title(f"{campaign.name}: {title}", fontsize=10)
+        ax.set_title(f"{campaign.name}: {title}", fontsize=10, pad=14)   # clear of labels of anchors on the edge
         ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.12), ncol=3, fontsize=7, frameon=False)
     fig.tight_layout()
     return to_png(fig)
