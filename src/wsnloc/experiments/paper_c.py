@@ -109,6 +109,11 @@ def results_rows(metrics: pd.DataFrame, scenario_label: str, speed: str, setting
                 out.append(results.row_over_runs(sel["rmse"], experiment=EXPERIMENT, table="Table II", row=subset,
                                                  column=model, scenario=scenario_label, metric="rmse_m",
                                                  paper_value=paper["table_2_rmse_m"].get(subset, {}).get(model)))
+                for metric in ("sqrt_pcrb", "efficiency"):
+                    if metric in sel:   # the bound of each cell (analysis.filter_quality)
+                        out.append(results.row_over_runs(sel[metric], experiment=EXPERIMENT, table="Table II detail",
+                                                         row=subset, column=f"{model} {metric}",
+                                                         scenario=scenario_label, metric=DETAIL_METRICS[metric]))
     return out
 
 

@@ -167,6 +167,10 @@ def paper_c_section(results: pd.DataFrame, claims: dict, figures: dict[str, str]
     bounds = [bound_line(results, f"{m} / {sc}", "C", sc, {"table": "Table I detail", "row": m, "prefix": f"{speed} "},
                          {"table": f"consistency: {settings['table_1_subset']}", "row": m})
               for m in MODELS for sc, speed in zip(scenarios, speeds)]
+    bounds += [bound_line(results, f"Table II: {subset}, {m} / {settings['table_2_scenario']}", "C",
+                          settings["table_2_scenario"], {"table": "Table II detail", "row": subset, "prefix": f"{m} "},
+                          {"table": f"consistency: {subset}", "row": m})
+               for subset in settings["table_2_subsets"] for m in MODELS]
     return {"id": "C", "title": paper["title"], "citation": paper["citation"], "published": True, "tables": tables,
             "bounds": bounds, "details": details, "claims": claims["claims"], "cost": [], "figures": figures, "settings": settings}
 
