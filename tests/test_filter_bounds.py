@@ -130,3 +130,31 @@ def test_grouped_quality_keeps_each_rows_values_and_index():
         np.testing.assert_allclose(rows["pcrb_m2"], expected["pcrb_m2"])
     loose, tight = (efficiency.set_index("row").loc[n, "sqrt_pcrb"] for n in ("loose", "tight"))
     assert loose > 5 * tight
+
+
+def test_study_cells_carry_bound_and_consistency_only_for_bayesian_filters():
+    """studies.run_cell on synthetic runs: a filter cell gets sqrt_pcrb / efficiency metrics and a
+    quality table, whose summary gives ANEES / ANIS rows (band in ci95) and figure panels; a
+    solver cell gets neither."""
+    from wsnloc.studies import bound_summary, quality_table, results_rows, run_cell
+
+    rng = np.random.default_rng(5)
+    runs = {}
+    for r in range(3):
+        times, ids = bursts(15.0, PERIOD, FIELD)
+        runs[f"run-{r}"] = tables_for(times, ids, np.array([20.0, 25.0]), FIELD, noise_m=0.1, rng=rng)
+    p = registry.get("ekf").resolve({"range_sigma_m": 0.1, "max_range_m": 1e3})
+    estimates, metrics = run_cell("site/walk", "ekf_epoch", "ekf", p, ["all"], runs, None)
+    assert (metrics["efficiency"] > 0).all() and (metrics["sqrt_pcrb"] < 0.2).all()
+    quality = quality_table(estimates)
+    assert len(quality) == len(estimates) and set(quality["run"]) == set(runs)
+    rows, bound_panels, consistency_panels = bound_summary("s", [{"label": "site/walk", "cell": "ekf_epoch",
+                                                                  "parameters": p}], [quality])
+    anees = next(r for r in rows if r["column"] == "anees")
+    assert anees["ci95_low"] < 2.0 < anees["ci95_high"] and anees["runs"] == 3 and anees["table"] == "all"
+    assert {r["column"] for r in rows} == {"anees", "anis"} and len(bound_panels) == 1 and len(consistency_panels) == 2
+    assert {"sqrt_pcrb", "efficiency"} <= {r["column"] for r in results_rows("s", "ekf_epoch", "site/walk", metrics)}
+    solver, solver_metrics = run_cell("site/walk", "minmax", "minmax", registry.get("minmax").resolve({}), ["all"],
+                                      runs, None)
+    assert quality_table(solver).empty and "efficiency" not in solver_metrics
+    assert "efficiency" not in {r["column"] for r in results_rows("s", "minmax", "site/walk", solver_metrics)}
