@@ -1,11 +1,10 @@
 # Static bounds: CRLB / GDOP maps and the anchor-subset search, one job per dataset with a
 # noise model in config `bounds.models` (no data needed: campaign geometry only).
-from wsnloc.analysis.static_bounds import check_config as _check_bounds, configured_subsets
+from wsnloc.analysis.static_bounds import check_config as _check_bounds, configured_subsets, monte_carlo_scenarios
 
 _check_bounds(config)
 BOUND_DATASETS = list((config.get("bounds") or {}).get("models") or {})
-SUBSET_MONTE_CARLO = [label.split("/", 1) for label in ((config.get("bounds") or {}).get("monte_carlo") or {})
-                      .get("scenarios", [])]
+SUBSET_MONTE_CARLO = monte_carlo_scenarios(config)
 
 
 rule static_bounds:

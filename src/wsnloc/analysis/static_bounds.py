@@ -253,6 +253,12 @@ def configured_subsets(config: dict, dataset: str) -> list[str]:
     return list(dict.fromkeys(out)) or [ALL_ANCHORS]
 
 
+def monte_carlo_scenarios(config: dict) -> list[tuple[str, str]]:
+    """(dataset, scenario) pairs of the opt-in subset Monte Carlo (config bounds.monte_carlo)."""
+    return [tuple(label.split("/", 1)) for label in ((config.get("bounds") or {}).get("monte_carlo") or {})
+            .get("scenarios", [])]
+
+
 def check_config(config: dict) -> None:
     """`bounds.models` and `bounds.subset_sizes` name declared datasets; sizes need a model."""
     spec = config.get("bounds") or {}
