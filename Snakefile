@@ -24,6 +24,7 @@ include: "workflow/rules/paper_d.smk"
 include: "workflow/rules/paper_b.smk"
 include: "workflow/rules/papers_ac.smk"
 include: "workflow/rules/studies.smk"
+include: "workflow/rules/bounds.smk"
 include: "workflow/rules/report.smk"
 
 

@@ -48,6 +48,16 @@ def test_builds_report_and_results(workdir):
     for paper in ("a", "c"):        # per-epoch estimates of every paper, one file per scenario
         assert list((workdir / "data" / "processed").glob(f"*/*/paper_{paper}/estimates.parquet"))
     assert {"data", "A", "B", "C", "D"} <= set(results["experiment"])
+    # bounds (issue 16): PCRB efficiency and consistency of every Bayesian cell, static bounds per dataset
+    efficiency = study[study["column"] == "efficiency"]
+    assert set(efficiency["row"]) == {"tracker", "ekf_epoch"} and (efficiency["value"] > 0).all()
+    assert set(study.loc[study["column"] == "anees", "row"]) == {"tracker", "ekf_epoch"}
+    for paper in ("A", "C"):
+        rows = results[results["experiment"] == paper]
+        assert (rows["metric"] == "efficiency_ratio").any() and (rows["column"] == "anees").any()
+    ranks = results[(results["experiment"] == "bounds") & (results["column"] == "rank")].set_index("row")["value"]
+    assert ranks[["UWB=9", "ZigBee=17", "3: B1,B3,B4", "4: B1,B3,B4,B6"]].tolist() == [170, 2750, 16, 5]
+    assert 'id="bounds-newcom"' in html and 'id="bounds-cricket"' in html and "RMSE/sqrt(PCRB)" in html
     assert "http://" not in html and "https://" not in html.replace("https://json-schema.org", "")
 
 

@@ -25,6 +25,8 @@ import numpy as np
 import pandas as pd
 
 from wsnloc import results
+from wsnloc.analysis.filter_bounds import is_bayesian
+from wsnloc.analysis.filter_quality import QUALITY_COLUMNS, cell_outputs, run_quality
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError, WsnlocError
 from wsnloc.estimators import registry
@@ -33,8 +35,10 @@ from wsnloc.experiments import calibration
 from wsnloc.metrics.tracking import RUN_METRICS, run_metrics, score
 
 EXPERIMENT_PREFIX = "study:"
+QUALITY_TABLE = ["run", "subset"] + QUALITY_COLUMNS   # a cell's per-epoch bound and consistency values
 REPORTED = RUN_METRICS + ("resets", "time_per_step")   # per cell and run; results.csv: mean and 95% interval
-UNIT = {"n": "count", "availability": "share", "resets": "count", "time_per_step": "us"}
+BOUND_METRICS = ("sqrt_pcrb", "efficiency")  # Bayesian filters only
+UNIT = {"n": "count", "availability": "share", "resets": "count", "efficiency": "ratio", "time_per_step": "us"}
 # wall-clock time of the estimator per output step (us): measured in the cell job, so it varies from
 # build to build and is left out of byte-reproducibility checks (metric time_per_step_us)
 
@@ -134,23 +138,33 @@ def diagnose(data: RunData, p: dict) -> str:
 
 def run_cell(label: str, cell: str, name: str, p: dict, subsets: list[str], runs: dict[str, dict],
              campaign: Campaign | None, donors: dict[str, dict] | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """(estimates, metrics) of one cell over every run and subset; raises when any yields nothing."""
+    """(estimates, metrics) of one cell over every run and subset; raises when any yields nothing.
+
+    For a Bayesian filter the estimates also carry pcrb_m2 and nees, and the metrics sqrt_pcrb
+    and efficiency (analysis.filter_quality)."""
     models = donor_models(runs, donors or {}, campaign, p, reads_rss(name, p))
+    bayesian = is_bayesian(registry.get(name).function)
     estimates, metrics = [], []
     for run, run_tables in runs.items():
         data = RunData(run_tables, campaign, models[run], f"{label}/{run}")
         for subset in subsets:
+            q = dict(p, anchors=subset) if "anchors" in p else p
             started = time.perf_counter()
-            est = registry.run(name, data, dict(p, anchors=subset) if "anchors" in p else p)
+            est = registry.run(name, data, q)
             elapsed_us = (time.perf_counter() - started) * 1e6
             finite = est[np.isfinite(est["x"]) & np.isfinite(est["y"])]
             if len(finite) == 0:
                 raise WsnlocError(f"cell {cell} ({name}) on {label}, {run}, subset {subset!r}: no estimates; "
                                   f"{diagnose(data, dict(p, anchors=subset))}")
             scored = score(est, run_tables["truth"]).assign(run=run, subset=subset)
+            efficiency = {}
+            if bayesian:
+                quality, efficiency = run_quality(data, q, scored)
+                scored = scored.join(quality[["pcrb_m2", "nees"]])
             estimates.append(scored)
             metrics.append({"run": run, "subset": subset, **run_metrics(scored, run_tables["truth"]),
                             "resets": est.attrs.get("resets", 0), "time_per_step": elapsed_us / len(est),
+                            **efficiency,
                             "rss_model": (models[run] or {}).get("source", "configured") if reads_rss(name, p) else ""})
     return pd.concat(estimates, ignore_index=True), pd.DataFrame(metrics)
 
@@ -160,7 +174,7 @@ def results_rows(study: str, cell: str, label: str, metrics: pd.DataFrame) -> li
     """results.csv rows of one cell: every reported metric, mean over runs with its 95% interval."""
     rows = []
     for subset, group in metrics.groupby("subset", sort=False):
-        for metric in REPORTED:
+        for metric in REPORTED + tuple(m for m in BOUND_METRICS if m in group and group[m].notna().any()):
             rows.append(results.row_over_runs(group[metric], experiment=EXPERIMENT_PREFIX + study, table=subset,
                                               row=cell, column=metric, scenario=label,
                                               metric=f"{metric}_{UNIT.get(metric, 'm')}"))
@@ -183,3 +197,27 @@ def study_panels(estimates: dict[tuple[str, str], pd.DataFrame]) -> tuple[dict, 
         truth = first[["true_x", "true_y"]].rename(columns={"true_x": "x", "true_y": "y"})
         tracks.setdefault(title, (truth, {}))[1][cell] = first
     return cdf, errors, tracks
+
+
+def quality_table(estimates: pd.DataFrame) -> pd.DataFrame:
+    """The QUALITY_TABLE columns of a cell's estimates (empty unless the cell is a Bayesian filter)."""
+    if "pcrb_m2" not in estimates:
+        return pd.DataFrame({c: pd.Series(dtype=object if c in ("run", "subset") else float) for c in QUALITY_TABLE})
+    return estimates.loc[np.isfinite(estimates["x"]) & np.isfinite(estimates["y"]), QUALITY_TABLE]
+
+
+def bound_summary(study: str, cells: list[dict], qualities: list[pd.DataFrame]) -> tuple[list, list, list]:
+    """Over the Bayesian cells (each {label, cell, parameters}) and their quality tables:
+    results rows of ANEES / ANIS (metrics.consistency bands), and the panels of the figures
+    sqrt(PCRB) beside the RMSE (report.bound_figures.pcrb_panels) and ANEES / ANIS over time
+    (consistency_panels), one per cell and subset."""
+    rows, bound_panels, consistency_panels = [], [], []
+    for cell, quality in zip(cells, qualities):
+        for subset, group in quality.groupby("subset", sort=False):
+            cell_rows, bound, panels = cell_outputs(
+                group, dict(cell["parameters"], anchors=subset), cell["cell"], f"{cell['label']}: {cell['cell']} [{subset}]",
+                experiment=EXPERIMENT_PREFIX + study, table=subset, row=cell["cell"], scenario=cell["label"])
+            rows += cell_rows
+            bound_panels.append(bound)
+            consistency_panels += panels
+    return rows, bound_panels, consistency_panels

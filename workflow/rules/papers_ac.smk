@@ -13,6 +13,7 @@ rule paper_a:
     output:
         estimates="data/processed/{dataset}/{scenario}/paper_a/estimates.parquet",
         metrics="data/processed/{dataset}/{scenario}/paper_a/metrics.csv",
+        quality="data/processed/{dataset}/{scenario}/paper_a/quality.parquet",
     params:
         settings=PAPER_A,
     priority: PRIORITY["estimator"]
@@ -28,6 +29,7 @@ rule paper_a_summary:
     input:
         metrics=[f"data/processed/{d}/{s}/paper_a/metrics.csv" for d, s in PAPER_A_PAIRS],
         estimates=[f"data/processed/{d}/{s}/paper_a/estimates.parquet" for d, s in PAPER_A_PAIRS],
+        quality=[f"data/processed/{d}/{s}/paper_a/quality.parquet" for d, s in PAPER_A_PAIRS],
         campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_A_PAIRS}),
         papers="config/papers.yaml",
     output:
@@ -36,6 +38,8 @@ rule paper_a_summary:
         cdf="data/processed/paper_a/figures/error_cdf.png",
         tracks="data/processed/paper_a/figures/trajectories.png",
         anchors="data/processed/paper_a/figures/rmse_vs_anchors.png",
+        bounds="data/processed/paper_a/figures/pcrb_vs_rmse.png",
+        consistency="data/processed/paper_a/figures/consistency.png",
     params:
         settings=PAPER_A,
         labels=[f"{d}/{s}" for d, s in PAPER_A_PAIRS],
@@ -57,6 +61,7 @@ rule paper_c:
     output:
         estimates="data/processed/{dataset}/{scenario}/paper_c/estimates.parquet",
         metrics="data/processed/{dataset}/{scenario}/paper_c/metrics.csv",
+        quality="data/processed/{dataset}/{scenario}/paper_c/quality.parquet",
     params:
         settings=PAPER_C,
         label="{dataset}/{scenario}",
@@ -73,6 +78,7 @@ rule paper_c_summary:
     input:
         metrics=[f"data/processed/{d}/{s}/paper_c/metrics.csv" for d, s in PAPER_C_PAIRS],
         estimates=[f"data/processed/{d}/{s}/paper_c/estimates.parquet" for d, s in PAPER_C_PAIRS],
+        quality=[f"data/processed/{d}/{s}/paper_c/quality.parquet" for d, s in PAPER_C_PAIRS],
         campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_C_PAIRS}),
         papers="config/papers.yaml",
     output:
@@ -82,6 +88,8 @@ rule paper_c_summary:
         cdf="data/processed/paper_c/figures/error_cdf.png",
         tracks="data/processed/paper_c/figures/trajectories.png",
         anchors="data/processed/paper_c/figures/rmse_vs_anchors.png",
+        bounds="data/processed/paper_c/figures/pcrb_vs_rmse.png",
+        consistency="data/processed/paper_c/figures/consistency.png",
     params:
         settings=PAPER_C,
         labels=[f"{d}/{s}" for d, s in PAPER_C_PAIRS],

@@ -1,5 +1,6 @@
 # One self-contained HTML report and the results contract (reports/results.csv).
-STUDY_OUTPUTS = ["results.csv", "figures/error_cdf.png", "figures/error_over_time.png", "figures/trajectories.png"]
+STUDY_OUTPUTS = ["results.csv", "figures/error_cdf.png", "figures/error_over_time.png", "figures/trajectories.png",
+                 "figures/pcrb_vs_rmse.png", "figures/consistency.png"]
 
 
 rule report:
@@ -20,6 +21,8 @@ rule report:
                 "data/processed/paper_a/figures/error_cdf.png",
                 "data/processed/paper_a/figures/trajectories.png",
                 "data/processed/paper_a/figures/rmse_vs_anchors.png",
+                "data/processed/paper_a/figures/pcrb_vs_rmse.png",
+                "data/processed/paper_a/figures/consistency.png",
             ]
             if PAPER_A_PAIRS
             else []
@@ -32,11 +35,16 @@ rule report:
                 "data/processed/paper_c/figures/error_cdf.png",
                 "data/processed/paper_c/figures/trajectories.png",
                 "data/processed/paper_c/figures/rmse_vs_anchors.png",
+                "data/processed/paper_c/figures/pcrb_vs_rmse.png",
+                "data/processed/paper_c/figures/consistency.png",
             ]
             if PAPER_C_PAIRS
             else []
         ),
         studies=[f"data/processed/studies/{study}/{name}" for study in STUDIES for name in STUDY_OUTPUTS],
+        bounds=[f"data/processed/{d}/bounds/{name}" for d in BOUND_DATASETS
+                for name in ("results.csv", "figures/crlb_maps.png")]
+        + [f"data/processed/{d}/{s}/bounds/subset_monte_carlo.csv" for d, s in SUBSET_MONTE_CARLO],
         paper_b=(
             [
                 "data/processed/paper_b/results.csv",

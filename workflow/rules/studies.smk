@@ -8,6 +8,7 @@ rule study_cell:
     output:
         estimates="data/processed/studies/{study}/{dataset}/{scenario}/{cell}/estimates.parquet",
         metrics="data/processed/studies/{study}/{dataset}/{scenario}/{cell}/metrics.csv",
+        quality="data/processed/studies/{study}/{dataset}/{scenario}/{cell}/quality.parquet",
     params:
         cell=study_cell_spec,
         label="{dataset}/{scenario}",
@@ -25,13 +26,19 @@ rule study_summary:
         metrics=lambda w: [f"data/processed/studies/{w.study}/{d}/{s}/{c}/metrics.csv" for d, s, c in STUDY_CELLS[w.study]],
         estimates=lambda w: [f"data/processed/studies/{w.study}/{d}/{s}/{c}/estimates.parquet"
                              for d, s, c in STUDY_CELLS[w.study]],
+        quality=lambda w: [f"data/processed/studies/{w.study}/{d}/{s}/{c}/quality.parquet"
+                           for d, s, c in STUDY_CELLS[w.study]],
     output:
         results="data/processed/studies/{study}/results.csv",
         cdf="data/processed/studies/{study}/figures/error_cdf.png",
         errors="data/processed/studies/{study}/figures/error_over_time.png",
         tracks="data/processed/studies/{study}/figures/trajectories.png",
+        bounds="data/processed/studies/{study}/figures/pcrb_vs_rmse.png",
+        consistency="data/processed/studies/{study}/figures/consistency.png",
     params:
-        cells=lambda w: [{"label": f"{d}/{s}", "cell": c} for d, s, c in STUDY_CELLS[w.study]],
+        cells=lambda w: [{"label": f"{d}/{s}", "cell": c,
+                          "parameters": cell_params(STUDIES[w.study], c, d, s, f"studies.{w.study}")}
+                         for d, s, c in STUDY_CELLS[w.study]],
     priority: PRIORITY["summary"]
     log:
         "logs/studies/{study}/summary.log",

@@ -12,7 +12,7 @@ from wsnloc.report import figures
 from wsnloc.config import read_yaml
 from wsnloc.report.render import build_context, png_data_uri, render
 from wsnloc.report.sections import (paper_a_section, paper_b_section, paper_c_section, paper_d_section,
-                                    study_section)
+                                    static_bounds_section, study_section)
 from wsnloc.workflow import script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
@@ -21,7 +21,8 @@ config = sm.params.config
 
 summaries = [json.loads(Path(p).read_text()) for p in sm.input.summaries]
 paper_outputs = list(sm.input.studies) + list(sm.input.paper_a) + list(sm.input.paper_b) + list(sm.input.paper_c) + list(sm.input.paper_d)
-result_files = list(sm.input.results) + [p for p in paper_outputs if p.endswith("results.csv")]
+result_files = list(sm.input.results) + [p for p in paper_outputs if p.endswith("results.csv")] \
+    + [p for p in sm.input.bounds if p.endswith(".csv")]   # static bounds and subset Monte Carlo rows
 all_results = pd.concat([results.read(p) for p in result_files], ignore_index=True)
 results.write(all_results, sm.output.results)
 
@@ -39,6 +40,9 @@ for name, spec in config["datasets"].items():
 
 final_results = results.read(sm.output.results)
 context = build_context(config, summaries, final_results, scenario_figures, floor_plans)
+for ds in context["datasets"]:   # static bounds of the dataset (rule static_bounds), when configured
+    maps = [Path(p) for p in sm.input.bounds if p.endswith(".png") and Path(p).parts[2] == ds["name"]]
+    ds["bounds"] = static_bounds_section(final_results, ds["name"], png_data_uri(maps[0].read_bytes())) if maps else None
 papers = read_yaml(sm.input.papers)
 context["studies"] = []
 for study, spec in sm.params.studies.items():
@@ -47,9 +51,11 @@ for study, spec in sm.params.studies.items():
     context["studies"].append(study_section(final_results, study, spec, figures_uri))
 
 SECTIONS = {   # paper: (section builder, figure names, labels)
-    "A": (paper_a_section, ("error_cdf", "trajectories", "rmse_vs_anchors"), sm.params.paper_a_labels),
+    "A": (paper_a_section, ("error_cdf", "trajectories", "rmse_vs_anchors", "pcrb_vs_rmse", "consistency"),
+          sm.params.paper_a_labels),
     "B": (paper_b_section, ("trajectories", "error_over_time", "error_cdf"), sm.params.paper_b_labels),
-    "C": (paper_c_section, ("error_histogram", "error_cdf", "trajectories", "rmse_vs_anchors"), sm.params.paper_c_labels),
+    "C": (paper_c_section, ("error_histogram", "error_cdf", "trajectories", "rmse_vs_anchors", "pcrb_vs_rmse",
+                            "consistency"), sm.params.paper_c_labels),
     "D": (paper_d_section, ("error_cdf", "trajectories"), sm.params.paper_d_labels),
 }
 context["papers"] = []

@@ -4,7 +4,7 @@ from wsnloc.campaign import Campaign
 from wsnloc.estimators import registry
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
-from wsnloc.studies import run_cell
+from wsnloc.studies import quality_table, run_cell
 from wsnloc.workflow import script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
@@ -19,5 +19,6 @@ cell_name = sm.wildcards.cell
 estimates, metrics = run_cell(sm.params.label, cell_name, name, params, cell["subsets"], runs, campaign, donors)
 tables.write("estimates", estimates, sm.output.estimates)
 metrics.to_csv(sm.output.metrics, index=False, float_format="%.6g")
+quality_table(estimates).to_parquet(sm.output.quality, index=False, compression="zstd")
 log.info("%s on %s: %d runs x %d subsets, parameters %s", cell_name, sm.params.label, len(runs),
          len(cell["subsets"]), params)

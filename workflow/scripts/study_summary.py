@@ -6,8 +6,8 @@ import pandas as pd
 
 from wsnloc import results
 from wsnloc.io import tables
-from wsnloc.report import figures
-from wsnloc.studies import results_rows, study_panels
+from wsnloc.report import bound_figures, figures
+from wsnloc.studies import bound_summary, results_rows, study_panels
 from wsnloc.workflow import script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
@@ -18,7 +18,17 @@ for cell, metrics_path, estimates_path in zip(sm.params.cells, sm.input.metrics,
     rows += results_rows(study, cell["cell"], cell["label"], pd.read_csv(metrics_path, keep_default_na=False,
                                                                           na_values=[""]))
     estimates[(cell["label"], cell["cell"])] = tables.read(estimates_path)
+qualities = [pd.read_parquet(path) for path in sm.input.quality]
+bayesian = [(cell, q) for cell, q in zip(sm.params.cells, qualities) if len(q)]
+bound_rows, bound_panels, consistency_panels = bound_summary(study, *map(list, zip(*bayesian))) if bayesian \
+    else ([], [], [])
+rows += bound_rows
 results.write(rows, sm.output.results)
+none = "no Bayesian filter cell in this study"
+Path(sm.output.bounds).write_bytes(bound_figures.pcrb_panels(bound_panels) if bound_panels
+                                   else figures.placeholder(none))
+Path(sm.output.consistency).write_bytes(bound_figures.consistency_panels(consistency_panels) if consistency_panels
+                                        else figures.placeholder(none))
 cdf, errors, tracks = study_panels(estimates)
 Path(sm.output.cdf).write_bytes(figures.error_cdf(cdf, xmax=None))
 Path(sm.output.errors).write_bytes(figures.error_over_time(errors))

@@ -100,6 +100,20 @@ def motion_model(p: dict) -> MotionModel:
                        p["initial_sigma_m"], p["initial_speed_sigma_mps"], p["initial_bias_sigma_mps2"])
 
 
+def measurement_source(data: RunData, p: dict) -> MeasurementSource:
+    """The measurements (and their models) a filter with parameters p reads from the run."""
+    return MeasurementSource(data, p["measurements"], p["anchors"], p["range_sigma_m"], p["preliminary_filter"],
+                             p["max_range_m"], rss_params(data, p) if p["measurements"] != "toa" else None)
+
+
+def static_flags(data: RunData, p: dict, times: np.ndarray) -> np.ndarray:
+    """Per epoch ending at times: True where motion detection (if enabled) skips the predict step."""
+    if not p["motion_detection"]:
+        return np.zeros(len(times), dtype=bool)
+    return static_epochs(data.require("imu", "motion detection"), times, p["epoch_s"],
+                         p["motion_threshold_mps2"], p["static_start_s"])
+
+
 def run_filter(data: RunData, p: dict) -> pd.DataFrame:
     """Estimates (COLUMNS) of one run; `attrs['resets']` counts coasting-limit resets."""
     return _run(data, p, None)
@@ -121,13 +135,10 @@ def run_smoother(data: RunData, p: dict) -> pd.DataFrame:
 
 
 def _run(data: RunData, p: dict, forward: ForwardPass | None) -> pd.DataFrame:
-    source = MeasurementSource(data, p["measurements"], p["anchors"], p["range_sigma_m"], p["preliminary_filter"],
-                               p["max_range_m"], rss_params(data, p) if p["measurements"] != "toa" else None)
+    source = measurement_source(data, p)
     times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
     motion = motion_model(p)
-    static = (static_epochs(data.require("imu", "motion detection"), times, p["epoch_s"],
-                            p["motion_threshold_mps2"], p["static_start_s"])
-              if p["motion_detection"] else np.zeros(len(times), dtype=bool))
+    static = static_flags(data, p, times)
     inputs = epoch_inputs(floor_input(data, p["static_start_s"]), times) if motion.kind == "pva" else None
     make = FILTERS[p["filter"]](p, data)
     loop = _epoch_loop if p["update"] == "epoch" else _sequential_loop

@@ -25,6 +25,9 @@ from wsnloc.metrics.tracking import cell_metrics, score
 EXPERIMENT = "A"
 INPUT_TABLES = ("ranges", "rss", "imu", "truth", "anchors")   # the processed tables a run needs (see load_runs)
 MEASUREMENT_LABEL = {"toa": "distance (UWB)", "rss": "RSS (ZigBee)", "hybrid": "hybrid"}
+# detail columns -> results metric; sqrt(PCRB) and efficiency RMSE / sqrt(PCRB) per run
+DETAIL_METRICS = {"median": "median_m", "p95": "p95_m", "max": "max_m", "sqrt_pcrb": "sqrt_pcrb_m",
+                  "efficiency": "efficiency_ratio"}
 
 
 def row_label(row: dict) -> str:
@@ -114,10 +117,10 @@ def results_rows(metrics: pd.DataFrame, scenario: str, motion: str, settings: Se
             out.append(results.row_over_runs(sel["rmse"], experiment=EXPERIMENT, table=table, row=row_label(row),
                                              column=motion, scenario=scenario, metric="rmse_m",
                                              paper_value=paper_value(paper, row, table, motion)))
-            for metric in ("median", "p95", "max"):
-                out.append(results.row_over_runs(sel[metric], experiment=EXPERIMENT, table=f"{table} detail",
-                                                 row=row_label(row), column=metric, scenario=scenario,
-                                                 metric=f"{metric}_m"))
+            for metric, name in DETAIL_METRICS.items():
+                if metric in sel:   # the bound columns: metrics written with the PCRB (analysis.filter_quality)
+                    out.append(results.row_over_runs(sel[metric], experiment=EXPERIMENT, table=f"{table} detail",
+                                                     row=row_label(row), column=metric, scenario=scenario, metric=name))
     return out
 
 

@@ -70,6 +70,11 @@ def estimator_params(settings: Settings, model: str, subset: str) -> dict:
             "static_start_s": s.static_bias_s}
 
 
+# detail columns -> results metric; sqrt(PCRB) and efficiency RMSE / sqrt(PCRB) per run
+DETAIL_METRICS = {"median": "median_m", "p95": "p95_m", "max": "max_m", "sqrt_pcrb": "sqrt_pcrb_m",
+                  "efficiency": "efficiency_ratio"}
+
+
 def run(data: RunData, settings: Settings, subsets: list[str]) -> pd.DataFrame:
     """Estimates of the three models for each beacon subset, scored against truth."""
     frames = [registry.run("ekf", data, estimator_params(settings, model, subset), where="experiments.paper_c")
@@ -92,9 +97,11 @@ def results_rows(metrics: pd.DataFrame, scenario_label: str, speed: str, setting
         out.append(results.row_over_runs(sel["rmse"], experiment=EXPERIMENT, table="Table I", row=model, column=speed,
                                          scenario=scenario_label, metric="rmse_m",
                                          paper_value=paper["table_1_rmse_m"].get(model, {}).get(speed)))
-        for metric in ("median", "p95", "max"):
-            out.append(results.row_over_runs(sel[metric], experiment=EXPERIMENT, table="Table I detail", row=model,
-                                             column=f"{speed} {metric}", scenario=scenario_label, metric=f"{metric}_m"))
+        for metric, name in DETAIL_METRICS.items():
+            if metric in sel:   # the bound columns: metrics written with the PCRB (analysis.filter_quality)
+                out.append(results.row_over_runs(sel[metric], experiment=EXPERIMENT, table="Table I detail",
+                                                 row=model, column=f"{speed} {metric}", scenario=scenario_label,
+                                                 metric=name))
     if scenario_label == settings.table_2_scenario:
         for subset in settings.table_2_subsets:
             for model in MODELS:
@@ -102,6 +109,11 @@ def results_rows(metrics: pd.DataFrame, scenario_label: str, speed: str, setting
                 out.append(results.row_over_runs(sel["rmse"], experiment=EXPERIMENT, table="Table II", row=subset,
                                                  column=model, scenario=scenario_label, metric="rmse_m",
                                                  paper_value=paper["table_2_rmse_m"].get(subset, {}).get(model)))
+                for metric in ("sqrt_pcrb", "efficiency"):
+                    if metric in sel:   # the bound of each cell (analysis.filter_quality)
+                        out.append(results.row_over_runs(sel[metric], experiment=EXPERIMENT, table="Table II detail",
+                                                         row=subset, column=f"{model} {metric}",
+                                                         scenario=scenario_label, metric=DETAIL_METRICS[metric]))
     return out
 
 

@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-from matplotlib.ticker import StrMethodFormatter
+from matplotlib.ticker import NullFormatter, StrMethodFormatter
 from mpl_toolkits.axes_grid1 import make_axes_locatable
 
 from wsnloc.campaign import Campaign
 from wsnloc.metrics.consistency import ConsistencyTest
-from wsnloc.report.figures import TECH_STYLE, plt, to_png
+from wsnloc.report.figures import LABEL_OFFSET, TECH_STYLE, plt, to_png
 
 
 def _finish_time_axes(ax, ylabel: str, title: str) -> None:
@@ -20,7 +20,8 @@ def _finish_time_axes(ax, ylabel: str, title: str) -> None:
     ax.set_title(title, fontsize=9)
     ax.grid(alpha=0.3, which="both")
     ax.yaxis.set_major_formatter(StrMethodFormatter("{x:g}"))
-    ax.yaxis.set_minor_formatter(StrMethodFormatter("{x:g}"))
+    low, high = ax.get_ylim()   # minor labels only within a decade (more would overlap)
+    ax.yaxis.set_minor_formatter(StrMethodFormatter("{x:g}") if high < 10 * low else NullFormatter())
     ax.tick_params(axis="y", which="minor", labelsize=7)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, frameon=False)
 
@@ -36,15 +37,17 @@ def _overlay_floor(ax, campaign: Campaign, anchors: pd.DataFrame) -> None:
         color, marker = TECH_STYLE.get(tech, ("tab:gray", "D"))
         ax.scatter(group["x"], group["y"], c=color, marker=marker, s=40, edgecolors="w", zorder=3,
                    label=f"{tech} ({len(group)})")
-        for _, a in group.iterrows():
-            ax.annotate(a["anchor_id"], (a["x"], a["y"]), xytext=(4, 3), textcoords="offset points",
-                        fontsize=7, color="w")
+        for _, a in group.iterrows():   # co-located anchors of two technologies: labels above / below
+            ax.annotate(a["anchor_id"], (a["x"], a["y"]), xytext=LABEL_OFFSET.get(tech, (4, 3)),
+                        textcoords="offset points", fontsize=7, color="w")
 
 
-def bound_maps(campaign: Campaign, anchors: pd.DataFrame, x, y, panels: dict[str, np.ndarray]) -> bytes:
+def bound_maps(campaign: Campaign, anchors: pd.DataFrame | dict[str, pd.DataFrame], x, y,
+               panels: dict[str, np.ndarray]) -> bytes:
     """One floor map per panel (title with units -> values (len(y), len(x)) on the grid of
-    cell centres x, y in m). The colour scale runs from the minimum to the 95th percentile
-    (values above are drawn in the top colour); infinite values (singular geometry) are grey."""
+    cell centres x, y in m), with the anchors drawn (one frame, or one per panel title). The
+    colour scale runs from the minimum to the 95th percentile (values above are drawn in the
+    top colour); infinite values (singular geometry) are grey."""
     width, height = campaign.spec["floor"]["width_m"], campaign.spec["floor"]["height_m"]
     fig, axes = plt.subplots(len(panels), 1, figsize=(9, (9 * height / width + 0.9) * len(panels)), squeeze=False)
     for ax, (title, values) in zip(axes[:, 0], panels.items()):
@@ -53,15 +56,42 @@ def bound_maps(campaign: Campaign, anchors: pd.DataFrame, x, y, panels: dict[str
         cmap = plt.get_cmap("viridis").with_extremes(bad="0.6")
         image = ax.pcolormesh(x, y, np.ma.masked_invalid(values), cmap=cmap, shading="nearest", vmin=low, vmax=high)
         fig.colorbar(image, cax=make_axes_locatable(ax).append_axes("right", size="2.5%", pad=0.1),
-                     label=title, extend="max")
-        _overlay_floor(ax, campaign, anchors)
+                     label=title.split(": ", 1)[-1].split(" (")[0], extend="max")   # quantity [unit]
+        _overlay_floor(ax, campaign, anchors[title] if isinstance(anchors, dict) else anchors)
         ax.set_xlim(0, width)
         ax.set_ylim(0, height)
         ax.set_aspect("equal")
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
-        ax.set_title(f"{campaign.name}: {title}", fontsize=10)
+        ax.set_title(f"{campaign.name}: {title}", fontsize=10, pad=14)   # clear of labels of anchors on the edge
         ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.12), ncol=3, fontsize=7, frameon=False)
+    fig.tight_layout()
+    return to_png(fig)
+
+
+def _draw_pcrb(ax, t, rmse: dict[str, np.ndarray], sqrt_pcrb: np.ndarray, bound_model: str, title: str) -> None:
+    for label, values in rmse.items():
+        ax.plot(t, values, lw=1.2, label=f"{label} RMSE")
+    ax.plot(t, sqrt_pcrb, color="k", lw=1.8, ls="--", label="sqrt(PCRB)")
+    ax.set_yscale("log")
+    _finish_time_axes(ax, "position error [m]", f"{title}\nbound for: {bound_model}")
+
+
+def _draw_consistency(ax, t, test: ConsistencyTest, statistic: str, title: str) -> None:
+    ax.fill_between(t, test.low, test.high, color="tab:green", alpha=0.25, lw=0, label="95% band")
+    ax.plot(t, test.average, color="tab:blue", lw=1.0, label=statistic)
+    ax.axhline(test.time_average, color="tab:red", lw=1.2,
+               label=f"time average {test.time_average:.2f} "
+                     f"(band {test.time_low:.2f}-{test.time_high:.2f}): {test.verdict}")
+    ax.set_yscale("log")
+    _finish_time_axes(ax, statistic, title)
+
+
+def _stacked(draw, panels: list[tuple], height: float) -> bytes:
+    """One axes per panel (the arguments of draw after the axes), stacked vertically."""
+    fig, axes = plt.subplots(len(panels), 1, figsize=(8, height * len(panels)), squeeze=False)
+    for ax, args in zip(axes[:, 0], panels):
+        draw(ax, *args)
     fig.tight_layout()
     return to_png(fig)
 
@@ -71,24 +101,20 @@ def pcrb_vs_rmse(t, rmse: dict[str, np.ndarray], sqrt_pcrb: np.ndarray, bound_mo
 
     bound_model states the motion and noise model the bound assumes (printed under the title).
     """
-    fig, ax = plt.subplots(figsize=(8, 3.8))
-    for label, values in rmse.items():
-        ax.plot(t, values, lw=1.2, label=f"{label} RMSE")
-    ax.plot(t, sqrt_pcrb, color="k", lw=1.8, ls="--", label="sqrt(PCRB)")
-    ax.set_yscale("log")
-    _finish_time_axes(ax, "position error [m]", f"{title}\nbound for: {bound_model}")
-    return to_png(fig)
+    return pcrb_panels([(t, rmse, sqrt_pcrb, bound_model, title)])
+
+
+def pcrb_panels(panels: list[tuple]) -> bytes:
+    """pcrb_vs_rmse for several cells, one panel each: (t, rmse, sqrt_pcrb, bound_model, title)."""
+    return _stacked(_draw_pcrb, panels, 3.8)
 
 
 def consistency_over_time(t, test: ConsistencyTest, statistic: str, title: str) -> bytes:
     """ANEES or ANIS (statistic names which) over time t (s) with its 95% band, and the time
     average with its band and the verdict in the legend."""
-    fig, ax = plt.subplots(figsize=(8, 3.6))
-    ax.fill_between(t, test.low, test.high, color="tab:green", alpha=0.25, lw=0, label="95% band")
-    ax.plot(t, test.average, color="tab:blue", lw=1.0, label=statistic)
-    ax.axhline(test.time_average, color="tab:red", lw=1.2,
-               label=f"time average {test.time_average:.2f} "
-                     f"(band {test.time_low:.2f}-{test.time_high:.2f}): {test.verdict}")
-    ax.set_yscale("log")
-    _finish_time_axes(ax, statistic, title)
-    return to_png(fig)
+    return consistency_panels([(t, test, statistic, title)])
+
+
+def consistency_panels(panels: list[tuple]) -> bytes:
+    """consistency_over_time for several cells and statistics: (t, test, statistic, title)."""
+    return _stacked(_draw_consistency, panels, 3.6)

@@ -111,6 +111,18 @@ def _columns(results: pd.DataFrame, experiment: str, table: str) -> list[str]:
     return list(dict.fromkeys(sel["column"]))
 
 
+def bound_line(results: pd.DataFrame, label: str, experiment: str, scenario: str, detail: dict, consistency: dict) -> dict:
+    """One line of a paper's bound table: sqrt(PCRB), efficiency (results rows selected by
+    detail plus column = `<prefix>sqrt_pcrb` / `<prefix>efficiency`), ANEES and ANIS with their
+    bands and verdicts (selected by consistency)."""
+    prefix = detail.pop("prefix", "")
+    keys = dict(experiment=experiment, scenario=scenario)
+    return {"label": label,
+            "sqrt_pcrb": _cell(results, **keys, **detail, column=f"{prefix}sqrt_pcrb"),
+            "efficiency": _cell(results, **keys, **detail, column=f"{prefix}efficiency"),
+            **{stat: with_verdict(_cell(results, **keys, **consistency, column=stat)) for stat in ("anees", "anis")}}
+
+
 def paper_a_section(results: pd.DataFrame, claims: dict, figures: dict[str, str], paper: dict,
                     scenarios: list[str], settings: dict) -> dict:
     from wsnloc.experiments.paper_a import row_label
@@ -119,14 +131,20 @@ def paper_a_section(results: pd.DataFrame, claims: dict, figures: dict[str, str]
     tables = [grid_table(results, experiment="A", table=t, rows=rows, columns=_columns(results, "A", t),
                          metric="rmse_m", title=f"{t}: RMSE [m] {title}", scenario=", ".join(scenarios))
               for t, title in (("Table I", "(plain EKF)"), ("Table II", "(with motion detection)"))]
-    details = [{"title": f"{t} detail", "metrics": ["median_m", "p95_m", "max_m"],
+    from wsnloc.experiments.paper_a import DETAIL_METRICS
+
+    metrics = [m for m in DETAIL_METRICS.values() if (results["metric"] == m).any()]
+    details = [{"title": f"{t} detail", "metrics": metrics,
                 "lines": [{"label": f"{r} / {c}", "cells": [
-                    _cell(results, experiment="A", table=f"{t} detail", row=r, scenario=sc, column=m.removesuffix("_m"),
-                          metric=m) for m in ("median_m", "p95_m", "max_m")]}
+                    _cell(results, experiment="A", table=f"{t} detail", row=r, scenario=sc, column=column,
+                          metric=m) for column, m in DETAIL_METRICS.items() if m in metrics]}
                           for r in rows for sc, c in zip(scenarios, _columns(results, "A", t))]}
                for t in ("Table I", "Table II")]
+    bounds = [bound_line(results, f"{t}: {r} / {sc}", "A", sc, {"table": f"{t} detail", "row": r},
+                         {"table": f"consistency: {t}", "row": r}) for t in ("Table I", "Table II") for r in rows
+              for sc in scenarios]
     return {"id": "A", "title": paper["title"], "citation": paper["citation"], "published": True, "tables": tables,
-            "details": details, "claims": claims["claims"], "cost": [], "figures": figures, "settings": settings}
+            "bounds": bounds, "details": details, "claims": claims["claims"], "cost": [], "figures": figures, "settings": settings}
 
 
 def paper_c_section(results: pd.DataFrame, claims: dict, figures: dict[str, str], paper: dict,
@@ -145,11 +163,35 @@ def paper_c_section(results: pd.DataFrame, claims: dict, figures: dict[str, str]
     details = [{"title": "Table I detail (median, p95, max per speed)", "metrics": detail_columns,
                 "lines": [{"label": m, "cells": [_cell(results, experiment="C", table="Table I detail", row=m, column=c)
                                                  for c in detail_columns]} for m in MODELS]}]
+    speeds = [c.removesuffix(" efficiency") for c in detail_columns if c.endswith(" efficiency")]   # scenario order
+    bounds = [bound_line(results, f"{m} / {sc}", "C", sc, {"table": "Table I detail", "row": m, "prefix": f"{speed} "},
+                         {"table": f"consistency: {settings['table_1_subset']}", "row": m})
+              for m in MODELS for sc, speed in zip(scenarios, speeds)]
+    bounds += [bound_line(results, f"Table II: {subset}, {m} / {settings['table_2_scenario']}", "C",
+                          settings["table_2_scenario"], {"table": "Table II detail", "row": subset, "prefix": f"{m} "},
+                          {"table": f"consistency: {subset}", "row": m})
+               for subset in settings["table_2_subsets"] for m in MODELS]
     return {"id": "C", "title": paper["title"], "citation": paper["citation"], "published": True, "tables": tables,
-            "details": details, "claims": claims["claims"], "cost": [], "figures": figures, "settings": settings}
+            "bounds": bounds, "details": details, "claims": claims["claims"], "cost": [], "figures": figures, "settings": settings}
 
 
 STUDY_STATS = ("median", "p75", "rmse", "availability", "resets")
+BOUND_STATS = ("sqrt_pcrb", "efficiency", "anees", "anis")     # Bayesian filter cells only
+
+
+def with_verdict(cell: dict) -> dict:
+    """An ANEES / ANIS cell (value, band in low / high) with its verdict (metrics.consistency)."""
+    from wsnloc.metrics.consistency import verdict
+
+    if cell["value"] is None or cell["low"] is None:
+        return dict(cell, verdict=None)
+    return dict(cell, verdict=verdict(cell["value"], cell["low"], cell["high"]))
+
+
+def _study_cell(results: pd.DataFrame, cell: str, scenario: str) -> dict:
+    stats = {stat: _cell(results, row=cell, scenario=scenario, column=stat) for stat in STUDY_STATS + BOUND_STATS}
+    stats.update({stat: with_verdict(stats[stat]) for stat in ("anees", "anis")})
+    return stats
 
 
 def study_section(results: pd.DataFrame, study: str, spec: dict, figures: dict[str, str]) -> dict:
@@ -161,11 +203,31 @@ def study_section(results: pd.DataFrame, study: str, spec: dict, figures: dict[s
     tables = []
     for subset in dict.fromkeys(sel["table"]):
         in_subset = sel[sel["table"] == subset]
-        rows = [{"label": cell, "cells": [{stat: _cell(in_subset, row=cell, scenario=sc, column=stat)
-                                           for stat in STUDY_STATS} for sc in scenarios]} for cell in cells]
+        rows = [{"label": cell, "cells": [_study_cell(in_subset, cell, sc) for sc in scenarios]} for cell in cells]
         tables.append({"subset": subset, "scenarios": scenarios, "rows": rows})
     estimators = [{"cell": c, "estimator": estimator_of(spec, c),
                    "overrides": {k: v for k, v in (spec["estimators"][c] or {}).items() if k != "estimator"}}
                   for c in cells]
     return {"id": study, "tables": tables, "estimators": estimators, "overrides": spec.get("overrides") or {},
             "figures": figures}
+
+
+def static_bounds_section(results: pd.DataFrame, dataset: str, maps: str) -> dict:
+    """Context of a dataset's static bounds (analysis.static_bounds): the mean and max CRLB
+    along the path per subset, each subset search's named / best / worst subsets with their
+    rank and mean CRLB, and the map figure (data URI)."""
+    from wsnloc.analysis.static_bounds import EXPERIMENT
+
+    sel = results[(results["experiment"] == EXPERIMENT) & (results["scenario"] == dataset)]
+    path = sel[sel["table"] == "CRLB along the path"]
+    path_lines = [{"label": row, "mean": _cell(path, row=row, column="mean"), "max": _cell(path, row=row, column="max")}
+                  for row in dict.fromkeys(path["row"])]
+    searches = []
+    for table in dict.fromkeys(sel.loc[sel["table"].str.startswith("subset search"), "table"]):
+        rows = sel[sel["table"] == table]
+        monte_carlo = [c for c in dict.fromkeys(rows["column"]) if c.startswith("RMSE ")]   # opt-in runs
+        searches.append({"title": table, "monte_carlo": monte_carlo, "lines": [
+            {"label": row, "rank": _cell(rows, row=row, column="rank"), "mean": _cell(rows, row=row, column="mean CRLB"),
+             "rmse": [_cell(rows, row=row, column=c) for c in monte_carlo]}
+            for row in dict.fromkeys(rows["row"])]})
+    return {"path": path_lines, "searches": searches, "maps": maps}

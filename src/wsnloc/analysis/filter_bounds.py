@@ -1,0 +1,124 @@
+"""Posterior CRB of a registry Bayesian filter along a run's true trajectory.
+
+The bound is for the filter's own model (its motion model, measurement models, noise
+sigmas and update schedule) with the measurement availability of the run: the anchors that
+gave a measurement in each epoch (epoch updates: one per anchor and epoch, as the filter
+averages them) or in each group of records sharing a time stamp (sequential updates), read
+from the same `MeasurementSource` the filter uses. Steps are the filter's update times
+(and, sequentially, the output epoch ends, where the information is zero):
+
+    J_0 = P0^-1 + H_0^T R^-1 H_0,   J_j = (Q(dt_j) + F(dt_j) J_{j-1}^-1 F(dt_j)^T)^-1 + H_j^T R^-1 H_j
+
+(metrics.bounds.pcrb), dt_j = s_j - s_{j-1}; F = I, Q = 0 where motion detection declares
+the step's epoch static (the filter skips its predict step there). The first step is the
+initiator's: the filter starts there from a fix of that step's measurements with covariance P0
+(without an update), so the bound's prior is J_0 = P0^-1 plus that step's information (a bound
+ignoring it would be above the filter's error when P0 is wider than the fix's error). H_j is evaluated at the true position (truth
+interpolated at s_j); range and RSS models observe the position only, so the true velocity
+is not needed (the per-anchor Fisher terms of metrics.bounds: 3-D ranges with the anchors'
+height offsets as RangeModel, RSS by the log-distance model as RssModel).
+A coasting-limit reset of the filter does not restart the bound (it keeps its information).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from wsnloc.estimators import bayes
+from wsnloc.estimators.motion import MotionModel
+from wsnloc.estimators.run_data import RunData
+from wsnloc.metrics.bounds import (available_information, pcrb, rss_information_terms, to_matrices,
+                                   toa_information_terms)
+from wsnloc.metrics.ranging import truth_at
+
+BOUND_COLUMNS = ["t", "pcrb_xx", "pcrb_xy", "pcrb_yy"]
+MEASUREMENT_TEXT = {"toa": "ranges", "rss": "RSS", "hybrid": "ranges + RSS"}
+
+
+def is_bayesian(function) -> bool:
+    """Whether a registry estimator's function is the Bayesian filter loop (it has a PCRB)."""
+    return function is bayes.run_filter
+
+
+def _counts(step_of: np.ndarray, anchors: np.ndarray, ids: list[str], n_steps: int) -> np.ndarray:
+    """(steps, len(ids)) number of measurements of each anchor at each step."""
+    out = np.zeros((n_steps, len(ids)))
+    if len(anchors):
+        column = {a: i for i, a in enumerate(ids)}
+        np.add.at(out, (step_of, np.array([column[a] for a in anchors], dtype=np.intp)), 1.0)
+    return out
+
+
+def _measurement_steps(source, times: np.ndarray, p: dict):
+    """(step times, step index of each range, its anchor, same for RSS, output index of times)."""
+    if p["update"] == "epoch":
+        epochs = source.epochs(times, p["epoch_s"])
+        step = np.arange(len(times))
+        range_step = np.repeat(step, [len(e.range_ids) for e in epochs])
+        rss_step = np.repeat(step, [len(e.rss_ids) for e in epochs])
+        range_ids = np.concatenate([e.range_ids for e in epochs] or [np.array([], dtype=object)])
+        rss_ids = np.concatenate([e.rss_ids for e in epochs] or [np.array([], dtype=object)])
+        return times, range_step, range_ids, rss_step, rss_ids, step
+    records = source.records()
+    steps = np.union1d(records.t, times)
+    record_step = np.searchsorted(steps, records.t)
+    ranges, rss = records.kind == 0, records.kind == 1
+    return (steps, record_step[ranges], records.anchor[ranges], record_step[rss], records.anchor[rss],
+            np.searchsorted(steps, times))
+
+
+def _transitions(motion: MotionModel, steps: np.ndarray, static_of_step: np.ndarray):
+    """F, Q (len(steps) - 1, n, n) of the steps s_{j-1} -> s_j; identity and zero where static.
+    The matrices are built once per distinct step length."""
+    lengths, which = np.unique(np.diff(steps), return_inverse=True)
+    built = [motion.matrices(float(dt))[:2] for dt in lengths]
+    F = np.array([f for f, _ in built]).reshape(-1, motion.dim, motion.dim)[which]
+    Q = np.array([q for _, q in built]).reshape(-1, motion.dim, motion.dim)[which]
+    static = static_of_step[1:]
+    F[static], Q[static] = np.eye(motion.dim), 0.0
+    return F, Q
+
+
+def filter_pcrb(data: RunData, p: dict) -> pd.DataFrame:
+    """PCRB position block (m^2) of a Bayesian filter with resolved registry parameters p
+    (bayes.run_filter's) at every epoch end of the run's grid: columns BOUND_COLUMNS."""
+    source = bayes.measurement_source(data, p)
+    times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
+    if len(times) == 0:
+        return pd.DataFrame(columns=BOUND_COLUMNS, dtype=float)
+    steps, range_step, range_ids, rss_step, rss_ids, outputs = _measurement_steps(source, times, p)
+    position = truth_at(data.require("truth", "the PCRB"), steps)
+    information = np.zeros((len(steps), 3))
+    toa_ids, rss_members = sorted(set(range_ids)), sorted(set(rss_ids))
+    if toa_ids:
+        dz = data.height_offsets(toa_ids) if data.three_d else None
+        terms = toa_information_terms(position, data.positions(toa_ids), p["range_sigma_m"], dz)
+        information += available_information(terms, _counts(range_step, range_ids, toa_ids, len(steps)))
+    if rss_members:
+        rss = source.rss_params
+        terms = rss_information_terms(position, data.positions(rss_members), rss.path_loss_exponent, rss.sigma_db)
+        information += available_information(terms, _counts(rss_step, rss_ids, rss_members, len(steps)))
+    information[~np.isfinite(position).all(axis=1)] = 0.0  # outside the truth span: unknown geometry
+    motion = bayes.motion_model(p)
+    static = bayes.static_flags(data, p, times)[np.minimum(np.searchsorted(times, steps), len(times) - 1)]
+    F, Q = _transitions(motion, steps, static)
+    bound = pcrb(motion.initial_covariance(), F, Q, to_matrices(information, motion.dim))[outputs]
+    return pd.DataFrame({"t": times, "pcrb_xx": bound[:, 0, 0], "pcrb_xy": bound[:, 0, 1],
+                         "pcrb_yy": bound[:, 1, 1]})
+
+
+def bound_model(p: dict) -> str:
+    """The model a filter's PCRB assumes, in words (printed beside the bound)."""
+    motion = {"p": f"P random walk {p['p_sigma_m']:g} m per {p['epoch_s']:g} s",
+              "pv": f"PV, white acceleration {p['accel_sigma_mps2']:g} m/s^2",
+              "pva": f"PVA, acceleration input noise {p['accel_sigma_mps2']:g} m/s^2, "
+                     f"bias walk {p['bias_walk_sigma']:g} m/s^2/sqrt(s)"}[p["motion"]]
+    noise = []
+    if p["measurements"] in ("toa", "hybrid"):
+        noise.append(f"Gaussian ranges sigma {p['range_sigma_m']:g} m")
+    if p["measurements"] in ("rss", "hybrid"):
+        noise.append("log-normal RSS (the filter's path-loss model)")
+    update = "epoch updates" if p["update"] == "epoch" else "sequential updates"
+    detection = ", static epochs frozen" if p["motion_detection"] else ""
+    return f"{motion}; {', '.join(noise)}; anchors {p['anchors']}; {update} every {p['epoch_s']:g} s{detection}"

@@ -1,0 +1,139 @@
+"""A Bayesian filter's estimates against its bound and its own uncertainty: efficiency,
+NEES / NIS per epoch, and their Monte Carlo summaries over the runs of a cell.
+
+Per epoch of a run (`epoch_quality`):
+- pcrb_m2 = trace of the PCRB position block (m^2) at the epoch (analysis.filter_bounds);
+- nees = e^T P^-1 e, e the position error (m), P the filter's position covariance (m^2):
+  position NEES, chi2(2) for a consistent filter;
+- nis and n_meas as the filter output them (NIS of the last update, its measurement count).
+Per run (`run_efficiency`): sqrt_pcrb = sqrt(mean over the run's estimates of pcrb_m2) (m), and
+efficiency = RMSE / sqrt_pcrb (>= 1 when the filter's model is the data's; see docs/bounds.md).
+Over the runs of a cell, epochs are matched by their index k = round(t / T) (T the epoch
+period; the runs' grids have different phases): RMSE(k) = sqrt(mean_r error^2) and
+sqrt(PCRB)(k) = sqrt(mean_r pcrb_m2) (the bound of the cell is the mean of the runs' bounds),
+and ANEES / ANIS with their chi-square bands (metrics.consistency). ANIS needs the dof of
+the NIS: n_meas in epoch updates; in sequential updates a filter's output NIS is that of
+its last record group while n_meas counts the whole epoch, so ANIS is not computed there.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from wsnloc import results
+from wsnloc.analysis.filter_bounds import bound_model, filter_pcrb
+from wsnloc.estimators.run_data import RunData
+from wsnloc.metrics.consistency import consistency_test, normalized_squared
+
+NEES_DOF = 2   # position NEES
+QUALITY_COLUMNS = ["t", "error_m", "pcrb_m2", "nees", "nis", "n_meas"]
+
+
+def epoch_quality(scored: pd.DataFrame, bound: pd.DataFrame) -> pd.DataFrame:
+    """QUALITY_COLUMNS of the finite estimates of one run: scored filter output (t, x, y,
+    true_x, true_y, error_m, p_xx, p_xy, p_yy, nis, n_meas) beside its bound (filter_bounds)."""
+    est = scored[np.isfinite(scored["x"]) & np.isfinite(scored["y"])]
+    t, bound_t = est["t"].to_numpy(float), bound["t"].to_numpy(float)
+    at = np.searchsorted(bound_t, t)                 # the bound at the estimate's epoch end (same grid)
+    found = at < len(bound_t)
+    found[found] = bound_t[at[found]] == t[found]
+    trace = np.full(len(t), np.nan)
+    trace[found] = (bound["pcrb_xx"].to_numpy(float) + bound["pcrb_yy"].to_numpy(float))[at[found]]
+    error = est[["x", "y"]].to_numpy(float) - est[["true_x", "true_y"]].to_numpy(float)
+    covariance = est[["p_xx", "p_xy", "p_xy", "p_yy"]].to_numpy(float).reshape(-1, 2, 2)
+    columns = {"t": t, "error_m": est["error_m"], "pcrb_m2": trace, "nees": normalized_squared(error, covariance),
+               "nis": est["nis"], "n_meas": est["n_meas"]}
+    return pd.DataFrame({k: np.asarray(v, dtype=float) for k, v in columns.items()}, index=est.index)
+
+
+def run_efficiency(quality: pd.DataFrame) -> dict[str, float]:
+    """sqrt_pcrb (m) and efficiency = RMSE / sqrt_pcrb of one run's epoch_quality rows."""
+    usable = quality[np.isfinite(quality["error_m"]) & np.isfinite(quality["pcrb_m2"])]
+    if usable.empty:
+        return {"sqrt_pcrb": np.nan, "efficiency": np.nan}
+    bound = float(np.sqrt(usable["pcrb_m2"].mean()))
+    return {"sqrt_pcrb": bound, "efficiency": float(np.sqrt((usable["error_m"] ** 2).mean())) / bound}
+
+
+def run_quality(data: RunData, p: dict, scored: pd.DataFrame) -> tuple[pd.DataFrame, dict[str, float]]:
+    """epoch_quality of one run of a Bayesian filter (resolved registry parameters p, its
+    scored output) and the run's run_efficiency."""
+    quality = epoch_quality(scored, filter_pcrb(data, p))
+    return quality, run_efficiency(quality)
+
+
+def consistency_rows(tests: dict[str, tuple], runs: int, **keys) -> list[dict]:
+    """results.csv rows of consistency(...): metric `anees` / `anis`, value the time average,
+    ci95_low / ci95_high its 95% chi-square band (with the time-correlation inflation), runs
+    the number of Monte Carlo runs; keys: experiment, table, row, scenario (column = the statistic)."""
+    out = []
+    for name, (_, test) in tests.items():
+        row = results.single_row(test.time_average, column=name.lower(), metric=name.lower(), **keys)
+        row.update(ci95_low=test.time_low, ci95_high=test.time_high, runs=runs)
+        out.append(row)
+    return out
+
+
+def _epoch_index(t: pd.Series, period: float) -> np.ndarray:
+    return np.round(t.to_numpy(float) / period).astype(np.int64)
+
+
+def over_time(quality: pd.DataFrame, period: float) -> pd.DataFrame:
+    """Per epoch index over runs (rows with a `run` column): t (mean time, s), rmse (m),
+    sqrt_pcrb (m) and the number of runs, over the estimates scored against the truth."""
+    quality = quality[np.isfinite(quality["error_m"])]
+    frame = quality.assign(k=_epoch_index(quality["t"], period), sq=quality["error_m"] ** 2)
+    grouped = frame.groupby("k", sort=True)
+    return pd.DataFrame({"t": grouped["t"].mean(), "rmse": np.sqrt(grouped["sq"].mean()),
+                         "sqrt_pcrb": np.sqrt(grouped["pcrb_m2"].mean()), "runs": grouped["run"].nunique()}
+                        ).reset_index(drop=True)
+
+
+def _runs_by_epoch(quality: pd.DataFrame, column: str, period: float) -> tuple[np.ndarray, np.ndarray]:
+    """(runs, epochs) matrix of a column (NaN where a run has no value) and the epochs' mean times."""
+    frame = quality.assign(k=_epoch_index(quality["t"], period))
+    table = frame.pivot_table(index="run", columns="k", values=column, aggfunc="first", dropna=False)
+    times = frame.groupby("k")["t"].mean().reindex(table.columns)
+    return table.to_numpy(float), times.to_numpy(float)
+
+
+def consistency(quality: pd.DataFrame, period: float, epoch_updates: bool) -> dict[str, tuple]:
+    """{'ANEES': (t, ConsistencyTest), 'ANIS': (t, ConsistencyTest)} over the runs of a cell
+    (ANIS only with epoch updates, see the module docstring)."""
+    out = {}
+    nees, t = _runs_by_epoch(quality, "nees", period)
+    if np.isfinite(nees).any():
+        out["ANEES"] = (t, consistency_test(nees, NEES_DOF))
+    if epoch_updates:
+        with_update = quality[np.isfinite(quality["nis"]) & (quality["n_meas"] > 0)]
+        if len(with_update):
+            nis, t = _runs_by_epoch(with_update, "nis", period)
+            dof, _ = _runs_by_epoch(with_update, "n_meas", period)
+            out["ANIS"] = (t, consistency_test(nis, np.nan_to_num(dof)))
+    return out
+
+
+def grouped_quality(data: RunData, scored: pd.DataFrame, keys: list[str], params_of) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """run_quality of every Bayesian filter in one run's scored estimates, grouped by keys
+    (e.g. a paper's table and row); params_of(*key values) gives that filter's resolved
+    registry parameters. Returns (quality rows with the keys, per group sqrt_pcrb and efficiency)."""
+    qualities, efficiencies = [], []
+    for key, group in scored.groupby(keys, sort=False):
+        quality, efficiency = run_quality(data, params_of(*key), group)
+        qualities.append(quality.assign(**dict(zip(keys, key))))
+        efficiencies.append({**dict(zip(keys, key)), **efficiency})
+    return pd.concat(qualities, ignore_index=True), pd.DataFrame(efficiencies)
+
+
+def cell_outputs(quality: pd.DataFrame, p: dict, label: str, title: str, **keys) -> tuple[list, tuple, list]:
+    """Report outputs of one Bayesian filter cell over its runs (quality rows with `run`,
+    resolved parameters p): results rows of ANEES / ANIS (consistency_rows with keys
+    experiment, table, row, scenario), the panel of sqrt(PCRB) beside the RMSE (labelled
+    label; bound_figures.pcrb_panels) and the ANEES / ANIS panels (consistency_panels)."""
+    runs = quality["run"].nunique()
+    tests = consistency(quality, p["epoch_s"], p["update"] == "epoch")
+    series = over_time(quality, p["epoch_s"])
+    title = f"{title}, {runs} runs"
+    bound = (series["t"], {label: series["rmse"]}, series["sqrt_pcrb"], bound_model(p), title)
+    return consistency_rows(tests, runs, **keys), bound, [(t, test, name, title) for name, (t, test) in tests.items()]
