@@ -24,6 +24,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from wsnloc.estimators import range_calibration
+from wsnloc.estimators.filter_options import UpdateCounts, configured_factory
 from wsnloc.estimators.inertial import epoch_inputs, floor_input
 from wsnloc.estimators.measurements import MeasurementSource, rss_params
 from wsnloc.estimators.motion import MotionModel
@@ -64,19 +66,32 @@ def motion_model(p: dict) -> MotionModel:
 
 
 def run_filter(data: RunData, p: dict) -> pd.DataFrame:
-    """Estimates (COLUMNS) of one run; `attrs['resets']` counts coasting-limit resets."""
+    """Estimates (COLUMNS) of one run; `attrs`: resets (coasting-limit resets), gated / offered
+    measurements and gated_share (filter_options), the self-calibration states range_scale /
+    range_offset_m, and the range calibration applied (range_calibration.RangeCorrection.describe)."""
+    correction = range_calibration.correction(data, p)
     source = MeasurementSource(data, p["measurements"], p["anchors"], p["range_sigma_m"], p["preliminary_filter"],
-                               p["max_range_m"], rss_params(data, p) if p["measurements"] != "toa" else None)
+                               p["max_range_m"], rss_params(data, p) if p["measurements"] != "toa" else None,
+                               correction)
     times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
     motion = motion_model(p)
     static = (static_epochs(data.require("imu", "motion detection"), times, p["epoch_s"],
                             p["motion_threshold_mps2"], p["static_start_s"])
               if p["motion_detection"] else np.zeros(len(times), dtype=bool))
     inputs = epoch_inputs(floor_input(data, p["static_start_s"]), times) if motion.kind == "pva" else None
-    make = FILTERS[p["filter"]]
-    if p["update"] == "epoch":
-        return _epoch_loop(source, times, p, motion, static, inputs, make)
-    return _sequential_loop(source, times, p, motion, static, inputs, make)
+    counts = UpdateCounts()
+    make = configured_factory(FILTERS[p["filter"]], p, counts, data.campaign)
+    loop = _epoch_loop if p["update"] == "epoch" else _sequential_loop
+    out = loop(source, times, p, motion, static, inputs, make)
+    out.attrs.update(counts.attrs())
+    out.attrs.update(correction.describe())
+    return out
+
+
+def _update(filt, model) -> bool:
+    """Measurement update; False when the gate rejected every measurement (no update)."""
+    filt.update_model(model)
+    return getattr(filt, "used", 1) > 0
 
 
 def _start(fix: np.ndarray, motion: MotionModel, make):
@@ -109,8 +124,7 @@ def _epoch_loop(source, times, p, motion, static, inputs, make) -> pd.DataFrame:
         if not static[k]:
             _predict(filt, motion, period, None if inputs is None else inputs[k])
         nis = np.nan
-        if model is not None:
-            filt.update_model(model)
+        if model is not None and _update(filt, model):
             nis, last_update = filt.nis, t
         elif t - last_update > p["max_coast_s"]:
             filt = None
@@ -152,15 +166,15 @@ def _sequential_loop(source, times, p, motion, static, inputs, make) -> pd.DataF
             if t > t_filter and not static[min(epoch_of[a], len(times) - 1)]:
                 _predict(filt, motion, t - t_filter, None if inputs is None else inputs[min(epoch_of[a], len(times) - 1)])
             t_filter = max(t, t_filter)
-            filt.update_model(source.model(*records.split(a, b)))
-            n_meas, nis, last_update = n_meas + b - a, filt.nis, t
+            if _update(filt, source.model(*records.split(a, b))):
+                n_meas, nis, last_update = n_meas + b - a, filt.nis, t
         if filt is None:
             continue
         if t_k - last_update > p["max_coast_s"]:
             filt = None
             track.resets += 1
             continue
-        x, P = filt.x, filt.P
+        x, P = filt.x[:motion.dim], filt.P[:motion.dim, :motion.dim]      # without calibration states
         if t_k > t_filter and not static[k]:
             F, Q, B = motion.matrices(t_k - t_filter)
             x = F @ x

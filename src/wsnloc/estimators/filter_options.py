@@ -1,0 +1,151 @@
+"""Options of the Bayesian filters' measurement update, as one adapter around any filter
+with the KalmanFilter interface (x, P, predict(F, Q, u, B), update(z, H, R, hx)):
+
+- innovation gating and robust M-estimator updates (estimators.robust);
+- range self-calibration: state augmented with a common scale and/or offset
+  (estimators.self_calibration);
+- NLOS-aware range noise: sigma_i = range_sigma_m + n_i range_sigma_per_wall_m, with n_i
+  the campaign walls crossed by the straight line from the current position estimate to
+  anchor i (so links through walls, which carry excess path and multipath, weigh less).
+
+The adapter counts the measurements offered and gated over a run (across track restarts)
+and exposes the calibration states; bayes.run_filter copies them to the estimates' attrs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from wsnloc.errors import ConfigError
+from wsnloc.estimators import robust, self_calibration
+from wsnloc.estimators.parameters import Param
+from wsnloc.filters.measurement_models import RangeModel
+
+PARAMS = (
+    Param("gate_probability", 0.0, "1", "innovation gate: reject a measurement whose squared normalised "
+          "innovation y_i^2 / S_ii exceeds the chi-square (1 dof) quantile at this probability (0: no gate; "
+          "0.999: beyond 3.29 sigma)", minimum=0.0),
+    Param("robust_loss", "none", "", "M-estimator update by iteratively reweighted R: huber (convex; clean data "
+          "with occasional outliers) or cauchy (redescending; frequent large outliers such as reflections)",
+          str, robust.LOSSES),
+    Param("robust_c", 0.0, "sigma", "loss tuning constant in units of the range sigma (0: the loss's 95% "
+          "Gaussian-efficiency default, huber 1.345, cauchy 2.385)", minimum=0.0),
+    Param("range_self_calibration", "none", "", "augment the state with a common range scale and/or offset "
+          "(needs >= 4 anchors and a moving target; no truth)", str, self_calibration.MODES),
+    Param("range_scale_sigma", 0.1, "1", "self-calibration: prior sigma of the range scale (around 1)",
+          minimum=1e-9),
+    Param("range_offset_sigma_m", 0.5, "m", "self-calibration: prior sigma of the range offset (around 0)",
+          minimum=1e-9),
+    Param("range_sigma_per_wall_m", 0.0, "m", "NLOS-aware noise: add this to the range sigma per campaign wall "
+          "crossed by the line from the position estimate to the anchor (0: off)", minimum=0.0),
+)
+
+
+@dataclass
+class UpdateCounts:
+    """Measurements offered to and rejected by the gate over a run, and the latest
+    self-calibration states (range_scale, range_offset_m)."""
+
+    offered: int = 0
+    gated: int = 0
+    calibration: dict = field(default_factory=dict)
+
+    def attrs(self) -> dict:
+        """Counters for the estimates' attrs: gated, offered, gated_share and the calibration."""
+        share = self.gated / self.offered if self.offered else 0.0
+        return {"gated": self.gated, "offered": self.offered, "gated_share": share, **self.calibration}
+
+
+class ConfiguredFilter:
+    """A filter with the configured update options (see the module docstring)."""
+
+    def __init__(self, filt, p: dict, counts: UpdateCounts, campaign=None):
+        self.filt, self.counts, self.campaign = filt, counts, campaign
+        self.mode = p["range_self_calibration"]
+        self.extra = len(self_calibration.extra_states(self.mode))
+        loss = p["robust_loss"]
+        self.options = robust.UpdateOptions(p["gate_probability"], loss,
+                                            p["robust_c"] or robust.DEFAULT_TUNING.get(loss, 0.0))
+        self.per_wall = p["range_sigma_per_wall_m"]
+        self.used = 0
+
+    # -- the interface the filter loops use --
+    @property
+    def x(self) -> np.ndarray:
+        return self.filt.x
+
+    @property
+    def P(self) -> np.ndarray:
+        return self.filt.P
+
+    @property
+    def nis(self) -> float:
+        return self.filt.nis if self.used else float("nan")
+
+    def predict(self, F, Q, u=None, B=None) -> None:
+        if self.extra:
+            F, Q, B = self_calibration.augment_motion(F, Q, B, self.extra)
+        self.filt.predict(F, Q, u=u, B=B)
+
+    def update_model(self, model) -> None:
+        """Linearise at the prior (calibration states applied), set the per-link noise, then
+        the gated / robust update; `used` = measurements kept."""
+        hx, H = self_calibration.linearise(model, self.filt.x, self.mode)
+        R = self.noise(model)
+        keep = robust.robust_update(self.filt, model.z, H, R, hx, self.options)
+        self.used = int(keep.sum())
+        self.counts.offered += len(keep)
+        self.counts.gated += len(keep) - self.used
+        self.counts.calibration = self.calibration()
+
+    def noise(self, model) -> np.ndarray:
+        """R of the model; with range_sigma_per_wall_m the range rows get sigma + n_walls * per_wall."""
+        R = np.array(model.R(), dtype=float)
+        if not self.per_wall:
+            return R
+        k = 0
+        for part in getattr(model, "parts", [model]):
+            m = len(part.anchors)
+            if isinstance(part, RangeModel):
+                walls = np.array([self.campaign.walls_between(self.filt.x[None, :2], a)[0] for a in part.anchors])
+                sigma = np.broadcast_to(part.sigma_m, m) + walls * self.per_wall
+                R[k:k + m, k:k + m] = np.diag(sigma**2)
+            k += m
+        return R
+
+    def calibration(self) -> dict[str, float]:
+        """Current self-calibration states: range_scale (1) and/or range_offset_m (m)."""
+        names = self_calibration.extra_states(self.mode)
+        n = len(self.filt.x) - len(names)
+        key = {"scale": "range_scale", "offset": "range_offset_m"}
+        return {key[name]: float(self.filt.x[n + i]) for i, name in enumerate(names)}
+
+
+def configured_factory(make, p: dict, counts: UpdateCounts, campaign=None):
+    """Wrap a filter factory make(x0, P0, motion) so that its filters have the update options."""
+    if p["range_sigma_per_wall_m"] and (campaign is None or campaign.walls.size == 0):
+        raise ConfigError("config key 'range_sigma_per_wall_m': NLOS-aware noise needs the campaign's walls "
+                          f"({'no campaign' if campaign is None else campaign.source + ' has none'})")
+
+    def factory(x0: np.ndarray, P0: np.ndarray, motion):
+        x, P = self_calibration.augment_prior(x0, P0, p["range_self_calibration"], p["range_scale_sigma"],
+                                              p["range_offset_sigma_m"])
+        return ConfiguredFilter(make(x, P, _AugmentedMotion(motion, len(x) - len(x0))), p, counts, campaign)
+    return factory
+
+
+@dataclass(frozen=True)
+class _AugmentedMotion:
+    """A motion model whose matrices cover the calibration states too (for the factory's F, Q)."""
+
+    motion: object
+    extra: int
+
+    @property
+    def period_s(self) -> float:
+        return self.motion.period_s
+
+    def matrices(self, dt: float):
+        return self_calibration.augment_motion(*self.motion.matrices(dt), self.extra)
