@@ -15,6 +15,7 @@ from wsnloc.experiments.calibration import calibrate_ranges
 from wsnloc.filters.kalman import ExtendedKalmanFilter
 from wsnloc.filters.measurement_models import RangeModel, RssModel, Stacked
 from wsnloc.metrics.tracking import run_metrics, score
+from wsnloc.studies import results_rows, run_cell
 
 ANCHORS = np.array(list(SQUARE.values()))
 SIGMA = 0.3
@@ -236,3 +237,16 @@ def test_options_off_leave_the_filter_unchanged():
     a = registry.run("ekf", data)
     b = registry.run("ekf", data, {"robust_loss": "huber", "robust_c": 1e6})
     np.testing.assert_allclose(a[["x", "y", "p_xx"]], b[["x", "y", "p_xx"]], rtol=1e-12)
+
+
+def test_study_cell_fits_range_donors_within_the_scenario_and_reports_gating_and_calibration():
+    runs = {"r1": _walk_run(51, offsets=OFFSETS, duration=120.0), "r2": _walk_run(52, offsets=OFFSETS, duration=120.0)}
+    p = registry.get("tracker").resolve({"range_calibration": "other_run", "range_sigma_m": 0.1})
+    _, metrics = run_cell("site/walk", "calibrated", "tracker", p, ["all"], runs, _generic(None))
+    assert metrics["range_calibration"].tolist() == ["fitted on r2", "fitted on r1"]
+    offsets = dict(item.split("=") for item in metrics["calibrated_offsets_m"].iloc[0].split(";"))
+    assert float(offsets["A1"]) == pytest.approx(OFFSETS["A1"], abs=0.05)
+    rows = pd.DataFrame(results_rows("robustness", "calibrated", "site/walk", metrics))
+    assert {"median", "p95", "rmse", "gated", "calibrated_scale"} <= set(rows["column"])
+    assert "range_scale" not in set(rows["column"])
+    assert rows.loc[rows["column"] == "gated", "metric"].item() == "gated_share"
