@@ -1,9 +1,13 @@
 """Robust tracking and range calibration (issue 13): innovation gate, M-estimator updates,
 range self-calibration, donor-fitted and configured range calibration, NLOS-aware noise."""
 
+import io
+import json
+
 import numpy as np
 import pandas as pd
 import pytest
+from PIL import Image
 
 from synthetic import SQUARE, bursts, one_at_a_time, run_data, tables_for, walk
 from wsnloc.campaign import Campaign
@@ -14,7 +18,10 @@ from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments.calibration import calibrate_ranges
 from wsnloc.filters.kalman import ExtendedKalmanFilter
 from wsnloc.filters.measurement_models import RangeModel, RssModel, Stacked
+from wsnloc.metrics.data_quality import per_anchor_range_quality, range_bias_fit, range_error_by_distance
+from wsnloc.metrics.ranging import range_errors
 from wsnloc.metrics.tracking import run_metrics, score
+from wsnloc.report import figures
 from wsnloc.studies import results_rows, run_cell
 
 ANCHORS = np.array(list(SQUARE.values()))
@@ -250,3 +257,36 @@ def test_study_cell_fits_range_donors_within_the_scenario_and_reports_gating_and
     assert {"median", "p95", "rmse", "gated", "calibrated_scale"} <= set(rows["column"])
     assert "range_scale" not in set(rows["column"])
     assert rows.loc[rows["column"] == "gated", "metric"].item() == "gated_share"
+
+
+def test_data_summary_per_anchor_bias_rmse_nlos_share_and_error_against_distance():
+    tables = _walk_run(61, scale=1.03, offsets=OFFSETS, noise_m=0.05, duration=200.0)
+    site = _campaign({"walls": [{"from": [10.0, -1.0], "to": [10.0, 21.0]}]})
+    errors = range_errors(tables["ranges"], tables["truth"], site, tables["anchors"])
+    table = per_anchor_range_quality(errors).set_index("anchor_id")
+    for anchor, offset in OFFSETS.items():
+        mine = errors[errors["anchor_id"] == anchor]
+        assert table.loc[anchor, "n"] == len(mine)
+        assert table.loc[anchor, "bias_m"] == pytest.approx(np.median(mine["error_m"]))
+        assert table.loc[anchor, "rmse_m"] == pytest.approx(np.sqrt(np.mean(mine["error_m"] ** 2)))
+        x_anchor = SQUARE[anchor][0]
+        crossing = (mine["true_x"] - 10.0) * (x_anchor - 10.0) < 0          # tag and anchor on either side
+        assert table.loc[anchor, "nlos_share"] == pytest.approx(crossing.mean())
+    by_distance = range_error_by_distance(errors)
+    assert by_distance["n"].sum() == len(errors)
+    # scale 1.03: the error grows by about 0.03 m per m of distance
+    slope = np.polyfit((by_distance["from_m"] + by_distance["to_m"].clip(upper=30.0)) / 2, by_distance["median_m"], 1)[0]
+    assert 0.015 < slope < 0.045
+    fit = range_bias_fit(errors)
+    assert fit["scale"] == pytest.approx(1.03, abs=0.005)
+    assert max(abs(fit["offsets_m"][a] - b) for a, b in OFFSETS.items()) < 0.05
+    assert range_bias_fit(errors.iloc[:3]) == {}
+
+
+def test_range_error_figure_has_both_panels_without_overlapping_text():
+    tables = _walk_run(62, offsets=OFFSETS, duration=60.0)
+    errors = range_errors(tables["ranges"], tables["truth"], _generic(None), tables["anchors"])
+    png = figures.range_error_figure(errors, "site/walk: Range error")
+    image = Image.open(io.BytesIO(png))
+    assert json.loads(image.info[figures.OVERLAPS_KEY]) == []
+    assert image.width > 1.5 * image.height                     # two panels side by side
