@@ -12,8 +12,9 @@ Update modes
   estimates.
 Initiator: the first time the measurements of the last `init_window_s` seconds (per-anchor
   means) give a multilateration fix, the state starts there (speed and bias 0, P0).
-Coasting limit: after `max_coast_s` seconds without an update the track is dropped
-  (counted as a reset) and restarted by the initiator; no estimate is output meanwhile,
+Coasting limit: after `max_coast_s` seconds without an update (or when the innovation gate
+  finds the track lost, estimators.filter_options) the track is dropped (counted as a
+  reset) and restarted by the initiator; no estimate is output meanwhile,
   so a long gap shows as lower availability instead of unbounded drift.
 Motion detection (paper A): in epochs declared static by the accelerometer the predict
   step is skipped (state and covariance frozen).
@@ -89,9 +90,14 @@ def run_filter(data: RunData, p: dict) -> pd.DataFrame:
 
 
 def _update(filt, model) -> bool:
-    """Measurement update; False when the gate rejected every measurement (no update)."""
+    """Measurement update; False when the gate rejected every measurement (no update) or
+    found the track lost (filter_options.ConfiguredFilter.lost; the loops drop it then)."""
     filt.update_model(model)
-    return getattr(filt, "used", 1) > 0
+    return getattr(filt, "used", 1) > 0 and not _lost(filt)
+
+
+def _lost(filt) -> bool:
+    return getattr(filt, "lost", False)
 
 
 def _start(fix: np.ndarray, motion: MotionModel, make):
@@ -126,7 +132,7 @@ def _epoch_loop(source, times, p, motion, static, inputs, make) -> pd.DataFrame:
         nis = np.nan
         if model is not None and _update(filt, model):
             nis, last_update = filt.nis, t
-        elif t - last_update > p["max_coast_s"]:
+        elif t - last_update > p["max_coast_s"] or _lost(filt):
             filt = None
             track.resets += 1
             continue
@@ -168,6 +174,9 @@ def _sequential_loop(source, times, p, motion, static, inputs, make) -> pd.DataF
             t_filter = max(t, t_filter)
             if _update(filt, source.model(*records.split(a, b))):
                 n_meas, nis, last_update = n_meas + b - a, filt.nis, t
+            elif _lost(filt):
+                filt = None
+                track.resets += 1
         if filt is None:
             continue
         if t_k - last_update > p["max_coast_s"]:

@@ -14,6 +14,7 @@ and exposes the calibration states; bayes.run_filter copies them to the estimate
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -22,6 +23,8 @@ from wsnloc.errors import ConfigError
 from wsnloc.estimators import robust, self_calibration
 from wsnloc.estimators.parameters import Param
 from wsnloc.filters.measurement_models import RangeModel
+
+LOSS_WINDOW = 10          # updates over which the gate's rejections are judged
 
 PARAMS = (
     Param("gate_probability", 0.0, "1", "innovation gate: reject a measurement whose squared normalised "
@@ -32,6 +35,9 @@ PARAMS = (
           str, robust.LOSSES),
     Param("robust_c", 0.0, "sigma", "loss tuning constant in units of the range sigma (0: the loss's 95% "
           "Gaussian-efficiency default, huber 1.345, cauchy 2.385)", minimum=0.0),
+    Param("gate_loss_share", 0.5, "1", "gate: when it rejected more than this share of the measurements of the "
+          f"last {LOSS_WINDOW} updates the track is lost: dropped (a reset) and restarted by the initiator "
+          "(1: never)", minimum=0.0),
     Param("range_self_calibration", "none", "", "augment the state with a common range scale and/or offset "
           "(needs >= 4 anchors and a moving target; no truth)", str, self_calibration.MODES),
     Param("range_scale_sigma", 0.1, "1", "self-calibration: prior sigma of the range scale (around 1)",
@@ -50,12 +56,14 @@ class UpdateCounts:
 
     offered: int = 0
     gated: int = 0
+    track_losses: int = 0
     calibration: dict = field(default_factory=dict)
 
     def attrs(self) -> dict:
         """Counters for the estimates' attrs: gated, offered, gated_share and the calibration."""
         share = self.gated / self.offered if self.offered else 0.0
-        return {"gated": self.gated, "offered": self.offered, "gated_share": share, **self.calibration}
+        return {"gated": self.gated, "offered": self.offered, "gated_share": share, "gate_track_losses": self.track_losses,
+                **self.calibration}
 
 
 class ConfiguredFilter:
@@ -63,6 +71,9 @@ class ConfiguredFilter:
 
     def __init__(self, filt, p: dict, counts: UpdateCounts, campaign=None):
         self.filt, self.counts, self.campaign = filt, counts, campaign
+        self.loss_share = p["gate_loss_share"]
+        self.recent: deque = deque(maxlen=LOSS_WINDOW)          # (offered, gated) of the last updates
+        self.lost = False
         self.mode = p["range_self_calibration"]
         self.extra = len(self_calibration.extra_states(self.mode))
         loss = p["robust_loss"]
@@ -91,7 +102,9 @@ class ConfiguredFilter:
 
     def update_model(self, model) -> None:
         """Linearise at the prior (calibration states applied), set the per-link noise, then
-        the gated / robust update; `used` = measurements kept."""
+        the gated / robust update; `used` = measurements kept; `lost` when the gate rejected
+        more than gate_loss_share of the last LOSS_WINDOW updates' measurements (a gate that
+        rejects most measurements is guarding a track that has left the target)."""
         hx, H = self_calibration.linearise(model, self.filt.x, self.mode)
         R = self.noise(model)
         keep = robust.robust_update(self.filt, model.z, H, R, hx, self.options)
@@ -99,6 +112,11 @@ class ConfiguredFilter:
         self.counts.offered += len(keep)
         self.counts.gated += len(keep) - self.used
         self.counts.calibration = self.calibration()
+        self.recent.append((len(keep), len(keep) - self.used))
+        offered, gated = np.sum(list(self.recent), axis=0)
+        if len(self.recent) == LOSS_WINDOW and gated > self.loss_share * offered:
+            self.lost = True            # the loop drops the track (see bayes._update)
+            self.counts.track_losses += 1
 
     def noise(self, model) -> np.ndarray:
         """R of the model; with range_sigma_per_wall_m the range rows get sigma + n_walls * per_wall."""
