@@ -29,6 +29,7 @@ w(r) = psi(r) / r of the loss, evaluated at the current estimate; starting from 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy.stats import chi2
@@ -39,6 +40,7 @@ ROBUST_ITERATIONS = 10
 WEIGHT_TOLERANCE = 1e-6
 
 
+@lru_cache(maxsize=None)
 def gate_threshold(probability: float) -> float:
     """chi2_1^-1(probability): the largest accepted squared normalised innovation d_i^2."""
     return float(chi2.ppf(probability, 1))

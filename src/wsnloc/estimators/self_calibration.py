@@ -50,6 +50,8 @@ def augment_motion(F: np.ndarray, Q: np.ndarray, B: np.ndarray | None, extra: in
 
 def linearise(model, x: np.ndarray, mode: str) -> tuple[np.ndarray, np.ndarray]:
     """(h(x), H) of a measurement model (filters.measurement_models) at the augmented state x."""
+    if mode == "none":
+        return model.h(x), model.jacobian(x)
     names = extra_states(mode)
     n = len(x) - len(names)
     scale = x[n + names.index("scale")] if "scale" in names else 1.0
