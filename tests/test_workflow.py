@@ -40,6 +40,9 @@ def test_builds_report_and_results(workdir):
     assert (availability[["tracker", "ekf_epoch"]] > 0.9).all()
     # Cricket beacons range one at a time: an epoch of 0.5 s often holds fewer than 3 ranges
     assert availability[("multilateration", "cricket/speed_40")] < availability[("tracker", "cricket/speed_40")]
+    robust = results[results["experiment"] == "study:robustness"].set_index(["row", "column"])["value"]
+    assert robust[("ekf", "gated")] == 0 and 0 < robust[("ekf_gate_nlos", "gated")] < 0.1
+    assert 'id="study-robustness"' in html and "gated" in html and "Range error per anchor" in html
     for paper in ("a", "c"):        # per-epoch estimates of every paper, one file per scenario
         assert list((workdir / "data" / "processed").glob(f"*/*/paper_{paper}/estimates.parquet"))
     assert {"data", "A", "B", "C", "D"} <= set(results["experiment"])
