@@ -236,9 +236,10 @@ def test_nlos_aware_noise_adds_sigma_per_wall_crossed():
         registry.run("ekf", run_data(_walk_run(1, duration=10.0)), {"range_sigma_per_wall_m": 0.5})
 
 
-def test_options_off_leave_the_filter_unchanged():
-    """Every option at its default: the adapter is the plain EKF (same estimates as
-    update_model on the bare filter, compared in test_estimators against filterpy)."""
+def test_adapter_with_inactive_loss_equals_the_bare_filter():
+    """With every option off the loops run the bare EKF (compared with filterpy in
+    test_estimators); Huber with a huge c goes through the adapter (linearise, robust
+    update) with all weights 1 and must give the same estimates."""
     times, ids = bursts(60.0, 0.5, SQUARE)
     data = run_data(tables_for(times, ids, walk, SQUARE, noise_m=0.2, rng=np.random.default_rng(2)))
     a = registry.run("ekf", data)
@@ -290,3 +291,21 @@ def test_range_error_figure_has_both_panels_without_overlapping_text():
     image = Image.open(io.BytesIO(png))
     assert json.loads(image.info[figures.OVERLAPS_KEY]) == []
     assert image.width > 1.5 * image.height                     # two panels side by side
+
+
+@pytest.mark.parametrize("update", ["epoch", "sequential"])
+def test_gate_rejects_injected_wild_ranges_in_batch_and_sequential_updates(update):
+    """Bursts of 4 ranges (0.1 m noise); 3 m (> 10 sigma of the innovation) added to 5% of them:
+    the gate rejects those, keeps nearly all others, and the track matches the clean run's."""
+    times, ids = bursts(200.0, 0.5, SQUARE)
+    clean = tables_for(times, ids, walk, SQUARE, noise_m=0.1, rng=np.random.default_rng(71))
+    wild = np.random.default_rng(72).random(len(times)) < 0.05
+    dirty = {**clean, "ranges": clean["ranges"].assign(range_m=clean["ranges"]["range_m"] + 3.0 * wild)}
+    params = {"update": update, "range_sigma_m": 0.1, "gate_probability": 0.999}
+    reference = registry.run("ekf", run_data(clean), params)
+    gated = registry.run("ekf", run_data(dirty), params)
+    offered = wild[4:].sum()                         # the first burst starts the track (initiator), not offered
+    assert offered <= gated.attrs["gated"] <= offered + reference.attrs["gated"] + 2
+    assert gated.attrs["offered"] == len(times) - 4
+    errors = {k: run_metrics(score(e, clean["truth"]), clean["truth"]) for k, e in (("ref", reference), ("gated", gated))}
+    assert errors["gated"]["p95"] < 1.1 * errors["ref"]["p95"]

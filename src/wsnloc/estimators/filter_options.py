@@ -141,8 +141,16 @@ class ConfiguredFilter:
         return {key[name]: float(self.filt.x[n + i]) for i, name in enumerate(names)}
 
 
+OFF = {"gate_probability": 0.0, "robust_loss": "none", "range_self_calibration": "none",
+       "range_sigma_per_wall_m": 0.0}
+
+
 def configured_factory(make, p: dict, counts: UpdateCounts, campaign=None):
-    """Wrap a filter factory make(x0, P0, motion) so that its filters have the update options."""
+    """Wrap a filter factory make(x0, P0, motion) so that its filters have the update options;
+    with every option off, the factory itself (any filter, linearised or not)."""
+    active = [k for k, off in OFF.items() if p[k] != off]
+    if not active:
+        return make
     if p["range_sigma_per_wall_m"] and (campaign is None or campaign.walls.size == 0):
         raise ConfigError("config key 'range_sigma_per_wall_m': NLOS-aware noise needs the campaign's walls "
                           f"({'no campaign' if campaign is None else campaign.source + ' has none'})")
@@ -150,7 +158,11 @@ def configured_factory(make, p: dict, counts: UpdateCounts, campaign=None):
     def factory(x0: np.ndarray, P0: np.ndarray, motion):
         x, P = self_calibration.augment_prior(x0, P0, p["range_self_calibration"], p["range_scale_sigma"],
                                               p["range_offset_sigma_m"])
-        return ConfiguredFilter(make(x, P, _AugmentedMotion(motion, len(x) - len(x0))), p, counts, campaign)
+        filt = make(x, P, _AugmentedMotion(motion, len(x) - len(x0)))
+        if not hasattr(filt, "update"):
+            raise ConfigError(f"config key '{active[0]}': the update options need a linearised filter with "
+                              f"update(z, H, R, hx) (filter {p['filter']!r} has none)")
+        return ConfiguredFilter(filt, p, counts, campaign)
     return factory
 
 
