@@ -7,8 +7,10 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
 from PIL import Image
 
+from conftest import ROOT
 from synthetic import SQUARE, bursts, one_at_a_time, run_data, tables_for, walk
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
@@ -309,3 +311,14 @@ def test_gate_rejects_injected_wild_ranges_in_batch_and_sequential_updates(updat
     assert gated.attrs["offered"] == len(times) - 4
     errors = {k: run_metrics(score(e, clean["truth"]), clean["truth"]) for k, e in (("ref", reference), ("gated", gated))}
     assert errors["gated"]["p95"] < 1.1 * errors["ref"]["p95"]
+
+
+def test_campaign_schema_checks_the_configured_range_calibration(tmp_path):
+    spec = yaml.safe_load((ROOT / "config" / "campaigns" / "cricket.yaml").read_text())
+    for bad, key in (({"scale": 0.0}, "range_calibration.scale"), ({"offset": 0.1}, "range_calibration.offset"),
+                     ({"offsets_m": {"B1": "x"}}, "range_calibration.offsets_m.B1")):
+        (tmp_path / "c.yaml").write_text(yaml.safe_dump({**spec, "range_calibration": bad}))
+        with pytest.raises(ConfigError, match=f"config key '{key}'"):
+            Campaign.load(tmp_path / "c.yaml")
+    (tmp_path / "c.yaml").write_text(yaml.safe_dump({**spec, "range_calibration": {"offsets_m": {"B1": 0.1}}}))
+    assert Campaign.load(tmp_path / "c.yaml").spec["range_calibration"]["scale"] == 1.0      # schema default
