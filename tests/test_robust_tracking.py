@@ -278,7 +278,8 @@ def test_data_summary_per_anchor_bias_rmse_nlos_share_and_error_against_distance
     by_distance = range_error_by_distance(errors)
     assert by_distance["n"].sum() == len(errors)
     # scale 1.03: the error grows by about 0.03 m per m of distance
-    slope = np.polyfit((by_distance["from_m"] + by_distance["to_m"].clip(upper=30.0)) / 2, by_distance["median_m"], 1)[0]
+    centres = (by_distance["from_m"] + by_distance["to_m"].clip(upper=30.0)) / 2
+    slope = np.polyfit(centres, by_distance["median_m"], 1)[0]
     assert 0.015 < slope < 0.045
     fit = range_bias_fit(errors)
     assert fit["scale"] == pytest.approx(1.03, abs=0.005)
@@ -309,7 +310,8 @@ def test_gate_rejects_injected_wild_ranges_in_batch_and_sequential_updates(updat
     offered = wild[4:].sum()                         # the first burst starts the track (initiator), not offered
     assert offered <= gated.attrs["gated"] <= offered + reference.attrs["gated"] + 2
     assert gated.attrs["offered"] == len(times) - 4
-    errors = {k: run_metrics(score(e, clean["truth"]), clean["truth"]) for k, e in (("ref", reference), ("gated", gated))}
+    errors = {k: run_metrics(score(e, clean["truth"]), clean["truth"])
+              for k, e in (("ref", reference), ("gated", gated))}
     assert errors["gated"]["p95"] < 1.1 * errors["ref"]["p95"]
 
 
@@ -322,3 +324,22 @@ def test_campaign_schema_checks_the_configured_range_calibration(tmp_path):
             Campaign.load(tmp_path / "c.yaml")
     (tmp_path / "c.yaml").write_text(yaml.safe_dump({**spec, "range_calibration": {"offsets_m": {"B1": 0.1}}}))
     assert Campaign.load(tmp_path / "c.yaml").spec["range_calibration"]["scale"] == 1.0      # schema default
+
+
+def test_a_track_whose_gate_rejects_most_measurements_is_dropped_and_restarted():
+    """The target jumps at 60 s from (5, 10) to its mirror image (10, 5) across the diagonal
+    A1-A3: the ranges to A1 and A3 stay the same, those to A2 and A4 change by 6.9 m. The gated
+    filter keeps agreeing with A1 and A3 and rejects A2 and A4 (half of all ranges), for ever
+    unless the gate's rejections mark the track lost (gate_loss_share below 0.5 here)."""
+    def jump(t):
+        return np.where((np.asarray(t) < 60.0)[:, None], [[5.0, 10.0]], [[10.0, 5.0]])
+
+    times, ids = bursts(120.0, 0.5, SQUARE)
+    tables = tables_for(times, ids, jump, SQUARE, noise_m=0.05, rng=np.random.default_rng(81))
+    params = {"range_sigma_m": 0.1, "gate_probability": 0.999}
+    stuck = registry.run("ekf", run_data(tables), dict(params, gate_loss_share=1.0))
+    restarted = registry.run("ekf", run_data(tables), dict(params, gate_loss_share=0.4))
+    final = {k: np.hypot(e["x"].iloc[-1] - 10.0, e["y"].iloc[-1] - 5.0) for k, e in (("stuck", stuck),
+                                                                                       ("restarted", restarted))}
+    assert final["stuck"] > 5.0 and stuck.attrs["gate_track_losses"] == 0
+    assert final["restarted"] < 0.1 and restarted.attrs["gate_track_losses"] >= 1 and restarted.attrs["resets"] >= 1

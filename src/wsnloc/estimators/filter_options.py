@@ -60,10 +60,11 @@ class UpdateCounts:
     calibration: dict = field(default_factory=dict)
 
     def attrs(self) -> dict:
-        """Counters for the estimates' attrs: gated, offered, gated_share and the calibration."""
+        """Counters for the estimates' attrs: gated, offered, gated_share, gate_track_losses and the
+        self-calibration states."""
         share = self.gated / self.offered if self.offered else 0.0
-        return {"gated": self.gated, "offered": self.offered, "gated_share": share, "gate_track_losses": self.track_losses,
-                **self.calibration}
+        return {"gated": self.gated, "offered": self.offered, "gated_share": share,
+                "gate_track_losses": self.track_losses, **self.calibration}
 
 
 class ConfiguredFilter:
