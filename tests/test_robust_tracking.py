@@ -258,6 +258,7 @@ def test_study_cell_fits_range_donors_within_the_scenario_and_reports_gating_and
     assert float(offsets["A1"]) == pytest.approx(OFFSETS["A1"], abs=0.05)
     rows = pd.DataFrame(results_rows("robustness", "calibrated", "site/walk", metrics))
     assert {"median", "p95", "rmse", "gated", "calibrated_scale"} <= set(rows["column"])
+    assert rows.loc[rows["column"] == "calibration_fitted", "value"].item() == 1.0
     assert "range_scale" not in set(rows["column"])
     assert rows.loc[rows["column"] == "gated", "metric"].item() == "gated_share"
 
@@ -343,3 +344,14 @@ def test_a_track_whose_gate_rejects_most_measurements_is_dropped_and_restarted()
                                                                                        ("restarted", restarted))}
     assert final["stuck"] > 5.0 and stuck.attrs["gate_track_losses"] == 0
     assert final["restarted"] < 0.1 and restarted.attrs["gate_track_losses"] >= 1 and restarted.attrs["resets"] >= 1
+
+
+def test_self_calibrated_states_are_reported_per_cell():
+    runs = {"r1": _walk_run(91, duration=120.0)}
+    runs["r1"]["ranges"]["range_m"] += 0.3
+    p = registry.get("tracker").resolve({"range_self_calibration": "offset", "range_sigma_m": 0.1})
+    _, metrics = run_cell("site/walk", "self_offset", "tracker", p, ["all"], runs, _generic(None))
+    rows = pd.DataFrame(results_rows("robustness", "self_offset", "site/walk", metrics)).set_index("column")
+    assert rows.loc["range_offset", "metric"] == "range_offset_m"
+    assert rows.loc["range_offset", "value"] == pytest.approx(0.3, abs=0.03)
+    assert not {"calibrated_scale", "calibration_fitted", "range_scale"} & set(rows.index)

@@ -32,9 +32,9 @@ from wsnloc.metrics.tracking import RUN_METRICS, run_metrics, score
 
 EXPERIMENT_PREFIX = "study:"
 REPORTED = RUN_METRICS + ("resets", "gated")   # per cell and run; results.csv gives mean and 95% interval
-CALIBRATION = ("calibrated_scale", "range_scale", "range_offset_m")   # reported for the cells that have them
+CALIBRATION = ("calibrated_scale", "calibration_fitted", "range_scale", "range_offset")   # where a cell has them
 UNIT = {"n": "count", "availability": "share", "resets": "count", "gated": "share", "calibrated_scale": "1",
-        "range_scale": "1"}
+        "calibration_fitted": "share", "range_scale": "1"}
 
 
 def estimator_of(spec: dict, cell: str) -> str:
@@ -131,13 +131,17 @@ def range_donor_models(runs: dict[str, dict], donors: dict[str, dict], campaign:
 
 def calibration_metrics(estimates: pd.DataFrame) -> dict:
     """Per-run columns of metrics.csv on the range options: gated share, the range calibration
-    applied (source, scale, per-anchor offsets as 'A=b;...') and the self-calibrated states."""
+    applied (source; calibration_fitted 1 when fitted on a donor, 0 when the configured values
+    stood in; scale; per-anchor offsets as 'A=b;...') and the self-calibrated states."""
     a = estimates.attrs
-    calibrated = a.get("range_calibration", "none") != "none"
+    source = a.get("range_calibration", "none")
+    calibrated = source != "none"
     out = {"gated": a.get("gated_share", 0.0), "range_calibration": a.get("range_calibration", ""),
            "calibrated_scale": a["calibrated_scale"] if calibrated else np.nan,
+           "calibration_fitted": float(source.startswith("fitted on")) if calibrated else np.nan,
            "calibrated_offsets_m": ";".join(f"{k}={v:.3f}" for k, v in (a.get("calibrated_offsets_m") or {}).items())}
-    out.update({k: a[k] for k in ("range_scale", "range_offset_m") if k in a})
+    out.update({column: a[k] for k, column in (("range_scale", "range_scale"), ("range_offset_m", "range_offset"))
+                if k in a})
     return out
 
 

@@ -149,8 +149,8 @@ def paper_c_section(results: pd.DataFrame, claims: dict, figures: dict[str, str]
             "details": details, "claims": claims["claims"], "cost": [], "figures": figures, "settings": settings}
 
 
-STUDY_STATS = ("median", "p75", "p95", "rmse", "availability", "resets", "gated", "calibrated_scale", "range_scale",
-               "range_offset_m")
+STUDY_STATS = ("median", "p75", "p95", "rmse", "availability", "resets", "gated", "calibrated_scale",
+               "calibration_fitted", "range_scale", "range_offset")
 
 
 def study_section(results: pd.DataFrame, study: str, spec: dict, figures: dict[str, str]) -> dict:
