@@ -12,6 +12,7 @@ from PIL import Image
 
 from conftest import ROOT
 from synthetic import SQUARE, bursts, one_at_a_time, run_data, tables_for, walk
+from wsnloc import results
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
 from wsnloc.estimators import registry, robust, self_calibration
@@ -20,10 +21,13 @@ from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments.calibration import calibrate_ranges
 from wsnloc.filters.kalman import ExtendedKalmanFilter
 from wsnloc.filters.measurement_models import RangeModel, RssModel, Stacked
-from wsnloc.metrics.data_quality import per_anchor_range_quality, range_bias_fit, range_error_by_distance
+from wsnloc.io.newcom import ingest_run
+from wsnloc.metrics.data_quality import per_anchor_range_quality, range_bias_fit, range_error_by_distance, summarize
 from wsnloc.metrics.ranging import range_errors
 from wsnloc.metrics.tracking import run_metrics, score
 from wsnloc.report import figures
+from wsnloc.report.render import build_context, render
+from wsnloc.report.sections import study_section
 from wsnloc.studies import results_rows, run_cell
 
 ANCHORS = np.array(list(SQUARE.values()))
@@ -355,3 +359,29 @@ def test_self_calibrated_states_are_reported_per_cell():
     assert rows.loc["range_offset", "metric"] == "range_offset_m"
     assert rows.loc["range_offset", "value"] == pytest.approx(0.3, abs=0.03)
     assert not {"calibrated_scale", "calibration_fitted", "range_scale"} & set(rows.index)
+
+
+def test_report_shows_gating_calibration_and_per_anchor_range_quality(campaign, simulated_run):
+    tables, inventory = ingest_run(simulated_run, campaign)
+    summary, data_rows, _ = summarize({"run-01": tables}, {}, campaign, "newcom/constant")
+    summary["inventory"] = {"run-01": inventory}
+    runs = {"r1": _walk_run(93, offsets=OFFSETS, duration=120.0),
+            "r2": _walk_run(94, offsets=OFFSETS, duration=120.0)}
+    spec = {"scenarios": ["site/walk"],
+            "estimators": {"donor": {"estimator": "tracker", "range_calibration": "other_run"},
+                           "self_offset": {"estimator": "tracker", "range_self_calibration": "offset"}}}
+    rows = list(data_rows)
+    for cell, overrides in spec["estimators"].items():
+        p = registry.get("tracker").resolve({k: v for k, v in overrides.items() if k != "estimator"})
+        _, metrics = run_cell("site/walk", cell, "tracker", p, ["all"], runs, _generic(None))
+        rows += results_rows("robustness", cell, "site/walk", metrics)
+    frame = results.frame(rows)
+    config = {"runs": 1, "seed": 1, "report": {"title": "t"},
+              "datasets": {"newcom": {"format": "newcom", "campaign": "c.yaml", "source": "simulate",
+                                      "scenarios": ["constant"], "raw_dir": "r"}}}
+    context = build_context(config, [summary], frame, {}, {})
+    context["papers"], context["studies"] = [], [study_section(frame, "robustness", spec, {})]
+    html = render(ROOT / "workflow" / "templates" / "report.html.j2", context)
+    assert "Range error per anchor" in html and "Robust fit r = s·d + b" in html
+    assert "fitted on a donor of the same dataset in 100% of runs" in html
+    assert "self-cal: offset" in html and ", gated " in html and "p95 " in html
