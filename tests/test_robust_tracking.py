@@ -160,7 +160,7 @@ def test_self_calibration_of_scale_and_offset_together_with_precise_ranges():
 OFFSETS = {"A1": 0.5, "A2": -0.3, "A3": 0.2, "A4": -0.45}
 
 
-def _generic(anchors: pd.DataFrame):
+def _generic():
     return Campaign(name="generic", format="generic", spec={}, source="(test)")
 
 
@@ -168,7 +168,7 @@ def test_donor_range_calibration_fits_per_anchor_offsets_and_restores_the_median
     """Issue 13 acceptance: offsets up to 0.5 m, fitted on a donor run within 5 cm; the
     tracker on another run, corrected, within 1.2x of the bias-free run's median error."""
     donor = _walk_run(21, offsets=OFFSETS, duration=300.0)
-    fit = calibrate_ranges(donor["ranges"], donor["truth"], _generic(donor["anchors"]), donor["anchors"])
+    fit = calibrate_ranges(donor["ranges"], donor["truth"], _generic(), donor["anchors"])
     assert fit["scale"] == pytest.approx(1.0, abs=0.005)
     for anchor, offset in OFFSETS.items():
         assert fit["offsets_m"][anchor] == pytest.approx(offset, abs=0.05)
@@ -188,7 +188,7 @@ def test_donor_range_fit_resists_reflections_and_recovers_a_scale():
     rng = np.random.default_rng(0)
     wild = rng.random(len(donor["ranges"])) < 0.1
     donor["ranges"].loc[wild, "range_m"] += rng.uniform(1.0, 5.0, wild.sum())   # reflections: longer paths
-    fit = calibrate_ranges(donor["ranges"], donor["truth"], _generic(donor["anchors"]), donor["anchors"])
+    fit = calibrate_ranges(donor["ranges"], donor["truth"], _generic(), donor["anchors"])
     assert fit["scale"] == pytest.approx(1.07, abs=0.005)
     assert max(abs(fit["offsets_m"][a] - b) for a, b in OFFSETS.items()) < 0.1
 
@@ -256,7 +256,7 @@ def test_adapter_with_inactive_loss_equals_the_bare_filter():
 def test_study_cell_fits_range_donors_within_the_scenario_and_reports_gating_and_calibration():
     runs = {"r1": _walk_run(51, offsets=OFFSETS, duration=120.0), "r2": _walk_run(52, offsets=OFFSETS, duration=120.0)}
     p = registry.get("tracker").resolve({"range_calibration": "other_run", "range_sigma_m": 0.1})
-    _, metrics = run_cell("site/walk", "calibrated", "tracker", p, ["all"], runs, _generic(None))
+    _, metrics = run_cell("site/walk", "calibrated", "tracker", p, ["all"], runs, _generic())
     assert metrics["range_calibration"].tolist() == ["fitted on r2", "fitted on r1"]
     offsets = dict(item.split("=") for item in metrics["calibrated_offsets_m"].iloc[0].split(";"))
     assert float(offsets["A1"]) == pytest.approx(OFFSETS["A1"], abs=0.05)
@@ -294,7 +294,7 @@ def test_data_summary_per_anchor_bias_rmse_nlos_share_and_error_against_distance
 
 def test_range_error_figure_has_both_panels_without_overlapping_text():
     tables = _walk_run(62, offsets=OFFSETS, duration=60.0)
-    errors = range_errors(tables["ranges"], tables["truth"], _generic(None), tables["anchors"])
+    errors = range_errors(tables["ranges"], tables["truth"], _generic(), tables["anchors"])
     png = figures.range_error_figure(errors, "site/walk: Range error")
     image = Image.open(io.BytesIO(png))
     assert json.loads(image.info[figures.OVERLAPS_KEY]) == []
@@ -354,7 +354,7 @@ def test_self_calibrated_states_are_reported_per_cell():
     runs = {"r1": _walk_run(91, duration=120.0)}
     runs["r1"]["ranges"]["range_m"] += 0.3
     p = registry.get("tracker").resolve({"range_self_calibration": "offset", "range_sigma_m": 0.1})
-    _, metrics = run_cell("site/walk", "self_offset", "tracker", p, ["all"], runs, _generic(None))
+    _, metrics = run_cell("site/walk", "self_offset", "tracker", p, ["all"], runs, _generic())
     rows = pd.DataFrame(results_rows("robustness", "self_offset", "site/walk", metrics)).set_index("column")
     assert rows.loc["range_offset", "metric"] == "range_offset_m"
     assert rows.loc["range_offset", "value"] == pytest.approx(0.3, abs=0.03)
@@ -373,7 +373,7 @@ def test_report_shows_gating_calibration_and_per_anchor_range_quality(campaign, 
     rows = list(data_rows)
     for cell, overrides in spec["estimators"].items():
         p = registry.get("tracker").resolve({k: v for k, v in overrides.items() if k != "estimator"})
-        _, metrics = run_cell("site/walk", cell, "tracker", p, ["all"], runs, _generic(None))
+        _, metrics = run_cell("site/walk", cell, "tracker", p, ["all"], runs, _generic())
         rows += results_rows("robustness", cell, "site/walk", metrics)
     frame = results.frame(rows)
     config = {"runs": 1, "seed": 1, "report": {"title": "t"},
