@@ -385,3 +385,13 @@ def test_report_shows_gating_calibration_and_per_anchor_range_quality(campaign, 
     assert "Range error per anchor" in html and "Robust fit r = s·d + b" in html
     assert "fitted on a donor of the same dataset in 100% of runs" in html
     assert "self-cal: offset" in html and ", gated " in html and "p95 " in html
+
+
+def test_n_meas_counts_the_measurements_the_gate_kept():
+    times, ids = bursts(30.0, 0.5, SQUARE)
+    tables = tables_for(times, ids, walk, SQUARE, noise_m=0.05, rng=np.random.default_rng(95))
+    tables["ranges"].loc[40, "range_m"] += 5.0                 # one wild range, 5.5 s
+    for update in ("epoch", "sequential"):
+        out = registry.run("ekf", run_data(tables), {"update": update, "range_sigma_m": 0.1, "gate_probability": 0.999})
+        assert out.attrs["gated"] == 1
+        assert sorted(out["n_meas"].iloc[1:].unique()) == [3, 4] and (out["n_meas"] == 3).sum() == 1

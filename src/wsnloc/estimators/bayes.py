@@ -89,11 +89,12 @@ def run_filter(data: RunData, p: dict) -> pd.DataFrame:
     return out
 
 
-def _update(filt, model) -> bool:
-    """Measurement update; False when the gate rejected every measurement (no update) or
-    found the track lost (filter_options.ConfiguredFilter.lost; the loops drop it then)."""
+def _update(filt, model) -> int:
+    """Measurement update; the number of measurements used: 0 when the gate rejected every
+    one (no update) or found the track lost (filter_options.ConfiguredFilter.lost; the loops
+    drop it then)."""
     filt.update_model(model)
-    return getattr(filt, "used", 1) > 0 and not _lost(filt)
+    return 0 if _lost(filt) else getattr(filt, "used", len(model.z))
 
 
 def _lost(filt) -> bool:
@@ -129,14 +130,14 @@ def _epoch_loop(source, times, p, motion, static, inputs, make) -> pd.DataFrame:
             continue
         if not static[k]:
             _predict(filt, motion, period, None if inputs is None else inputs[k])
-        nis = np.nan
-        if model is not None and _update(filt, model):
+        nis, used = np.nan, 0 if model is None else _update(filt, model)
+        if used:
             nis, last_update = filt.nis, t
         elif t - last_update > p["max_coast_s"] or _lost(filt):
             filt = None
             track.resets += 1
             continue
-        track.emit(t, filt.x, filt.P, 0 if model is None else len(model.z), nis)
+        track.emit(t, filt.x, filt.P, used, nis)
     return track.frame()
 
 
@@ -172,8 +173,9 @@ def _sequential_loop(source, times, p, motion, static, inputs, make) -> pd.DataF
             if t > t_filter and not static[min(epoch_of[a], len(times) - 1)]:
                 _predict(filt, motion, t - t_filter, None if inputs is None else inputs[min(epoch_of[a], len(times) - 1)])
             t_filter = max(t, t_filter)
-            if _update(filt, source.model(*records.split(a, b))):
-                n_meas, nis, last_update = n_meas + b - a, filt.nis, t
+            used = _update(filt, source.model(*records.split(a, b)))
+            if used:
+                n_meas, nis, last_update = n_meas + used, filt.nis, t
             elif _lost(filt):
                 filt = None
                 track.resets += 1
