@@ -49,6 +49,9 @@ def small_workflow(target: Path, shards: int = 1) -> Path:
     experiments["paper_c"]["scenarios"] = ["cricket/speed_40"]
     experiments["paper_c"]["table_2_scenario"] = "cricket/speed_40"
     config["studies"]["workbench"]["scenarios"] = ["newcom/constant", "cricket/speed_40"]
+    robustness = config["studies"]["robustness"]
+    robustness["scenarios"] = ["newcom/constant"]
+    robustness["estimators"] = {k: robustness["estimators"][k] for k in ("ekf", "ekf_gate_nlos")}
     (target / "config" / "config.yaml").write_text(yaml.safe_dump(config))
     return target
 

@@ -87,3 +87,37 @@ def test_estimate_runs_the_imu_estimators_with_a_resampled_imu(simulated_run, tm
     assert main(["estimate", "--format", "newcom", str(simulated_run), "--out", str(out),
                  "--estimator", estimator]) == 0
     assert json.loads((out / "metrics.json").read_text())["median_m"] < 2.0
+
+
+def test_estimate_calibrates_ranges_on_a_donor_run(tmp_path):
+    """`--calibration DONOR --set range_calibration=other_run`: per-anchor offsets fitted on
+    the donor run correct the biased ranges of the run (issue 13)."""
+    offsets = {"A1": 0.5, "A2": -0.3, "A3": 0.2, "A4": -0.45}
+    runs = {}
+    for name, seed in (("donor", 31), ("run", 32)):
+        rng = np.random.default_rng(seed)
+        times, ids = one_at_a_time(300.0, 4.0, rng, SQUARE)
+        tables = tables_for(times, ids, walk, SQUARE, 0.1, rng)
+        tables["ranges"]["range_m"] += tables["ranges"]["anchor_id"].map(offsets)
+        runs[name] = write_generic(tmp_path / name / "run", tables)
+    out = {}
+    for label, extra in (("plain", []), ("calibrated", ["--calibration", str(runs["donor"]),
+                                                        "--set", "range_calibration=other_run"])):
+        assert main(["estimate", "--format", "generic", str(runs["run"]), "--out", str(tmp_path / label),
+                     "--set", "range_sigma_m=0.1", *extra]) == 0
+        out[label] = json.loads((tmp_path / label / "metrics.json").read_text())
+    calibrated = out["calibrated"]
+    assert calibrated["range_calibration"] == f"fitted on {runs['donor']}"
+    fitted = dict(item.split("=") for item in calibrated["calibrated_offsets_m"].split(";"))
+    assert all(abs(float(fitted[a]) - b) < 0.05 for a, b in offsets.items())
+    assert calibrated["median_m"] < 0.5 * out["plain"]["median_m"]
+    assert out["plain"]["range_calibration"] == "none" and "calibrated_scale" not in out["plain"]
+
+
+def test_estimate_refuses_a_donor_it_cannot_use(tmp_path, capsys):
+    rng = np.random.default_rng(4)
+    times, ids = bursts(20.0, 0.5, SQUARE)
+    run = write_generic(tmp_path / "r" / "run", tables_for(times, ids, walk, SQUARE, 0.1, rng))
+    assert main(["estimate", "--format", "generic", str(run), "--out", str(tmp_path / "o"),
+                 "--calibration", str(run)]) == 2
+    assert "calibrates nothing on a donor" in capsys.readouterr().err

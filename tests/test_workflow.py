@@ -45,6 +45,9 @@ def test_builds_report_and_results(workdir):
     assert availability[("multilateration", "cricket/speed_40")] < availability[("tracker", "cricket/speed_40")]
     timing = study[study["metric"] == "time_per_step_us"]
     assert len(timing) == 14 and (timing["value"] > 0).all()
+    robust = results[results["experiment"] == "study:robustness"].set_index(["row", "column"])["value"]
+    assert robust[("ekf", "gated")] == 0 and 0 < robust[("ekf_gate_nlos", "gated")] < 0.1
+    assert 'id="study-robustness"' in html and "gated" in html and "Range error per anchor" in html
     for paper in ("a", "c"):        # per-epoch estimates of every paper, one file per scenario
         assert list((workdir / "data" / "processed").glob(f"*/*/paper_{paper}/estimates.parquet"))
     assert {"data", "A", "B", "C", "D"} <= set(results["experiment"])

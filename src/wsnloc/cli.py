@@ -175,7 +175,8 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--campaign", help="campaign file (default: config/campaigns/<format>.yaml; optional for "
                                         "generic runs: no walls, 3-D ranges only where anchors have z)")
     run.add_argument("--calibration", help="a donor run directory with truth, same format and site: the RSS "
-                                           "model is fitted on it")
+                                           "model and (with --set range_calibration=other_run) the range scale "
+                                           "and per-anchor offsets are fitted on it")
     run.set_defaults(func=cmd_estimate)
 
     val = sub.add_parser("validate-config", help="validate a workflow configuration file")

@@ -2,7 +2,8 @@
 
 raw run -> canonical tables (OUT/tables, with quarantine) -> 5 Hz IMU when the estimator
 reads it -> estimates (OUT/estimates.parquet) -> metrics against the run's truth
-(OUT/metrics.json: rmse_m, mean_m, median_m, p75_m, p90_m, p95_m, max_m, n, availability).
+(OUT/metrics.json: rmse_m, mean_m, median_m, p75_m, p90_m, p95_m, max_m, n, availability; the gated share
+and the range calibration applied, with its fitted values; see studies.calibration_metrics).
 """
 
 from __future__ import annotations
@@ -17,13 +18,13 @@ from wsnloc.campaign import Campaign
 from wsnloc.errors import WsnlocError
 from wsnloc.estimators import registry
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments.calibration import calibrate
+from wsnloc.experiments.calibration import calibrate, calibrate_ranges
 from wsnloc.io import tables
 from wsnloc.io.ingest import ingest_one
 from wsnloc.io.limits import QuarantineLimits, check_quarantine_limits
 from wsnloc.metrics.tracking import run_metrics, score
 from wsnloc.signal.resample import resample_imu
-from wsnloc.studies import diagnose
+from wsnloc.studies import calibration_metrics, diagnose, reads_rss
 
 RESAMPLE = {"rate_hz": 5.0, "grid_rate_hz": 500.0, "max_gap_s": 0.1, "kaiser_beta": 8.0}   # config/schema.yaml defaults
 METRIC_KEYS = {"rmse": "rmse_m", "mean": "mean_m", "median": "median_m", "p75": "p75_m", "p90": "p90_m",
@@ -38,13 +39,28 @@ def load_run(fmt: str, run_dir: Path, campaign: Campaign | None, out_dir: Path) 
     return {name: tables.read(out_dir / f"{name}.parquet") for name in tables.RAW_TABLES}
 
 
-def donor_model(fmt: str, donor_dir: Path, campaign: Campaign | None, out_dir: Path, d0_m: float) -> dict:
-    """RSS model P0, n, sigma fitted on a donor run with truth (same site)."""
+def donor_models(fmt: str, donor_dir: Path, campaign: Campaign | None, out_dir: Path, p: dict,
+                 reads_rss: bool) -> tuple[dict | None, dict | None]:
+    """(RSS model, range calibration) fitted on a donor run with truth (same site): the RSS
+    model P0, n, sigma when the estimator reads RSS; the range scale and per-anchor offsets
+    when it asks for `range_calibration=other_run`."""
+    wants_ranges = p.get("range_calibration") == "other_run"
+    if not (reads_rss or wants_ranges):
+        raise WsnlocError(f"--calibration {donor_dir}: this estimator calibrates nothing on a donor (it reads no "
+                          f"RSS; ranges need --set range_calibration=other_run)")
     donor = load_run(fmt, donor_dir, campaign, out_dir)
-    if len(donor["rss"]) == 0 or len(donor["truth"]) == 0:
-        raise WsnlocError(f"{donor_dir}: a calibration donor needs RSS and truth")
+    if len(donor["truth"]) == 0:
+        raise WsnlocError(f"{donor_dir}: a calibration donor needs truth")
+    for table, wanted in (("rss", reads_rss), ("ranges", wants_ranges)):
+        if wanted and len(donor[table]) == 0:
+            raise WsnlocError(f"{donor_dir}: a calibration donor needs the {table} it calibrates, and has none")
     site = campaign or Campaign(name="generic", format="generic", spec={}, source="(no campaign file)")
-    return dict(calibrate(donor["rss"], donor["truth"], site, d0_m, donor["anchors"]), source=f"fitted on {donor_dir}")
+    source = f"fitted on {donor_dir}"
+    rss = dict(calibrate(donor["rss"], donor["truth"], site, p.get("d0_m", 1.0), donor["anchors"]),
+               source=source) if reads_rss else None
+    ranges = dict(calibrate_ranges(donor["ranges"], donor["truth"], site, donor["anchors"]),
+                  source=source) if wants_ranges else None
+    return rss, ranges
 
 
 def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, name: str, overrides: dict,
@@ -55,9 +71,9 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
     run_tables = load_run(fmt, run_dir, campaign, out / "tables")
     if "imu_5hz" in estimator.tables(p):
         run_tables["imu_5hz"] = resample_imu(run_tables["imu"], **RESAMPLE)
-    rss_model = donor_model(fmt, calibration_dir, campaign, out / "calibration", p.get("d0_m", 1.0)) \
-        if calibration_dir else None
-    data = RunData(run_tables, campaign, rss_model, str(run_dir))
+    rss_model, range_model = donor_models(fmt, calibration_dir, campaign, out / "calibration", p,
+                                          reads_rss(name, p)) if calibration_dir else (None, None)
+    data = RunData(run_tables, campaign, rss_model, str(run_dir), range_model)
     estimates = registry.run(name, data, p)
     if not np.isfinite(estimates["x"]).any():
         raise WsnlocError(f"{name} on {run_dir}: no estimates; {diagnose(data, p)}")
@@ -69,7 +85,8 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
         values = run_metrics(scored, truth)
         summary = {METRIC_KEYS[k]: float(v) for k, v in values.items()}
         summary.update(resets=int(estimates.attrs.get("resets", 0)), estimator=name,
-                       rss_model=(rss_model or {}).get("source", "configured"))
+                       rss_model=(rss_model or {}).get("source", "configured"),
+                       **{k: v for k, v in calibration_metrics(estimates).items() if pd.notna(v)})
         (out / "metrics.json").write_text(json.dumps(summary, indent=1))
         metrics.update({k: v for k, v in summary.items() if isinstance(v, float)})
     return metrics

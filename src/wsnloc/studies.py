@@ -36,9 +36,11 @@ from wsnloc.metrics.tracking import RUN_METRICS, run_metrics, score
 
 EXPERIMENT_PREFIX = "study:"
 QUALITY_TABLE = ["run", "subset"] + QUALITY_COLUMNS   # a cell's per-epoch bound and consistency values
-REPORTED = RUN_METRICS + ("resets", "time_per_step")   # per cell and run; results.csv: mean and 95% interval
+REPORTED = RUN_METRICS + ("resets", "gated", "time_per_step")   # per cell and run; results.csv: mean and 95% interval
 BOUND_METRICS = ("sqrt_pcrb", "efficiency")  # Bayesian filters only
-UNIT = {"n": "count", "availability": "share", "resets": "count", "efficiency": "ratio", "time_per_step": "us"}
+CALIBRATION = ("calibrated_scale", "calibration_fitted", "range_scale", "range_offset")   # where a cell has them
+UNIT = {"n": "count", "availability": "share", "resets": "count", "gated": "share", "efficiency": "ratio",
+        "time_per_step": "us", "calibrated_scale": "1", "calibration_fitted": "share", "range_scale": "1"}
 # wall-clock time of the estimator per output step (us): measured in the cell job, so it varies from
 # build to build and is left out of byte-reproducibility checks (metric time_per_step_us)
 
@@ -105,23 +107,56 @@ def reads_rss(name: str, p: dict) -> bool:
         or name in ("pmix", "fmix")
 
 
-def donor_models(runs: dict[str, dict], donors: dict[str, dict], campaign: Campaign | None, p: dict,
-                 needed: bool) -> dict[str, dict | None]:
-    """RSS model of each run: fitted on the next run of the scenario with truth (cyclically), or
-    on a run of another scenario of the same dataset (`donors`), else None (configured model)."""
-    if not needed or p.get("rss_calibration") != "other_run":
-        return {name: None for name in runs}
+def donor_of(runs: dict[str, dict], donors: dict[str, dict], table: str) -> dict[str, str | None]:
+    """The donor of each run: the next run of the scenario with `table` and truth (cyclically),
+    or a run of another scenario of the same dataset (`donors`), else None. Never the run itself."""
     pool = {**runs, **donors}
-    usable = [k for k, t in pool.items() if len(t["rss"]) and len(t["truth"])]
+    usable = [k for k, t in pool.items() if len(t.get(table, ())) and len(t["truth"])]
     out = {}
     for i, name in enumerate(runs):
         candidates = [k for k in usable[i + 1:] + usable[:i + 1] if k != name] if name in usable else usable
-        if not candidates:
-            out[name] = None
-            continue
-        donor = pool[candidates[0]]
-        model = calibration.calibrate(donor["rss"], donor["truth"], campaign, p.get("d0_m", 1.0), donor["anchors"])
-        out[name] = dict(model, source=f"fitted on {candidates[0]}")
+        out[name] = candidates[0] if candidates else None
+    return out
+
+
+def donor_models(runs: dict[str, dict], donors: dict[str, dict], campaign: Campaign | None, p: dict,
+                 needed: bool) -> dict[str, dict | None]:
+    """RSS model of each run fitted on its donor (donor_of), else None (configured model)."""
+    if not needed or p.get("rss_calibration") != "other_run":
+        return {name: None for name in runs}
+    pool = {**runs, **donors}
+    return {name: None if donor is None else
+            dict(calibration.calibrate(pool[donor]["rss"], pool[donor]["truth"], campaign, p.get("d0_m", 1.0),
+                                       pool[donor]["anchors"]), source=f"fitted on {donor}")
+            for name, donor in donor_of(runs, donors, "rss").items()}
+
+
+def range_donor_models(runs: dict[str, dict], donors: dict[str, dict], campaign: Campaign | None,
+                       p: dict) -> dict[str, dict | None]:
+    """Range scale and per-anchor offsets of each run fitted on its donor (donor_of) when the
+    cell asks for `range_calibration: other_run`, else None (the configured values apply)."""
+    if p.get("range_calibration") != "other_run":
+        return {name: None for name in runs}
+    pool = {**runs, **donors}
+    return {name: None if donor is None else
+            dict(calibration.calibrate_ranges(pool[donor]["ranges"], pool[donor]["truth"], campaign,
+                                              pool[donor]["anchors"]), source=f"fitted on {donor}")
+            for name, donor in donor_of(runs, donors, "ranges").items()}
+
+
+def calibration_metrics(estimates: pd.DataFrame) -> dict:
+    """Per-run columns of metrics.csv on the range options: gated share, the range calibration
+    applied (source; calibration_fitted 1 when fitted on a donor, 0 when the configured values
+    stood in; scale; per-anchor offsets as 'A=b;...') and the self-calibrated states."""
+    a = estimates.attrs
+    source = a.get("range_calibration", "none")
+    calibrated = source != "none"
+    out = {"gated": a.get("gated_share", 0.0), "range_calibration": a.get("range_calibration", ""),
+           "calibrated_scale": a["calibrated_scale"] if calibrated else np.nan,
+           "calibration_fitted": float(source.startswith("fitted on")) if calibrated else np.nan,
+           "calibrated_offsets_m": ";".join(f"{k}={v:.3f}" for k, v in (a.get("calibrated_offsets_m") or {}).items())}
+    out.update({column: a[k] for k, column in (("range_scale", "range_scale"), ("range_offset_m", "range_offset"))
+                if k in a})
     return out
 
 
@@ -143,10 +178,11 @@ def run_cell(label: str, cell: str, name: str, p: dict, subsets: list[str], runs
     For a Bayesian filter the estimates also carry pcrb_m2 and nees, and the metrics sqrt_pcrb
     and efficiency (analysis.filter_quality)."""
     models = donor_models(runs, donors or {}, campaign, p, reads_rss(name, p))
+    range_models = range_donor_models(runs, donors or {}, campaign, p)
     bayesian = is_bayesian(registry.get(name).function)
     estimates, metrics = [], []
     for run, run_tables in runs.items():
-        data = RunData(run_tables, campaign, models[run], f"{label}/{run}")
+        data = RunData(run_tables, campaign, models[run], f"{label}/{run}", range_models[run])
         for subset in subsets:
             q = dict(p, anchors=subset) if "anchors" in p else p
             started = time.perf_counter()
@@ -164,17 +200,20 @@ def run_cell(label: str, cell: str, name: str, p: dict, subsets: list[str], runs
             estimates.append(scored)
             metrics.append({"run": run, "subset": subset, **run_metrics(scored, run_tables["truth"]),
                             "resets": est.attrs.get("resets", 0), "time_per_step": elapsed_us / len(est),
-                            **efficiency,
+                            **efficiency, **calibration_metrics(est),
                             "rss_model": (models[run] or {}).get("source", "configured") if reads_rss(name, p) else ""})
     return pd.concat(estimates, ignore_index=True), pd.DataFrame(metrics)
 
 
 # ---- summary ---------------------------------------------------------------------------------
 def results_rows(study: str, cell: str, label: str, metrics: pd.DataFrame) -> list[dict]:
-    """results.csv rows of one cell: every reported metric, mean over runs with its 95% interval."""
+    """results.csv rows of one cell: every reported metric, mean over runs with its 95% interval;
+    the fitted range calibration (donor scale, self-calibrated scale and offset) where the cell has one."""
     rows = []
     for subset, group in metrics.groupby("subset", sort=False):
-        for metric in REPORTED + tuple(m for m in BOUND_METRICS if m in group and group[m].notna().any()):
+        fitted = [m for m in BOUND_METRICS + CALIBRATION
+                  if m in group and pd.to_numeric(group[m], errors="coerce").notna().any()]
+        for metric in REPORTED + tuple(fitted):
             rows.append(results.row_over_runs(group[metric], experiment=EXPERIMENT_PREFIX + study, table=subset,
                                               row=cell, column=metric, scenario=label,
                                               metric=f"{metric}_{UNIT.get(metric, 'm')}"))

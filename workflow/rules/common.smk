@@ -96,15 +96,17 @@ def study_cell_spec(w):
 
 
 def study_cell_inputs(w):
-    """Tables of the scenario (+ 5 Hz IMU when read), and RSS donors of the same dataset
-    when the scenario has a single run."""
+    """Tables of the scenario (+ 5 Hz IMU when read), and calibration donors (RSS or ranges)
+    of the same dataset when the scenario has a single run."""
     cell = study_cell_spec(w)
     estimator = _registry.get(cell["estimator"])
     inputs = {"tables": tables_of(w.dataset, w.scenario), "campaign": campaign_file(w), "donors": []}
     if "imu_5hz" in estimator.tables(cell["parameters"]):
         inputs["imu_5hz"] = imu_of(w.dataset, w.scenario)
     single = len(dataset_runs(config, w.dataset, w.scenario)) < 2
-    if single and reads_rss(cell["estimator"], cell["parameters"]):
+    calibrates = reads_rss(cell["estimator"], cell["parameters"]) \
+        or cell["parameters"].get("range_calibration") == "other_run"
+    if single and calibrates:
         inputs["donors"] = [p for s in config["datasets"][w.dataset]["scenarios"] if s != w.scenario
                             for p in tables_of(w.dataset, s)]
     return inputs

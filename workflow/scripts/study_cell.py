@@ -14,7 +14,7 @@ name, params = cell["estimator"], cell["parameters"]
 names = registry.get(name).tables(params)
 campaign = Campaign.load(sm.input.campaign)
 runs = load_runs(sm.input.tables, names, getattr(sm.input, "imu_5hz", None), first=cell["runs"])
-donors = load_runs(sm.input.donors, ("rss", "truth", "anchors")) if sm.input.donors else {}
+donors = load_runs(sm.input.donors, ("ranges", "rss", "truth", "anchors")) if sm.input.donors else {}
 cell_name = sm.wildcards.cell
 estimates, metrics = run_cell(sm.params.label, cell_name, name, params, cell["subsets"], runs, campaign, donors)
 tables.write("estimates", estimates, sm.output.estimates)

@@ -23,7 +23,7 @@ Path(sm.output.summary).write_text(json.dumps(summary, indent=1, default=float))
 results.write(rows, sm.output.results)
 
 label = sm.params.label
-Path(sm.output.range_error).write_bytes(figures.range_error_histogram(samples["range_errors"], f"{label}: Range error"))
+Path(sm.output.range_error).write_bytes(figures.range_error_figure(samples["range_errors"], f"{label}: Range error"))
 rss = samples["rss"]
 pooled_fit = fit_path_loss(rss["rss_dbm"], rss["true_distance_m"]) if len(rss) else {}
 first = rss[rss["run"] == rss["run"].iloc[0]] if len(rss) else rss

@@ -12,8 +12,9 @@ Update modes
   estimates.
 Initiator: the first time the measurements of the last `init_window_s` seconds (per-anchor
   means) give a multilateration fix, the state starts there (speed and bias 0, P0).
-Coasting limit: after `max_coast_s` seconds without an update the track is dropped
-  (counted as a reset) and restarted by the initiator; no estimate is output meanwhile,
+Coasting limit: after `max_coast_s` seconds without an update (or when the innovation gate
+  finds the track lost, estimators.filter_options) the track is dropped (counted as a
+  reset) and restarted by the initiator; no estimate is output meanwhile,
   so a long gap shows as lower availability instead of unbounded drift.
 Motion detection (paper A): in epochs declared static by the accelerometer the predict
   step is skipped (state and covariance frozen).
@@ -34,6 +35,9 @@ import zlib
 import numpy as np
 import pandas as pd
 
+from wsnloc.errors import ConfigError
+from wsnloc.estimators import range_calibration
+from wsnloc.estimators.filter_options import UpdateCounts, configured_factory
 from wsnloc.estimators.inertial import epoch_inputs, floor_input
 from wsnloc.estimators.measurements import MeasurementSource, rss_params
 from wsnloc.estimators.motion import MotionModel
@@ -101,9 +105,11 @@ def motion_model(p: dict) -> MotionModel:
 
 
 def measurement_source(data: RunData, p: dict) -> MeasurementSource:
-    """The measurements (and their models) a filter with parameters p reads from the run."""
+    """The measurements (and their models) a filter with parameters p reads from the run, the
+    ranges corrected by the configured range calibration (range_calibration.correction)."""
     return MeasurementSource(data, p["measurements"], p["anchors"], p["range_sigma_m"], p["preliminary_filter"],
-                             p["max_range_m"], rss_params(data, p) if p["measurements"] != "toa" else None)
+                             p["max_range_m"], rss_params(data, p) if p["measurements"] != "toa" else None,
+                             range_calibration.correction(data, p))
 
 
 def static_flags(data: RunData, p: dict, times: np.ndarray) -> np.ndarray:
@@ -115,7 +121,9 @@ def static_flags(data: RunData, p: dict, times: np.ndarray) -> np.ndarray:
 
 
 def run_filter(data: RunData, p: dict) -> pd.DataFrame:
-    """Estimates (COLUMNS) of one run; `attrs['resets']` counts coasting-limit resets."""
+    """Estimates (COLUMNS) of one run; `attrs`: resets (coasting-limit resets), gated / offered
+    measurements and gated_share (filter_options), the self-calibration states range_scale /
+    range_offset_m, and the range calibration applied (range_calibration.RangeCorrection.describe)."""
     return _run(data, p, None)
 
 
@@ -123,6 +131,9 @@ def run_smoother(data: RunData, p: dict) -> pd.DataFrame:
     """The fixed-interval RTS-smoothed estimates of one run (same rows as the forward pass;
     n_meas and nis are the forward pass's). In sequential mode the recorded forward pass
     steps the filter to every output time (see smoothing.py)."""
+    if p.get("range_self_calibration", "none") != "none":
+        raise ConfigError("range_self_calibration: the RTS smoothers do not smooth the calibration states; "
+                          "use range_calibration (donor or configured) with a smoother")
     forward = ForwardPass()
     out = _run(data, p, forward)
     smoothed = forward.smooth()
@@ -140,9 +151,25 @@ def _run(data: RunData, p: dict, forward: ForwardPass | None) -> pd.DataFrame:
     motion = motion_model(p)
     static = static_flags(data, p, times)
     inputs = epoch_inputs(floor_input(data, p["static_start_s"]), times) if motion.kind == "pva" else None
-    make = FILTERS[p["filter"]](p, data)
+    counts = UpdateCounts()
+    make = configured_factory(FILTERS[p["filter"]](p, data), p, counts, data.campaign)
     loop = _epoch_loop if p["update"] == "epoch" else _sequential_loop
-    return loop(source, times, p, motion, static, inputs, make, forward)
+    out = loop(source, times, p, motion, static, inputs, make, forward)
+    out.attrs.update(counts.attrs())
+    out.attrs.update(source.correction.describe())
+    return out
+
+
+def _update(filt, model) -> int:
+    """Measurement update; the number of measurements used: 0 when the gate rejected every
+    one (no update) or found the track lost (filter_options.ConfiguredFilter.lost; the loops
+    drop it then)."""
+    filt.update_model(model)
+    return 0 if _lost(filt) else getattr(filt, "used", len(model.z))
+
+
+def _lost(filt) -> bool:
+    return getattr(filt, "lost", False)
 
 
 def _start(fix: np.ndarray, motion: MotionModel, make, forward: ForwardPass | None):
@@ -180,15 +207,14 @@ def _epoch_loop(source, times, p, motion, static, inputs, make, forward) -> pd.D
                 forward.output()
             continue
         step = None if static[k] else _predict(filt, motion, period, None if inputs is None else inputs[k])
-        nis = np.nan
-        if model is not None:
-            filt.update_model(model)
+        nis, used = np.nan, 0 if model is None else _update(filt, model)
+        if used:
             nis, last_update = filt.nis, t
-        elif t - last_update > p["max_coast_s"]:
+        elif t - last_update > p["max_coast_s"] or _lost(filt):
             filt = None
             track.resets += 1
             continue
-        track.emit(t, filt.x, filt.P, 0 if model is None else len(model.z), nis)
+        track.emit(t, filt.x, filt.P, used, nis)
         if forward is not None:
             forward.node(filt, step)
             forward.output()
@@ -229,8 +255,13 @@ def _sequential_loop(source, times, p, motion, static, inputs, make, forward) ->
                 step = _predict(filt, motion, t - t_filter,
                                 None if inputs is None else inputs[min(epoch_of[a], len(times) - 1)])
             t_filter = max(t, t_filter)
-            filt.update_model(source.model(*records.split(a, b)))
-            n_meas, nis, last_update = n_meas + b - a, filt.nis, t
+            used = _update(filt, source.model(*records.split(a, b)))
+            if used:
+                n_meas, nis, last_update = n_meas + used, filt.nis, t
+            elif _lost(filt):
+                filt = None
+                track.resets += 1
+                continue
             if forward is not None:
                 forward.node(filt, step)
         if filt is None:
@@ -244,7 +275,7 @@ def _sequential_loop(source, times, p, motion, static, inputs, make, forward) ->
                 forward.node(filt, _predict(filt, motion, t_k - t_filter, None if inputs is None else inputs[k]))
                 t_filter = t_k
             forward.output()
-        x, P = filt.x, filt.P
+        x, P = filt.x[:motion.dim], filt.P[:motion.dim, :motion.dim]      # without calibration states
         if t_k > t_filter and not static[k]:
             F, Q, B = motion.matrices(t_k - t_filter)
             x = F @ x

@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from wsnloc.estimators.epochs import Epoch, build_epochs
+from wsnloc.estimators.range_calibration import RangeCorrection
 from wsnloc.estimators.run_data import RunData
 from wsnloc.filters.measurement_models import RangeModel, RssModel, Stacked
 from wsnloc.geometry.lateration import multilateration
@@ -48,19 +49,21 @@ def rss_params(data: RunData, p: dict) -> RssParams:
 
 
 class MeasurementSource:
-    """Ranges and/or RSS of one anchor subset of a run, filtered as configured."""
+    """Ranges and/or RSS of one anchor subset of a run, filtered as configured; the ranges
+    corrected by the range calibration (estimators.range_calibration) when one is given."""
 
     def __init__(self, data: RunData, kinds: str, anchors: str, range_sigma_m: float, apply_filter: bool,
-                 max_range_m: float, rss: RssParams | None):
+                 max_range_m: float, rss: RssParams | None, correction: RangeCorrection = RangeCorrection()):
         self.data, self.kinds, self.range_sigma_m, self.rss_params = data, KINDS[kinds], range_sigma_m, rss
+        self.correction = correction
         members = data.members(anchors)
-        ranges = data.usable_ranges(apply_filter, max_range_m)
+        ranges = correction.apply(data.usable_ranges(apply_filter, max_range_m))
         rss_frame = data.usable_rss()
         self.ranges = ranges[ranges["anchor_id"].isin(members)] if "ranges" in self.kinds else ranges.iloc[:0]
         self.rss = rss_frame[rss_frame["anchor_id"].isin(members)] if "rss" in self.kinds else rss_frame.iloc[:0]
         if "rss" in self.kinds and rss is None:
             raise ValueError("RSS measurements need an RSS model")
-        self._key = (kinds, anchors, range_sigma_m, apply_filter, max_range_m, rss)
+        self._key = (kinds, anchors, range_sigma_m, apply_filter, max_range_m, rss, correction)
 
     # ---- models ------------------------------------------------------------------------
     def model(self, range_ids, ranges, rss_ids, rss) -> Stacked | None:

@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from wsnloc.errors import ConfigError
-from wsnloc.estimators import batch, bayes, fixes, inertial, trackers
+from wsnloc.estimators import batch, bayes, filter_options, fixes, inertial, range_calibration, trackers
 from wsnloc.estimators.motion import MOTIONS
 from wsnloc.estimators.parameters import Param, resolve
 from wsnloc.estimators.run_data import RunData
@@ -85,7 +85,10 @@ FILTER = (
           minimum=0.0),
     Param("static_start_s", 4.0, "s", "the mobile rests during the first S s (gravity reference, IMU bias)",
           minimum=0.0),
-)
+    Param("range_calibration", "none", "", "correct the ranges before filtering: other_run = scale and per-anchor "
+          "offsets fitted on a donor run with truth of the same dataset (configured values without one), "
+          "configured = the campaign file's range_calibration, none = as measured", str, range_calibration.SOURCES),
+) + filter_options.PARAMS
 UKF = (
     Param("alpha", 1.0, "1", "UKF sigma-point spread; 1 with kappa = 0 gives lambda = 0: non-negative weights, "
           "S and P stay positive semi-definite (a small alpha such as 1e-3 amplifies round-off)", minimum=1e-6),
@@ -206,7 +209,7 @@ SOLVER_MEASUREMENTS = K_SMALLEST + (Param("measurements", "toa", "", "toa: range
                                           ("toa", "rss")),)
 FIX_SOURCE = COMMON + RSS + SOLVER + (Param("fixes", "toa", "", "fixes tracked: toa, rss, pmix or fmix", str,
                                             fixes.TECHNIQUES),)
-TRACKER_DEFAULTS = dict(update="sequential", init_window_s=4.0, initial_sigma_m=2.0)
+TRACKER_DEFAULTS = dict(update="sequential", init_window_s=4.0, initial_sigma_m=2.0, gate_probability=0.999)
 
 ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
     Estimator("minmax", "Min-Max: centre of the intersection of the range boxes, per epoch (paper D)",
@@ -232,7 +235,8 @@ ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
               "(paper A, Table II)", COMMON + RSS + _with(FILTER, motion_detection=True),
               bayes.run_filter, _filter_inputs),
     Estimator("tracker", "Recommended tracker for any range data: PV EKF with sequential updates (ranges used "
-              "at their own times, one anchor at a time is fine), window initiator, coasting limit",
+              "at their own times, one anchor at a time is fine), innovation gate at 0.999, window initiator, "
+              "coasting limit",
               COMMON + RSS + _with(FILTER, **TRACKER_DEFAULTS), bayes.run_filter, _filter_inputs),
     Estimator("ukf", "Unscented Kalman filter (scaled sigma points) with the EKF's motion models, measurements, "
               "update modes, initiator and coasting limit", COMMON + RSS + _filter(FILTER, "ukf") + UKF,

@@ -35,12 +35,14 @@ def preliminary_filter(ranges: pd.DataFrame, max_range_m: float) -> pd.DataFrame
 class RunData:
     """One run: canonical tables (ranges, rss, truth, anchors; imu and imu_5hz when an
     estimator needs them), the campaign (None for a generic run without a campaign file)
-    and the RSS path-loss model this run is evaluated with (calibrated elsewhere)."""
+    and the RSS path-loss model and range calibration this run is evaluated with (calibrated
+    elsewhere, on donor runs)."""
 
     tables: dict[str, pd.DataFrame]
     campaign: Campaign | None = None
     rss_model: dict | None = None
     name: str = "run"
+    range_model: dict | None = None      # range scale / per-anchor offsets fitted on a donor run
     _cache: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:

@@ -1,4 +1,4 @@
-"""Calibrated RSS path-loss models: fitted on another run with truth, or configured.
+"""Calibrated RSS path-loss models and range biases: fitted on another run with truth, or configured.
 
 No run is evaluated with a model fitted on its own data.
 """
@@ -8,7 +8,7 @@ from __future__ import annotations
 import pandas as pd
 
 from wsnloc.campaign import Campaign
-from wsnloc.metrics.ranging import fit_path_loss, rss_with_distance
+from wsnloc.metrics.ranging import fit_path_loss, fit_range_bias, range_errors, rss_with_distance
 
 
 def calibrate(rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign, d0_m: float,
@@ -36,3 +36,11 @@ def rss_models_for_runs(run_tables: dict[str, dict], campaign: Campaign, members
                               configured.get("d0_m", 1.0)) for name, t in run_tables.items()}
     return {name: dict(fitted[names[(i + 1) % len(names)]], source=f"fitted on {names[(i + 1) % len(names)]}")
             for i, name in enumerate(names)}
+
+
+def calibrate_ranges(ranges: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign,
+                     anchors: pd.DataFrame | None = None) -> dict:
+    """Range scale and per-anchor offsets (metrics.ranging.fit_range_bias) fitted on one run
+    with ground truth: valid ranges (status 0) against the true (3-D) distance, all links."""
+    samples = range_errors(ranges, truth, campaign, anchors)
+    return fit_range_bias(samples["range_m"], samples["true_distance_m"], samples["anchor_id"])

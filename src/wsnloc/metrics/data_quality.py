@@ -1,4 +1,6 @@
-"""Per-scenario data summary: inventory, quarantine, Range error, RSS path-loss fit.
+"""Per-scenario data summary: inventory, quarantine, Range error (overall, per anchor, against
+distance, with the robust scale / per-anchor offset fit a range calibration would use), RSS
+path-loss fit.
 
 Reads the processed tables of every run of one scenario; returns a JSON-ready summary for
 the report, results rows for results.csv, and the pooled samples the figures need.
@@ -15,10 +17,11 @@ import pandas as pd
 from wsnloc import results
 from wsnloc.campaign import Campaign
 from wsnloc.io import tables
-from wsnloc.metrics.ranging import fit_path_loss, range_errors, rss_with_distance
+from wsnloc.metrics.ranging import fit_path_loss, fit_range_bias, range_errors, rss_with_distance
 from wsnloc.metrics.stats import error_summary
 
 EXPERIMENT = "data"
+DISTANCE_BINS_M = (0.0, 2.0, 5.0, 10.0, 20.0, 40.0, 80.0, float("inf"))
 
 
 def reason_category(reason: str) -> str:
@@ -126,6 +129,9 @@ def summarize(runs: dict[str, dict[str, pd.DataFrame]], imu_5hz: dict[str, pd.Da
         "quarantine_by_reason": by_reason.to_dict(orient="records"),
         "quarantine_examples": quarantine.head(20).to_dict(orient="records"),
         "range_error_pooled": pooled_errors,
+        "range_per_anchor": per_anchor_range_quality(errors).to_dict(orient="records"),
+        "range_by_distance": range_error_by_distance(errors).to_dict(orient="records"),
+        "range_bias_fit": range_bias_fit(errors),
         "configured_path_loss": {k: campaign.spec.get("radio", {}).get("zigbee", {}).get(k)
                                  for k in ("p0_dbm", "path_loss_exponent", "shadowing_sigma_db",
                                            "fast_fading_sigma_db", "wall_loss_db")},
@@ -159,3 +165,42 @@ def _per_anchor_counts(runs: dict[str, dict[str, pd.DataFrame]]) -> pd.DataFrame
     all_runs = pd.concat(frames)
     mean = all_runs.groupby(["anchor_id", "tech"], sort=False)[["ranges_valid", "ranges_flagged", "rss"]].mean()
     return mean.round(1).reset_index()
+
+
+def per_anchor_range_quality(errors: pd.DataFrame) -> pd.DataFrame:
+    """Per anchor, pooled over runs: ranges n, bias = median signed error (m), RMSE (m), p95 |error|
+    (m) and NLOS share (share of ranges whose straight link crosses a campaign wall)."""
+    columns = ["anchor_id", "n", "bias_m", "rmse_m", "p95_abs_m", "nlos_share"]
+    if len(errors) == 0:
+        return pd.DataFrame(columns=columns)
+    e = errors.assign(abs_error=errors["error_m"].abs(), sq=errors["error_m"] ** 2, nlos=~errors["los"])
+    g = e.groupby("anchor_id", sort=True)
+    out = pd.DataFrame({"n": g.size(), "bias_m": g["error_m"].median(), "rmse_m": g["sq"].mean() ** 0.5,
+                        "p95_abs_m": g["abs_error"].quantile(0.95), "nlos_share": g["nlos"].mean()})
+    return out.reset_index()[columns]
+
+
+def range_error_by_distance(errors: pd.DataFrame) -> pd.DataFrame:
+    """Range error against true distance (DISTANCE_BINS_M, m): n, median signed error (m), p95 |error|
+    (m) and NLOS share per bin; a bias that grows with distance is a scale error."""
+    columns = ["from_m", "to_m", "n", "median_m", "p95_abs_m", "nlos_share"]
+    if len(errors) == 0:
+        return pd.DataFrame(columns=columns)
+    edges = list(DISTANCE_BINS_M)
+    bins = pd.cut(errors["true_distance_m"], edges, right=False)
+    e = errors.assign(abs_error=errors["error_m"].abs(), nlos=~errors["los"], bin=bins)
+    g = e.groupby("bin", observed=True)
+    out = pd.DataFrame({"n": g.size(), "median_m": g["error_m"].median(), "p95_abs_m": g["abs_error"].quantile(0.95),
+                        "nlos_share": g["nlos"].mean()})
+    out["from_m"] = [b.left for b in out.index]
+    out["to_m"] = [b.right for b in out.index]
+    return out.reset_index(drop=True)[columns]
+
+
+def range_bias_fit(errors: pd.DataFrame) -> dict:
+    """The robust fit r = s d + b_a over all runs (metrics.ranging.fit_range_bias): what
+    `range_calibration: other_run` would fit; {} when there are too few ranges."""
+    try:
+        return fit_range_bias(errors["range_m"], errors["true_distance_m"], errors["anchor_id"]) if len(errors) else {}
+    except ValueError:
+        return {}

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+from scipy.optimize import least_squares
 
 from wsnloc.campaign import Campaign
 
@@ -80,3 +81,30 @@ def fit_path_loss(rss_dbm, distance_m, d0_m: float = 1.0) -> dict[str, float]:
     residual = p[keep] - design @ np.array([p0, n])
     return {"P0_dBm": float(p0), "n": float(n), "sigma_dB": float(residual.std(ddof=2)),
             "samples": int(keep.sum())}
+
+
+def fit_range_bias(range_m, true_distance_m, anchor_id) -> dict:
+    """Robust fit of r = s d + b_a + e: a common scale s and one offset b_a (m) per anchor.
+
+    Linear least squares in (s, b_1 .. b_m) with the soft-L1 loss (scipy least_squares),
+    its scale f the normalised MAD of the ordinary least-squares residual, so that
+    reflections and NLOS ranges (a few, large, one-sided) do not pull the fit; sigma_m is
+    the normalised MAD of the robust residual. Needs two distinct distances per anchor.
+    """
+    r = np.asarray(range_m, dtype=float)
+    d = np.asarray(true_distance_m, dtype=float)
+    ids = np.asarray(anchor_id, dtype=object)
+    keep = np.isfinite(r) & np.isfinite(d)
+    r, d, ids = r[keep], d[keep], ids[keep]
+    anchors, column = np.unique(ids, return_inverse=True)
+    if len(r) < len(anchors) + 2:
+        raise ValueError(f"range calibration needs more samples than unknowns ({len(r)} for {len(anchors) + 1})")
+    design = np.zeros((len(r), 1 + len(anchors)))
+    design[:, 0] = d
+    design[np.arange(len(r)), 1 + column] = 1.0
+    start, *_ = np.linalg.lstsq(design, r, rcond=None)
+    f_scale = max(1.4826 * np.median(np.abs(r - design @ start)), 1e-3)
+    fit = least_squares(lambda q: design @ q - r, start, loss="soft_l1", f_scale=f_scale)
+    residual = r - design @ fit.x
+    return {"scale": float(fit.x[0]), "offsets_m": {str(a): float(b) for a, b in zip(anchors, fit.x[1:])},
+            "sigma_m": float(1.4826 * np.median(np.abs(residual - np.median(residual)))), "samples": int(len(r))}

@@ -104,19 +104,33 @@ def floor_plan(campaign: Campaign, track: pd.DataFrame | None = None, anchors: p
     return to_png(fig)
 
 
-def range_error_histogram(errors: pd.DataFrame, title: str) -> bytes:
-    """Histogram of Range error (measured - true, m), LOS and NLOS links separately."""
-    fig, ax = plt.subplots(figsize=(7, 3.6))
+def range_error_figure(errors: pd.DataFrame, title: str, max_points: int = 6000) -> bytes:
+    """Range error (measured - true, m): histogram of LOS and NLOS links (left) and error against
+    the true distance (right): a sample of the ranges, grey, and each anchor's median per 1 m bin,
+    so a per-anchor offset shows as a shifted line and a scale error as a slope."""
+    fig, (hist, dist) = plt.subplots(1, 2, figsize=(11, 3.8), layout="constrained")
     bins = np.linspace(-1.0, 5.0, 121)
     for los, color, name in ((True, "tab:green", "LOS"), (False, "tab:purple", "NLOS")):
-        e = errors.loc[errors["los"] == los, "error_m"].clip(bins[0], bins[-1])
+        e = errors.loc[errors["los"] == los, "error_m"].clip(bins[0], bins[-1]) if len(errors) else []
         if len(e):
-            ax.hist(e, bins=bins, color=color, alpha=0.6, density=True,
-                    label=f"{name}: n={len(e)}, median {np.median(e):.3f} m")
-    ax.set_xlabel("range error [m] (clipped to [-1, 5])")
-    ax.set_ylabel("density")
-    ax.set_title(title)
-    ax.legend(fontsize=8)
+            hist.hist(e, bins=bins, color=color, alpha=0.6, density=True,
+                      label=f"{name}: n={len(e)}, median {np.median(e):.3f} m")
+    hist.set_xlabel("range error [m] (clipped to [-1, 5])")
+    hist.set_ylabel("density")
+    hist.set_title(title)
+    hist.legend(fontsize=8)
+    if len(errors):
+        sample = errors.iloc[:: max(1, len(errors) // max_points)]
+        dist.scatter(sample["true_distance_m"], sample["error_m"].clip(-1.0, 5.0), s=3, color="0.7", alpha=0.5)
+        for anchor, group in errors.groupby("anchor_id", sort=True):
+            medians = group.groupby(np.floor(group["true_distance_m"]))["error_m"].median()
+            dist.plot(medians.index + 0.5, medians.clip(-1.0, 5.0), lw=1, label=str(anchor))
+        if errors["anchor_id"].nunique() <= 12:
+            dist.legend(fontsize=7, ncols=2, title="anchor (median per 1 m)", title_fontsize=7)
+    dist.axhline(0.0, color="k", lw=0.8)
+    dist.set_xlabel("true distance [m]")
+    dist.set_ylabel("range error [m] (clipped to [-1, 5])")
+    dist.set_title("error against distance, per anchor")
     return to_png(fig)
 
 

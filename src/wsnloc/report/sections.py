@@ -175,7 +175,8 @@ def paper_c_section(results: pd.DataFrame, claims: dict, figures: dict[str, str]
             "bounds": bounds, "details": details, "claims": claims["claims"], "cost": [], "figures": figures, "settings": settings}
 
 
-STUDY_STATS = ("median", "p75", "rmse", "availability", "resets")
+STUDY_STATS = ("median", "p75", "p95", "rmse", "availability", "resets", "gated", "time_per_step",
+               "calibrated_scale", "calibration_fitted", "range_scale", "range_offset")
 BOUND_STATS = ("sqrt_pcrb", "efficiency", "anees", "anis")     # Bayesian filter cells only
 
 

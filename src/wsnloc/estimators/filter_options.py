@@ -1,0 +1,182 @@
+"""Options of the Bayesian filters' measurement update, as one adapter around any filter
+with the KalmanFilter interface (x, P, predict(F, Q, u, B), update(z, H, R, hx)):
+
+- innovation gating and robust M-estimator updates (estimators.robust);
+- range self-calibration: state augmented with a common scale and/or offset
+  (estimators.self_calibration);
+- NLOS-aware range noise: sigma_i = range_sigma_m + n_i range_sigma_per_wall_m, with n_i
+  the campaign walls crossed by the straight line from the current position estimate to
+  anchor i (so links through walls, which carry excess path and multipath, weigh less).
+
+The adapter counts the measurements offered and gated over a run (across track restarts)
+and exposes the calibration states; bayes.run_filter copies them to the estimates' attrs.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from wsnloc.errors import ConfigError
+from wsnloc.estimators import robust, self_calibration
+from wsnloc.estimators.parameters import Param
+from wsnloc.filters.measurement_models import RangeModel
+
+LOSS_WINDOW = 10          # updates over which the gate's rejections are judged
+
+PARAMS = (
+    Param("gate_probability", 0.0, "1", "innovation gate: reject a measurement whose squared normalised "
+          "innovation y_i^2 / S_ii exceeds the chi-square (1 dof) quantile at this probability (0: no gate; "
+          "0.999: beyond 3.29 sigma)", minimum=0.0),
+    Param("robust_loss", "none", "", "M-estimator update by iteratively reweighted R: huber (convex; clean data "
+          "with occasional outliers) or cauchy (redescending; frequent large outliers such as reflections)",
+          str, robust.LOSSES),
+    Param("robust_c", 0.0, "sigma", "loss tuning constant in units of the range sigma (0: the loss's 95% "
+          "Gaussian-efficiency default, huber 1.345, cauchy 2.385)", minimum=0.0),
+    Param("gate_loss_share", 0.5, "1", "gate: when it rejected more than this share of the measurements of the "
+          f"last {LOSS_WINDOW} updates the track is lost: dropped (a reset) and restarted by the initiator "
+          "(1: never)", minimum=0.0),
+    Param("range_self_calibration", "none", "", "augment the state with a common range scale and/or offset "
+          "(needs >= 4 anchors and a moving target; no truth)", str, self_calibration.MODES),
+    Param("range_scale_sigma", 0.1, "1", "self-calibration: prior sigma of the range scale (around 1)",
+          minimum=1e-9),
+    Param("range_offset_sigma_m", 0.5, "m", "self-calibration: prior sigma of the range offset (around 0)",
+          minimum=1e-9),
+    Param("range_sigma_per_wall_m", 0.0, "m", "NLOS-aware noise: add this to the range sigma per campaign wall "
+          "crossed by the line from the position estimate to the anchor (0: off)", minimum=0.0),
+)
+
+
+@dataclass
+class UpdateCounts:
+    """Measurements offered to and rejected by the gate over a run, and the latest
+    self-calibration states (range_scale, range_offset_m)."""
+
+    offered: int = 0
+    gated: int = 0
+    track_losses: int = 0
+    calibration: dict = field(default_factory=dict)
+
+    def attrs(self) -> dict:
+        """Counters for the estimates' attrs: gated, offered, gated_share, gate_track_losses and the
+        self-calibration states."""
+        share = self.gated / self.offered if self.offered else 0.0
+        return {"gated": self.gated, "offered": self.offered, "gated_share": share,
+                "gate_track_losses": self.track_losses, **self.calibration}
+
+
+class ConfiguredFilter:
+    """A filter with the configured update options (see the module docstring)."""
+
+    def __init__(self, filt, p: dict, counts: UpdateCounts, campaign=None):
+        self.filt, self.counts, self.campaign = filt, counts, campaign
+        self.loss_share = p["gate_loss_share"]
+        self.recent: deque = deque(maxlen=LOSS_WINDOW)          # (offered, gated) of the last updates
+        self.lost = False
+        self.mode = p["range_self_calibration"]
+        self.extra = len(self_calibration.extra_states(self.mode))
+        loss = p["robust_loss"]
+        self.options = robust.UpdateOptions(p["gate_probability"], loss,
+                                            p["robust_c"] or robust.DEFAULT_TUNING.get(loss, 0.0))
+        self.per_wall = p["range_sigma_per_wall_m"]
+        self.used = 0
+
+    # -- the interface the filter loops use --
+    @property
+    def x(self) -> np.ndarray:
+        return self.filt.x
+
+    @property
+    def P(self) -> np.ndarray:
+        return self.filt.P
+
+    @property
+    def nis(self) -> float:
+        return self.filt.nis if self.used else float("nan")
+
+    def predict(self, F, Q, u=None, B=None) -> None:
+        if self.extra:
+            F, Q, B = self_calibration.augment_motion(F, Q, B, self.extra)
+        self.filt.predict(F, Q, u=u, B=B)
+
+    def update_model(self, model) -> None:
+        """Linearise at the prior (calibration states applied), set the per-link noise, then
+        the gated / robust update; `used` = measurements kept; `lost` when the gate rejected
+        more than gate_loss_share of the last LOSS_WINDOW updates' measurements (a gate that
+        rejects most measurements is guarding a track that has left the target)."""
+        hx, H = self_calibration.linearise(model, self.filt.x, self.mode)
+        R = self.noise(model)
+        keep = robust.robust_update(self.filt, model.z, H, R, hx, self.options)
+        self.used = int(keep.sum())
+        self.counts.offered += len(keep)
+        self.counts.gated += len(keep) - self.used
+        self.counts.calibration = self.calibration()
+        self.recent.append((len(keep), len(keep) - self.used))
+        offered, gated = np.sum(list(self.recent), axis=0)
+        if len(self.recent) == LOSS_WINDOW and gated > self.loss_share * offered:
+            self.lost = True            # the loop drops the track (see bayes._update)
+            self.counts.track_losses += 1
+
+    def noise(self, model) -> np.ndarray:
+        """R of the model; with range_sigma_per_wall_m the range rows get sigma + n_walls * per_wall."""
+        R = np.array(model.R(), dtype=float)
+        if not self.per_wall:
+            return R
+        k = 0
+        for part in getattr(model, "parts", [model]):
+            m = len(part.anchors)
+            if isinstance(part, RangeModel):
+                walls = np.array([self.campaign.walls_between(self.filt.x[None, :2], a)[0] for a in part.anchors])
+                sigma = np.broadcast_to(part.sigma_m, m) + walls * self.per_wall
+                R[k:k + m, k:k + m] = np.diag(sigma**2)
+            k += m
+        return R
+
+    def calibration(self) -> dict[str, float]:
+        """Current self-calibration states: range_scale (1) and/or range_offset_m (m)."""
+        names = self_calibration.extra_states(self.mode)
+        n = len(self.filt.x) - len(names)
+        key = {"scale": "range_scale", "offset": "range_offset_m"}
+        return {key[name]: float(self.filt.x[n + i]) for i, name in enumerate(names)}
+
+
+OFF = {"gate_probability": 0.0, "robust_loss": "none", "range_self_calibration": "none",
+       "range_sigma_per_wall_m": 0.0}
+
+
+def configured_factory(make, p: dict, counts: UpdateCounts, campaign=None):
+    """Wrap a filter factory make(x0, P0, motion) so that its filters have the update options;
+    with every option off, the factory itself (any filter, linearised or not)."""
+    active = [k for k, off in OFF.items() if p[k] != off]
+    if not active:
+        return make
+    if p["range_sigma_per_wall_m"] and (campaign is None or campaign.walls.size == 0):
+        raise ConfigError("config key 'range_sigma_per_wall_m': NLOS-aware noise needs the campaign's walls "
+                          f"({'no campaign' if campaign is None else campaign.source + ' has none'})")
+
+    def factory(x0: np.ndarray, P0: np.ndarray, motion):
+        x, P = self_calibration.augment_prior(x0, P0, p["range_self_calibration"], p["range_scale_sigma"],
+                                              p["range_offset_sigma_m"])
+        filt = make(x, P, _AugmentedMotion(motion, len(x) - len(x0)))
+        if not hasattr(filt, "update"):
+            raise ConfigError(f"config key '{active[0]}': the update options need a linearised filter with "
+                              f"update(z, H, R, hx) (filter {p['filter']!r} has none)")
+        return ConfiguredFilter(filt, p, counts, campaign)
+    return factory
+
+
+@dataclass(frozen=True)
+class _AugmentedMotion:
+    """A motion model whose matrices cover the calibration states too (for the factory's F, Q)."""
+
+    motion: object
+    extra: int
+
+    @property
+    def period_s(self) -> float:
+        return self.motion.period_s
+
+    def matrices(self, dt: float):
+        return self_calibration.augment_motion(*self.motion.matrices(dt), self.extra)

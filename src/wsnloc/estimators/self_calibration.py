@@ -1,0 +1,73 @@
+"""Range self-calibration: the filter state augmented with a common range scale and/or offset.
+
+Measured range of anchor i:  r_i = s d_i(x) + b + v_i,  with d_i(x) the (3-D) geometric
+range of the position, s the common scale (1 = no error) and b the common offset (m).
+The augmented state is [motion state, s, b] (only the modes' entries):
+  h_i(x, s, b) = s d_i(x) + b,
+  dh_i/dx = s dd_i/dx,  dh_i/ds = d_i(x),  dh_i/db = 1.
+s and b are constants (F = I on them, no process noise). They are observable while the
+target moves among >= 4 anchors: a scale (or offset) error cannot be absorbed by the
+position then, unlike with 3 anchors, where a common offset shifts every fix alike. RSS
+rows of a hybrid model are left as they are (zero columns for s and b).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from wsnloc.filters.measurement_models import RangeModel
+
+MODES = ("none", "scale", "offset", "scale_offset")
+
+
+def extra_states(mode: str) -> tuple[str, ...]:
+    """Names of the calibration states a mode adds, in state order."""
+    return {"none": (), "scale": ("scale",), "offset": ("offset",), "scale_offset": ("scale", "offset")}[mode]
+
+
+def augment_prior(x0: np.ndarray, P0: np.ndarray, mode: str, scale_sigma: float,
+                  offset_sigma_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """[x0, 1 (scale), 0 (offset)] and blockdiag(P0, scale_sigma^2, offset_sigma_m^2)."""
+    names = extra_states(mode)
+    start = {"scale": 1.0, "offset": 0.0}
+    variance = {"scale": scale_sigma**2, "offset": offset_sigma_m**2}
+    n = len(x0)
+    x = np.concatenate([x0, [start[k] for k in names]])
+    P = np.zeros((n + len(names), n + len(names)))
+    P[:n, :n] = P0
+    P[n:, n:] = np.diag([variance[k] for k in names])
+    return x, P
+
+
+def augment_motion(F: np.ndarray, Q: np.ndarray, B: np.ndarray | None, extra: int):
+    """F, Q, B of the augmented state: identity on the calibration states, no process noise."""
+    n = len(F)
+    Fa, Qa = np.eye(n + extra), np.zeros((n + extra, n + extra))
+    Fa[:n, :n], Qa[:n, :n] = F, Q
+    Ba = None if B is None else np.vstack([B, np.zeros((extra, B.shape[1]))])
+    return Fa, Qa, Ba
+
+
+def linearise(model, x: np.ndarray, mode: str) -> tuple[np.ndarray, np.ndarray]:
+    """(h(x), H) of a measurement model (filters.measurement_models) at the augmented state x."""
+    if mode == "none":
+        return model.h(x), model.jacobian(x)
+    names = extra_states(mode)
+    n = len(x) - len(names)
+    scale = x[n + names.index("scale")] if "scale" in names else 1.0
+    offset = x[n + names.index("offset")] if "offset" in names else 0.0
+    parts = getattr(model, "parts", [model])
+    hs, Hs = [], []
+    for part in parts:
+        h, J = part.h(x[:n]), part.jacobian(x[:n])
+        H = np.zeros((len(h), len(x)))
+        if isinstance(part, RangeModel):
+            H[:, :n] = scale * J
+            for k, name in enumerate(names):
+                H[:, n + k] = h if name == "scale" else 1.0
+            h = scale * h + offset
+        else:
+            H[:, :n] = J
+        hs.append(h)
+        Hs.append(H)
+    return np.concatenate(hs), np.vstack(Hs)
