@@ -37,7 +37,8 @@ def normalized_squared(errors, covariances, components=None) -> np.ndarray:
     error and P the filter covariance, NIS when e is the innovation and P its covariance S.
 
     components: state indices to keep (e.g. (0, 1) for the position-only NEES, using the
-    position block of P); None keeps all.
+    position block of P); None keeps all. A singular P (a filter claiming certainty, e.g. a
+    collapsed particle cloud) gives inf: any error is infinitely many of its sigmas.
     """
     e = np.asarray(errors, dtype=float)
     P = np.asarray(covariances, dtype=float)
@@ -45,7 +46,10 @@ def normalized_squared(errors, covariances, components=None) -> np.ndarray:
         index = np.asarray(components)
         e = e[..., index]
         P = P[..., index[:, None], index[None, :]]
-    return np.einsum("...i,...i->...", e, np.linalg.solve(P, e[..., None])[..., 0])
+    singular = ~(np.linalg.det(P) > 0)
+    safe = np.where(singular[..., None, None], np.eye(P.shape[-1]), P)
+    value = np.einsum("...i,...i->...", e, np.linalg.solve(safe, e[..., None])[..., 0])
+    return np.where(singular, np.inf, value)
 
 
 def chi2_quantile(dof, probability) -> np.ndarray:
