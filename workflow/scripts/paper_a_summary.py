@@ -8,7 +8,7 @@ import pandas as pd
 from wsnloc import results
 from wsnloc.campaign import Campaign
 from wsnloc.config import read_yaml
-from wsnloc.experiments import paper_a
+from wsnloc.experiments import claims as claims_of, paper_a
 from wsnloc.io import tables
 from wsnloc.report import figures
 from wsnloc.workflow import script_logger
@@ -18,13 +18,15 @@ log = script_logger(sm.log[0], "paper_a_summary")
 settings = paper_a.Settings.from_config(sm.params.settings)
 paper = read_yaml(sm.input.papers)["A"]
 labels = list(sm.params.labels)
-rows = []
+rows, per_run, motions = [], {}, {}
 for label, path in zip(labels, sm.input.metrics):
-    motion = Campaign.load(sm.params.campaign_of[label]).section("scenarios", label.split("/", 1)[1])["motion"]
-    rows += paper_a.results_rows(pd.read_csv(path), label, motion, settings, paper)
-results.write(rows, sm.output.results)
+    motions[label] = Campaign.load(sm.params.campaign_of[label]).section("scenarios", label.split("/", 1)[1])["motion"]
+    per_run[label] = pd.read_csv(path)
+    rows += paper_a.results_rows(per_run[label], label, motions[label], settings, paper)
+decided = paper_a.claims(per_run, motions, settings)
+results.write(rows + claims_of.results_rows(paper_a.EXPERIMENT, decided), sm.output.results)
 res = results.read(sm.output.results)
-Path(sm.output.claims).write_text(json.dumps({"claims": paper_a.claims(res, settings)}, indent=1))
+Path(sm.output.claims).write_text(json.dumps({"claims": decided}, indent=1))
 estimates = {label: tables.read(p) for label, p in zip(labels, sm.input.estimates)}
 Path(sm.output.cdf).write_bytes(figures.error_cdf(paper_a.cdf_panels(estimates)))
 Path(sm.output.tracks).write_bytes(figures.trajectories(paper_a.trajectory_panels(estimates)))

@@ -7,7 +7,7 @@ import pandas as pd
 
 from wsnloc import results
 from wsnloc.config import read_yaml
-from wsnloc.experiments import paper_b
+from wsnloc.experiments import claims as claims_of, paper_b
 from wsnloc.io import tables
 from wsnloc.report import figures
 from wsnloc.workflow import script_logger
@@ -16,12 +16,11 @@ sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "paper_b_summary")
 paper = read_yaml(sm.input.papers)["B"]
 labels, simulated = list(sm.params.labels), set(sm.params.simulated)
-rows = []
-for label, path in zip(labels, sm.input.metrics):
-    rows += paper_b.results_rows(pd.read_csv(path), label, paper, label in simulated)
-results.write(rows, sm.output.results)
-claims = paper_b.claims(results.read(sm.output.results), labels)
-Path(sm.output.claims).write_text(json.dumps({"claims": claims}, indent=1))
+per_run = {label: pd.read_csv(path) for label, path in zip(labels, sm.input.metrics)}
+rows = [row for label in labels for row in paper_b.results_rows(per_run[label], label, paper, label in simulated)]
+decided = paper_b.claims(per_run)
+results.write(rows + claims_of.results_rows(paper_b.EXPERIMENT, decided), sm.output.results)
+Path(sm.output.claims).write_text(json.dumps({"claims": decided}, indent=1))
 
 estimates = {label: tables.read(p) for label, p in zip(labels, sm.input.estimates)}
 Path(sm.output.tracks).write_bytes(figures.trajectories(paper_b.trajectory_panels(estimates)))

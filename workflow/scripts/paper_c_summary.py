@@ -8,7 +8,7 @@ import pandas as pd
 from wsnloc import results
 from wsnloc.campaign import Campaign
 from wsnloc.config import read_yaml
-from wsnloc.experiments import paper_c
+from wsnloc.experiments import claims as claims_of, paper_c
 from wsnloc.io import tables
 from wsnloc.report import figures
 from wsnloc.workflow import script_logger
@@ -18,14 +18,15 @@ log = script_logger(sm.log[0], "paper_c_summary")
 settings = paper_c.Settings.from_config(sm.params.settings)
 paper = read_yaml(sm.input.papers)["C"]
 labels = list(sm.params.labels)
-rows, speeds = [], []
+rows, per_run, speeds = [], {}, {}
 for label, path in zip(labels, sm.input.metrics):
-    speed = paper_c.speed_label(Campaign.load(sm.params.campaign_of[label]), label.split("/", 1)[1])
-    speeds.append(speed)
-    rows += paper_c.results_rows(pd.read_csv(path), label, speed, settings, paper)
-results.write(rows, sm.output.results)
+    speeds[label] = paper_c.speed_label(Campaign.load(sm.params.campaign_of[label]), label.split("/", 1)[1])
+    per_run[label] = pd.read_csv(path)
+    rows += paper_c.results_rows(per_run[label], label, speeds[label], settings, paper)
+decided = paper_c.claims(per_run, speeds, settings)
+results.write(rows + claims_of.results_rows(paper_c.EXPERIMENT, decided), sm.output.results)
 res = results.read(sm.output.results)
-Path(sm.output.claims).write_text(json.dumps({"claims": paper_c.claims(res, speeds, settings)}, indent=1))
+Path(sm.output.claims).write_text(json.dumps({"claims": decided}, indent=1))
 estimates = {label: tables.read(p) for label, p in zip(labels, sm.input.estimates)}
 Path(sm.output.histogram).write_bytes(figures.error_histograms(
     paper_c.histogram_panels(estimates, settings), "Paper C: position error per model, all runs (their Fig. 4b)"))

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
 import pandas as pd
 
 from wsnloc import results
@@ -20,6 +19,8 @@ from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
 from wsnloc.estimators import registry
 from wsnloc.estimators.run_data import RunData
+from wsnloc.experiments import claims as claims_of
+from wsnloc.metrics import verdicts
 from wsnloc.metrics.tracking import cell_metrics, score
 
 EXPERIMENT = "B"
@@ -98,24 +99,17 @@ def results_rows(metrics: pd.DataFrame, scenario: str, paper: dict, simulated_se
     return rows
 
 
-def claims(res: pd.DataFrame, scenarios: list[str]) -> list[dict]:
-    """Paper B's claims checked on our RMSE values."""
-    def rmse(method, scenario):
-        sel = res[(res["experiment"] == EXPERIMENT) & (res["table"] == "RMSE") & (res["row"] == METHODS[method])
-                  & (res["scenario"] == scenario)]
-        return float(sel["value"].iloc[0]) if len(sel) else float("nan")
-
+def claims(metrics: dict[str, pd.DataFrame]) -> list[dict]:
+    """Paper B's claims decided on per-run RMSE (experiments.claims), paired within each
+    scenario (metrics[label] is its per-run metrics.csv)."""
     fusion, classical = [], []
-    for sc in scenarios:
-        ss, uwb, imu, kf = (rmse(m, sc) for m in ("sskf", "uwb", "imu", "kf"))
-        fusion.append((ss < uwb and ss < imu, f"{sc}: steady-state {ss:.3f} vs UWB {uwb:.3f} and IMU {imu:.3f} m"))
-        classical.append((kf < ss, f"{sc}: classical {kf:.3f} vs steady-state {ss:.3f} m"))
-    return [
-        {"claim": "Fusion beats both UWB only and IMU only", "holds": all(ok for ok, _ in fusion),
-         "evidence": "; ".join(e for _, e in fusion)},
-        {"claim": "The classical KF is somewhat better than the steady-state KF", "holds": all(ok for ok, _ in classical),
-         "evidence": "; ".join(e for _, e in classical)},
-    ]
+    for label, per_run in metrics.items():
+        rmse = {m: claims_of.runs_of(per_run, method=m) for m in METHODS}
+        fusion += [claims_of.paired(rmse["sskf"], rmse[other], "<", f"{label}: steady-state KF - {name}")
+                   for other, name in (("uwb", "UWB only"), ("imu", "IMU only"))]
+        classical.append(claims_of.paired(rmse["kf"], rmse["sskf"], "<", f"{label}: classical - steady-state KF"))
+    return [claims_of.record("Fusion beats both UWB only and IMU only", verdicts.claim(fusion)),
+            claims_of.record("The classical KF is somewhat better than the steady-state KF", verdicts.claim(classical))]
 
 
 FIGURE_METHODS = ("uwb", "imu", "sskf")

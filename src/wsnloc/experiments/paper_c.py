@@ -14,7 +14,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
 import pandas as pd
 
 from wsnloc import results
@@ -22,6 +21,8 @@ from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
 from wsnloc.estimators import registry
 from wsnloc.estimators.run_data import RunData
+from wsnloc.experiments import claims as claims_of
+from wsnloc.metrics import verdicts
 from wsnloc.metrics.tracking import cell_metrics, score
 
 EXPERIMENT = "C"
@@ -105,28 +106,32 @@ def results_rows(metrics: pd.DataFrame, scenario_label: str, speed: str, setting
     return out
 
 
-def claims(res: pd.DataFrame, speeds: list[str], settings: Settings) -> list[dict]:
-    sel = res[(res["experiment"] == EXPERIMENT) & (res["metric"] == "rmse_m")]
-    t1 = {(r.row, r.column): r.value for r in sel[sel["table"] == "Table I"].itertuples()}
-    t2 = {(r.row, r.column): r.value for r in sel[sel["table"] == "Table II"].itertuples()}
-    out = []
+def claims(metrics: dict[str, pd.DataFrame], speeds: dict[str, str], settings: Settings) -> list[dict]:
+    """Paper C's claims decided on per-run RMSE (experiments.claims): metrics[label] is a
+    scenario's per-run metrics.csv, speeds[label] its speed ("20 cm/s").
 
-    def check(text, cases):
-        out.append({"claim": text, "holds": bool(cases) and all(ok for ok, _ in cases),
-                    "evidence": "; ".join(e for _, e in cases)})
+    Models and beacon sets of one scenario share their runs (paired); speeds are different
+    scenarios (independent runs, Welch interval).
+    """
+    def rmse(label, subset, model):
+        return claims_of.runs_of(metrics[label], subset=subset, model=model)
 
-    check("P < PV < PVA (Table I, every speed)",
-          [(t1.get(("P", s), np.nan) < t1.get(("PV", s), np.nan) < t1.get(("PVA", s), np.nan),
-            f"{s}: P {t1.get(('P', s), np.nan):.3f}, PV {t1.get(('PV', s), np.nan):.3f}, PVA {t1.get(('PVA', s), np.nan):.3f}")
-           for s in speeds])
-    check("The error grows with speed (every model)",
-          [(all(t1.get((m, a), np.nan) < t1.get((m, b), np.nan) for a, b in zip(speeds, speeds[1:])),
-            f"{m}: " + " -> ".join(f"{t1.get((m, s), np.nan):.3f}" for s in speeds)) for m in MODELS])
-    subsets = settings.table_2_subsets
-    check("More beacons give a lower RMSE (Table II, every model)",
-          [(all(t2.get((a, m), np.nan) > t2.get((b, m), np.nan) for a, b in zip(subsets, subsets[1:])),
-            f"{m}: " + " -> ".join(f"{t2.get((s, m), np.nan):.3f}" for s in subsets)) for m in MODELS])
-    return out
+    order = [claims_of.paired(rmse(label, settings.table_1_subset, lo), rmse(label, settings.table_1_subset, hi), "<",
+                              f"{speeds[label]}: {lo} - {hi}")
+             for label in metrics for lo, hi in zip(MODELS, MODELS[1:])]
+    by_speed = sorted(metrics, key=lambda label: float(speeds[label].split()[0]))
+    speed = [claims_of.unpaired(rmse(slow, settings.table_1_subset, m), rmse(fast, settings.table_1_subset, m), "<",
+                                f"{m}: {speeds[slow]} - {speeds[fast]} (independent runs)")
+             for m in MODELS for slow, fast in zip(by_speed, by_speed[1:])]
+    beacons = []
+    if settings.table_2_scenario in metrics:
+        subsets = settings.table_2_subsets
+        beacons = [claims_of.paired(rmse(settings.table_2_scenario, more, m), rmse(settings.table_2_scenario, fewer, m),
+                                    "<", f"{m}: beacons {more} - {fewer}")
+                   for m in MODELS for fewer, more in zip(subsets, subsets[1:])]
+    return [claims_of.record("P < PV < PVA (Table I, every speed)", verdicts.claim(order)),
+            claims_of.record("The error grows with speed (every model)", verdicts.claim(speed)),
+            claims_of.record("More beacons give a lower RMSE (Table II, every model)", verdicts.claim(beacons))]
 
 
 def anchor_curves(res: pd.DataFrame, settings: Settings) -> dict:
