@@ -9,20 +9,25 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from wsnloc.metrics.verdicts import VERDICTS, paper_value_inside
+
 
 def _cell(results: pd.DataFrame, **keys) -> dict:
     match = np.ones(len(results), dtype=bool)
     for column, value in keys.items():
         match &= results[column].to_numpy() == value      # numpy, not pandas: ~400 cells per report
     if not match.any():
-        return {"value": None, "low": None, "high": None, "runs": None, "paper": None, "delta": None}
+        return {"value": None, "low": None, "high": None, "runs": None, "paper": None, "delta": None, "inside": False}
     row = results.iloc[int(np.argmax(match))]
     paper = row["paper_value"] if pd.notna(row["paper_value"]) else None
     value = row["value"] if pd.notna(row["value"]) else None
-    delta = value - paper if value is not None and paper is not None else None
-    return {"value": value, "low": row["ci95_low"] if pd.notna(row["ci95_low"]) else None,
-            "high": row["ci95_high"] if pd.notna(row["ci95_high"]) else None,
-            "runs": int(row["runs"]) if pd.notna(row["runs"]) else None, "paper": paper, "delta": delta}
+    low = row["ci95_low"] if pd.notna(row["ci95_low"]) else None
+    high = row["ci95_high"] if pd.notna(row["ci95_high"]) else None
+    inside = paper_value_inside(paper, np.nan if low is None else low, np.nan if high is None else high)
+    # The red/green difference only where the paper's value lies outside our 95% interval.
+    delta = value - paper if value is not None and paper is not None and not inside else None
+    return {"value": value, "low": low, "high": high, "runs": int(row["runs"]) if pd.notna(row["runs"]) else None,
+            "paper": paper, "delta": delta, "inside": inside}
 
 
 def paper_table(results: pd.DataFrame, *, experiment: str, table: str, scenario: str, rows: list[str],
@@ -63,7 +68,7 @@ def paper_d_section(results: pd.DataFrame, claims: dict, figures: dict[str, str]
         tables.append(paper_table(results, experiment="D", table="Table 3", scenario=scenario,
                                   rows=["velocity tracker", "Kalman filter"], columns=techs, metric="rmse_m",
                                   title="Table 3: velocity tracking vs Kalman filter on Min-Max fixes, RMSE [m]"))
-    cost = results[(results["experiment"] == "D") & (results["table"] == "Cost")].to_dict(orient="records")
+    cost = cost_table(results)
     return {
         "id": "D", "title": paper["title"], "citation": paper["citation"],
         "published": bool(paper.get("tables_published", True)),
@@ -72,6 +77,29 @@ def paper_d_section(results: pd.DataFrame, claims: dict, figures: dict[str, str]
     }
 
 
+
+
+def cost_table(results: pd.DataFrame) -> list[dict]:
+    """Paper D's Cost table: per tracker (and their ratio) the measured time per step (us),
+    the arithmetic operations per step (metrics.op_counts) and the paper's time (us)."""
+    from wsnloc.experiments.paper_d import COST_LABEL
+
+    sel = results[(results["experiment"] == "D") & (results["table"] == "Cost")]
+
+    def value(row, column, metric):
+        match = sel[(sel["row"] == row) & (sel["column"] == column) & (sel["metric"] == metric)]
+        return (match["value"].iloc[0], match["paper_value"].iloc[0]) if len(match) else (None, None)
+
+    lines = []
+    for label in (*COST_LABEL.values(), "Kalman / velocity"):
+        ratio = label == "Kalman / velocity"
+        time_metric = "ratio" if ratio else "us_per_step"
+        time, paper = value(label, "time per step", time_metric)
+        ops = value(label, "total per step", "ratio" if ratio else "ops_per_step")[0]
+        kinds = {kind: value(label, f"{kind} per step", "ops_per_step")[0] for kind in ("mul", "add", "div", "sqrt")}
+        lines.append({"label": label, "ratio": ratio, "time": time, "operations": ops, "kinds": kinds,
+                      "paper": paper})
+    return lines
 
 
 def paper_b_section(results: pd.DataFrame, claims: dict, figures: dict[str, str], paper: dict,
@@ -169,3 +197,17 @@ def study_section(results: pd.DataFrame, study: str, spec: dict, figures: dict[s
                   for c in cells]
     return {"id": study, "tables": tables, "estimators": estimators, "overrides": spec.get("overrides") or {},
             "figures": figures}
+
+
+def summary(papers: list[dict]) -> list[dict]:
+    """The report's top summary, per paper section: table cells with a paper value and how
+    many of those lie inside our 95% interval; claims per verdict."""
+    out = []
+    for p in papers:
+        cells = [cell for table in p["tables"] for row in table["rows"] for cell in row["cells"]
+                 if cell["paper"] is not None]
+        verdict_counts = {v: sum(c["verdict"] == v for c in p["claims"]) for v in VERDICTS}
+        out.append({"id": p["id"], "title": p["title"], "cells": len(cells),
+                    "inside": sum(cell["inside"] for cell in cells), "claims": len(p["claims"]),
+                    "verdicts": verdict_counts})
+    return out
