@@ -136,5 +136,6 @@ def test_paper_b_on_a_simulated_run(campaign, simulated_run):
     rows = results.frame(paper_b.results_rows(metrics.reset_index(), "newcom/constant", paper, False))
     uwb = rows[(rows["table"] == "RMSE") & (rows["row"] == "UWB only (Min-Max)")]
     assert uwb["paper_value"].iloc[0] == 3.25
-    claims = paper_b.claims(rows, ["newcom/constant"])
+    claims = paper_b.claims({"newcom/constant": metrics.reset_index().assign(run="run-01")})
     assert [c["claim"] for c in claims][0].startswith("Fusion beats")
+    assert all(c["verdict"] == "inconclusive" for c in claims)     # one run: no interval
