@@ -11,6 +11,7 @@ rule paper_b:
     output:
         estimates="data/processed/{dataset}/{scenario}/paper_b/estimates.parquet",
         metrics="data/processed/{dataset}/{scenario}/paper_b/metrics.csv",
+        sensitivity="data/processed/{dataset}/{scenario}/paper_b/sensitivity.csv",
     params:
         settings=PAPER_B,
     priority: PRIORITY["summary"]
@@ -25,6 +26,7 @@ rule paper_b:
 rule paper_b_summary:
     input:
         metrics=[f"data/processed/{d}/{s}/paper_b/metrics.csv" for d, s in PAPER_B_PAIRS],
+        sensitivity=[f"data/processed/{d}/{s}/paper_b/sensitivity.csv" for d, s in PAPER_B_PAIRS],
         estimates=[f"data/processed/{d}/{s}/paper_b/estimates.parquet" for d, s in PAPER_B_PAIRS],
         papers="config/papers.yaml",
     output:

@@ -10,6 +10,7 @@ rule paper_d:
     output:
         estimates="data/processed/{dataset}/{scenario}/paper_d/estimates.parquet",
         metrics="data/processed/{dataset}/{scenario}/paper_d/metrics.csv",
+        sensitivity="data/processed/{dataset}/{scenario}/paper_d/sensitivity.csv",
     params:
         settings=PAPER_D,
     priority: PRIORITY["estimator"]
@@ -24,6 +25,7 @@ rule paper_d:
 rule paper_d_summary:
     input:
         metrics=[f"data/processed/{d}/{s}/paper_d/metrics.csv" for d, s in PAPER_D_PAIRS],
+        sensitivity=[f"data/processed/{d}/{s}/paper_d/sensitivity.csv" for d, s in PAPER_D_PAIRS],
         estimates=[f"data/processed/{d}/{s}/paper_d/estimates.parquet" for d, s in PAPER_D_PAIRS],
         papers="config/papers.yaml",
     output:

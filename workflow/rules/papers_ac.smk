@@ -13,6 +13,7 @@ rule paper_a:
     output:
         estimates="data/processed/{dataset}/{scenario}/paper_a/estimates.parquet",
         metrics="data/processed/{dataset}/{scenario}/paper_a/metrics.csv",
+        sensitivity="data/processed/{dataset}/{scenario}/paper_a/sensitivity.csv",
     params:
         settings=PAPER_A,
     priority: PRIORITY["estimator"]
@@ -27,6 +28,7 @@ rule paper_a:
 rule paper_a_summary:
     input:
         metrics=[f"data/processed/{d}/{s}/paper_a/metrics.csv" for d, s in PAPER_A_PAIRS],
+        sensitivity=[f"data/processed/{d}/{s}/paper_a/sensitivity.csv" for d, s in PAPER_A_PAIRS],
         estimates=[f"data/processed/{d}/{s}/paper_a/estimates.parquet" for d, s in PAPER_A_PAIRS],
         campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_A_PAIRS}),
         papers="config/papers.yaml",
@@ -57,6 +59,7 @@ rule paper_c:
     output:
         estimates="data/processed/{dataset}/{scenario}/paper_c/estimates.parquet",
         metrics="data/processed/{dataset}/{scenario}/paper_c/metrics.csv",
+        sensitivity="data/processed/{dataset}/{scenario}/paper_c/sensitivity.csv",
     params:
         settings=PAPER_C,
         label="{dataset}/{scenario}",
@@ -72,6 +75,7 @@ rule paper_c:
 rule paper_c_summary:
     input:
         metrics=[f"data/processed/{d}/{s}/paper_c/metrics.csv" for d, s in PAPER_C_PAIRS],
+        sensitivity=[f"data/processed/{d}/{s}/paper_c/sensitivity.csv" for d, s in PAPER_C_PAIRS],
         estimates=[f"data/processed/{d}/{s}/paper_c/estimates.parquet" for d, s in PAPER_C_PAIRS],
         campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_C_PAIRS}),
         papers="config/papers.yaml",

@@ -6,7 +6,7 @@ import pandas as pd
 
 from wsnloc.campaign import Campaign
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments import calibration, paper_a
+from wsnloc.experiments import calibration, paper_a, sensitivity
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.workflow import script_logger
@@ -19,11 +19,16 @@ settings.check_against(campaign)
 runs = load_runs(sm.input.tables, paper_a.INPUT_TABLES)
 zigbee = list(campaign.anchors_of("zigbee")["anchor_id"])
 models = calibration.rss_models_for_runs(runs, campaign, zigbee, settings.rss_calibration, settings.rss_model)
-estimates, metrics = [], []
+estimates, metrics, data = [], [], {}
 for name, run_tables in runs.items():
-    est = paper_a.run(RunData(run_tables, campaign, models[name], name), settings).assign(run=name)
+    data[name] = RunData(run_tables, campaign, models[name], name)
+    est = paper_a.run(data[name], settings).assign(run=name)
     estimates.append(est)
     metrics.append(paper_a.run_metrics(est, run_tables["truth"]).assign(run=name))
     log.info("%s: RSS model %s", name, json.dumps(models[name]))
 tables.write("estimates_paper_a", pd.concat(estimates, ignore_index=True), sm.output.estimates)
-pd.concat(metrics, ignore_index=True).to_csv(sm.output.metrics, index=False, float_format="%.6g")
+metrics = pd.concat(metrics, ignore_index=True)
+metrics.to_csv(sm.output.metrics, index=False, float_format="%.6g")
+grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_a", metrics, lambda spec, _, run: paper_a.run_metrics(
+    paper_a.run(data[run], paper_a.Settings.from_config(spec)), runs[run]["truth"]))
+grid.to_csv(sm.output.sensitivity, index=False, float_format="%.6g")

@@ -8,7 +8,7 @@ import pandas as pd
 from wsnloc import results
 from wsnloc.campaign import Campaign
 from wsnloc.config import read_yaml
-from wsnloc.experiments import claims as claims_of, paper_a
+from wsnloc.experiments import claims as claims_of, paper_a, sensitivity
 from wsnloc.io import tables
 from wsnloc.report import figures
 from wsnloc.workflow import script_logger
@@ -24,6 +24,8 @@ for label, path in zip(labels, sm.input.metrics):
     per_run[label] = pd.read_csv(path)
     rows += paper_a.results_rows(per_run[label], label, motions[label], settings, paper)
 decided = paper_a.claims(per_run, motions, settings)
+grids = {label: pd.read_csv(path) for label, path in zip(labels, sm.input.sensitivity)}
+rows += sensitivity.results_rows(paper_a.EXPERIMENT, grids, lambda m: paper_a.claims(m, motions, settings))
 results.write(rows + claims_of.results_rows(paper_a.EXPERIMENT, decided), sm.output.results)
 res = results.read(sm.output.results)
 Path(sm.output.claims).write_text(json.dumps({"claims": decided}, indent=1))

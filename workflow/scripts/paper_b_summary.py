@@ -7,7 +7,7 @@ import pandas as pd
 
 from wsnloc import results
 from wsnloc.config import read_yaml
-from wsnloc.experiments import claims as claims_of, paper_b
+from wsnloc.experiments import claims as claims_of, paper_b, sensitivity
 from wsnloc.io import tables
 from wsnloc.report import figures
 from wsnloc.workflow import script_logger
@@ -19,6 +19,8 @@ labels, simulated = list(sm.params.labels), set(sm.params.simulated)
 per_run = {label: pd.read_csv(path) for label, path in zip(labels, sm.input.metrics)}
 rows = [row for label in labels for row in paper_b.results_rows(per_run[label], label, paper, label in simulated)]
 decided = paper_b.claims(per_run)
+grids = {label: pd.read_csv(path) for label, path in zip(labels, sm.input.sensitivity)}
+rows += sensitivity.results_rows(paper_b.EXPERIMENT, grids, paper_b.claims)
 results.write(rows + claims_of.results_rows(paper_b.EXPERIMENT, decided), sm.output.results)
 Path(sm.output.claims).write_text(json.dumps({"claims": decided}, indent=1))
 

@@ -7,7 +7,7 @@ import pandas as pd
 
 from wsnloc import results
 from wsnloc.config import read_yaml
-from wsnloc.experiments import claims as claims_of, paper_d
+from wsnloc.experiments import claims as claims_of, paper_d, sensitivity
 from wsnloc.io import tables
 from wsnloc.report import figures
 from wsnloc.workflow import script_logger
@@ -24,6 +24,8 @@ counts = paper_d.operation_counts(settings)
 decided = paper_d.claims(per_run) + [paper_d.cost_claim(counts, paper_cost_ms)]
 cost = paper_d.measure_cost(settings)
 rows += paper_d.cost_rows(cost, paper_cost_ms) + paper_d.operation_rows(counts, paper_cost_ms)
+grids = {label: pd.read_csv(path) for label, path in zip(labels, sm.input.sensitivity)}
+rows += sensitivity.results_rows(paper_d.EXPERIMENT, grids, paper_d.claims)
 results.write(rows + claims_of.results_rows(paper_d.EXPERIMENT, decided), sm.output.results)
 Path(sm.output.claims).write_text(json.dumps({"claims": decided}, indent=1))
 # Wall-clock measurements live apart, so that everything else is byte-reproducible.

@@ -62,11 +62,16 @@ def estimator_params(settings: Settings) -> dict:
             "fix_sigma_m": settings.fix_sigma_m, "measurements": "toa"}
 
 
-def run(data: RunData, settings: Settings) -> pd.DataFrame:
-    """UWB-only, IMU-only, steady-state KF and classical KF positions of one run, scored."""
+# The filters' a-priori sigmas act on the two fusions only.
+SENSITIVITY_METHODS = ("sskf", "kf")
+
+
+def run(data: RunData, settings: Settings, methods=tuple(METHOD_ESTIMATOR)) -> pd.DataFrame:
+    """UWB-only, IMU-only, steady-state KF and classical KF positions of one run (or the
+    given methods), scored."""
     base = estimator_params(settings)
     frames = []
-    for method, name in METHOD_ESTIMATOR.items():
+    for method, name in ((m, METHOD_ESTIMATOR[m]) for m in methods):
         names = {p.name for p in registry.get(name).params}
         params = {k: v for k, v in base.items() if k in names}
         frames.append(registry.run(name, data, params, where="experiments.paper_b")[["t", "x", "y"]]

@@ -28,6 +28,10 @@ from wsnloc.metrics.tracking import cell_metrics, score
 EXPERIMENT = "C"
 INPUT_TABLES = ("ranges", "truth", "anchors", "imu_5hz")   # the processed tables a run needs (see load_runs)
 MODELS = ("P", "PV", "PVA")
+# The a-priori sigmas and the models they act on (P: p_sigma_m; PV: white acceleration;
+# PVA: acceleration input noise and bias walk; the range sigma: all).
+SIGMA_MODELS = {"range_sigma_m": MODELS, "p_sigma_m": ("P",), "pv_accel_sigma_mps2": ("PV",),
+                "pva_accel_sigma_mps2": ("PVA",), "pva_bias_walk_sigma": ("PVA",)}
 
 
 @dataclass
@@ -71,10 +75,10 @@ def estimator_params(settings: Settings, model: str, subset: str) -> dict:
             "static_start_s": s.static_bias_s}
 
 
-def run(data: RunData, settings: Settings, subsets: list[str]) -> pd.DataFrame:
-    """Estimates of the three models for each beacon subset, scored against truth."""
+def run(data: RunData, settings: Settings, subsets: list[str], models=MODELS) -> pd.DataFrame:
+    """Estimates of the (given) motion models for each beacon subset, scored against truth."""
     frames = [registry.run("ekf", data, estimator_params(settings, model, subset), where="experiments.paper_c")
-              .assign(model=model, subset=subset) for subset in subsets for model in MODELS]
+              .assign(model=model, subset=subset) for subset in subsets for model in models]
     return score(pd.concat(frames, ignore_index=True), data.table("truth"))
 
 

@@ -34,6 +34,8 @@ TECHNIQUES = ("narrowband", "uwb", "pmix", "fmix")
 LOCALIZER_LABEL = {"minmax": "Min-Max", "multilateration": "Multilateration"}
 TECHNIQUE_LABEL = {"narrowband": "narrowband", "uwb": "UWB", "pmix": "P-mix", "fmix": "F-mix"}
 COST_LABEL = {"velocity": "velocity tracker", "kalman": "Kalman filter"}
+# The a-priori sigmas of paper D: the comparison KF's (they act on its cells only).
+SENSITIVITY_SIGMAS = ("kalman.accel_sigma_mps2", "kalman.position_sigma_m", "kalman.initial_speed_sigma_mps")
 
 
 @dataclass
@@ -112,11 +114,11 @@ def _names(estimator: str) -> set[str]:
     return {p.name for p in registry.get(estimator).params}
 
 
-def run(data: RunData, settings: Settings) -> pd.DataFrame:
-    """All estimates of one run (every cell), scored against its truth."""
+def run(data: RunData, settings: Settings, stages=("raw", "velocity", "kalman")) -> pd.DataFrame:
+    """All estimates of one run (every cell of the given stages), scored against its truth."""
     frames = [registry.run(name, data, params, where="experiments.paper_d")[["t", "x", "y"]]
               .assign(localizer=loc, technique=tech, stage=stage)
-              for loc, tech, stage, name, params in cells(settings)]
+              for loc, tech, stage, name, params in cells(settings) if stage in stages]
     return score(pd.concat(frames, ignore_index=True), data.table("truth"))
 
 
