@@ -12,7 +12,7 @@ from wsnloc.report import figures
 from wsnloc.config import read_yaml
 from wsnloc.report.render import build_context, png_data_uri, render
 from wsnloc.report.sections import (paper_a_section, paper_b_section, paper_c_section, paper_d_section,
-                                    study_section, summary)
+                                    sensitivity_table, study_section, summary)
 from wsnloc.workflow import script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
@@ -60,8 +60,10 @@ for paper, (builder, figure_names, labels) in SECTIONS.items():
     outputs = {Path(p).name: Path(p) for p in files}
     claims = json.loads(outputs["claims.json"].read_text())
     figures_uri = {name: png_data_uri(outputs[f"{name}.png"].read_bytes()) for name in figure_names}
-    context["papers"].append(builder(final_results, claims, figures_uri, papers[paper], list(labels),
-                                     config["experiments"][f"paper_{paper.lower()}"]))
+    section = builder(final_results, claims, figures_uri, papers[paper], list(labels),
+                      config["experiments"][f"paper_{paper.lower()}"])
+    section["sensitivity"] = sensitivity_table(final_results, paper, section["claims"])
+    context["papers"].append(section)
 context["summary"] = summary(context["papers"])
 html = render(sm.input.template, context)
 Path(sm.output.html).write_text(html, encoding="utf-8")

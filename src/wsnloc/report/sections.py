@@ -211,3 +211,27 @@ def summary(papers: list[dict]) -> list[dict]:
                     "inside": sum(cell["inside"] for cell in cells), "claims": len(p["claims"]),
                     "verdicts": verdict_counts})
     return out
+
+
+def sensitivity_table(results: pd.DataFrame, experiment: str, claims: list[dict]) -> dict:
+    """A paper's claims against its sensitivity settings (experiments.sensitivity): the verdict
+    over all runs, the baseline and every setting on the sampled runs, and whether the sampled
+    verdict is the same at every setting (robust) or flips."""
+    from wsnloc.experiments.claims import VERDICT_CODE
+    from wsnloc.experiments.sensitivity import BASELINE, TABLE
+
+    verdict_of = {code: verdict for verdict, code in VERDICT_CODE.items()}
+    sel = results[(results["experiment"] == experiment) & (results["table"] == TABLE)]
+    if sel.empty:
+        return {"settings": [], "rows": []}
+    settings = [BASELINE] + [c for c in dict.fromkeys(sel["column"]) if c != BASELINE]
+    rows = []
+    for c in claims:
+        mine = sel[sel["row"] == c["claim"]]
+        code = dict(zip(mine["column"], mine["value"]))
+        cells = [verdict_of.get(int(code[s])) if s in code and pd.notna(code[s]) else None for s in settings]
+        runs = mine["runs"].dropna()
+        rows.append({"claim": c["claim"], "all_runs": c["verdict"], "cells": cells,
+                     "robust": len(set(cells)) == 1 and cells[0] is not None,
+                     "runs": int(runs.min()) if len(runs) else None})
+    return {"settings": settings, "rows": rows}
