@@ -29,8 +29,10 @@ rule paper_b_summary:
         sensitivity=[f"data/processed/{d}/{s}/paper_b/sensitivity.csv" for d, s in PAPER_B_PAIRS],
         estimates=[f"data/processed/{d}/{s}/paper_b/estimates.parquet" for d, s in PAPER_B_PAIRS],
         papers="config/papers.yaml",
+        snr_campaign=[config["datasets"][d]["campaign"] for d, _ in experiment_pairs(PAPER_B, "simulation_scenarios")[:1]],
     output:
         results="data/processed/paper_b/results.csv",
+        snr="data/processed/paper_b/figures/dr_rmse_vs_snr.png",
         claims="data/processed/paper_b/claims.json",
         tracks="data/processed/paper_b/figures/trajectories.png",
         errors="data/processed/paper_b/figures/error_over_time.png",
@@ -38,6 +40,11 @@ rule paper_b_summary:
     params:
         labels=[f"{d}/{s}" for d, s in PAPER_B_PAIRS],
         simulated=[f"{d}/{s}" for d, s in experiment_pairs(PAPER_B, "simulation_scenarios")],
+        settings=PAPER_B,
+        snr_curve=PAPER_B.get("snr_curve", {"runs": 0}) if PAPER_B else {"runs": 0},
+        snr_scenario=next((f"{d}/{s}" for d, s in experiment_pairs(PAPER_B, "simulation_scenarios")), ""),
+        seed=config["seed"],
+        resample=config["resample"],
     priority: PRIORITY["summary"]
     log:
         "logs/paper_b/summary.log",

@@ -44,6 +44,7 @@ rule report:
                 "data/processed/paper_b/figures/trajectories.png",
                 "data/processed/paper_b/figures/error_over_time.png",
                 "data/processed/paper_b/figures/error_cdf.png",
+                "data/processed/paper_b/figures/dr_rmse_vs_snr.png",
             ]
             if PAPER_B_PAIRS
             else []

@@ -117,6 +117,19 @@ def claims(metrics: dict[str, pd.DataFrame]) -> list[dict]:
             claims_of.record("The classical KF is somewhat better than the steady-state KF", verdicts.claim(classical))]
 
 
+SNR_TABLE = "Dead reckoning RMSE against accelerometer SNR"
+
+
+def snr_rows(curve: pd.DataFrame, scenario: str, paper: dict) -> list[dict]:
+    """results rows of the dead-reckoning RMSE (m) per accelerometer SNR (analysis.imu_snr
+    on `scenario`); the paper's simulated IMU-only RMSE beside its 60 dB."""
+    published = {row["row"]: row for row in paper["rmse_m"]}.get(METHODS["imu"], {}).get("simulation")
+    return [results.row_over_runs(r.run_rmse_m, experiment=EXPERIMENT, table=SNR_TABLE, row=METHODS["imu"],
+                                  column=f"{r.snr_db:g} dB", scenario=scenario, metric="rmse_m",
+                                  paper_value=published if r.snr_db == 60 else None)
+            for r in curve.itertuples()]
+
+
 FIGURE_METHODS = ("uwb", "imu", "sskf")
 
 

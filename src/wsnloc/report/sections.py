@@ -105,7 +105,7 @@ def cost_table(results: pd.DataFrame) -> list[dict]:
 def paper_b_section(results: pd.DataFrame, claims: dict, figures: dict[str, str], paper: dict,
                     scenarios: list[str], settings: dict) -> dict:
     """Context of paper B's section: RMSE and max error per method and scenario."""
-    from wsnloc.experiments.paper_b import METHODS
+    from wsnloc.experiments.paper_b import METHODS, SNR_TABLE
 
     methods = list(METHODS.values())
     tables = []
@@ -117,6 +117,11 @@ def paper_b_section(results: pd.DataFrame, claims: dict, figures: dict[str, str]
             grid["rows"].append({"label": method, "cells": [
                 _cell(sel, row=method, scenario=sc, metric=metric) for sc in scenarios]})
         tables.append(grid)
+    snr_columns = _columns(results, "B", SNR_TABLE)
+    if snr_columns:
+        tables.append(grid_table(results, experiment="B", table=SNR_TABLE, rows=[METHODS["imu"]], columns=snr_columns,
+                                 metric="rmse_m", title=f"{SNR_TABLE}, RMSE [m] (noise added to the 5 Hz output)",
+                                 scenario=", ".join(dict.fromkeys(results[results["table"] == SNR_TABLE]["scenario"]))))
     details = [{"title": f"Detail, {sc}", "metrics": ["median_m", "p95_m"],
                 "lines": [{"label": m, "cells": [_cell(results, experiment="B", table="Detail", scenario=sc, row=m,
                                                        column=stat, metric=f"{stat}_m") for stat in ("median", "p95")]}
