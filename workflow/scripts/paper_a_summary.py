@@ -26,10 +26,11 @@ for label, path in zip(labels, sm.input.metrics):
 decided = paper_a.claims(per_run, motions, settings)
 grids = {label: pd.read_csv(path) for label, path in zip(labels, sm.input.sensitivity)}
 rows += sensitivity.results_rows(paper_a.EXPERIMENT, grids, lambda m: paper_a.claims(m, motions, settings))
+estimates = {label: tables.read(p) for label, p in zip(labels, sm.input.estimates)}
+rows += paper_a.setup_rows(estimates, settings)
 results.write(rows + claims_of.results_rows(paper_a.EXPERIMENT, decided), sm.output.results)
 res = results.read(sm.output.results)
 Path(sm.output.claims).write_text(json.dumps({"claims": decided}, indent=1))
-estimates = {label: tables.read(p) for label, p in zip(labels, sm.input.estimates)}
 Path(sm.output.cdf).write_bytes(figures.error_cdf(paper_a.cdf_panels(estimates)))
 Path(sm.output.tracks).write_bytes(figures.trajectories(paper_a.trajectory_panels(estimates)))
 Path(sm.output.anchors).write_bytes(figures.rmse_vs_anchors(paper_a.anchor_curves(res, settings),

@@ -30,10 +30,11 @@ if sm.params.snr_curve["runs"] and sm.params.snr_scenario:
     rows += paper_b.snr_rows(curve, sm.params.snr_scenario, paper)
 grids = {label: pd.read_csv(path) for label, path in zip(labels, sm.input.sensitivity)}
 rows += sensitivity.results_rows(paper_b.EXPERIMENT, grids, paper_b.claims)
+estimates = {label: tables.read(p) for label, p in zip(labels, sm.input.estimates)}
+rows += paper_b.setup_rows(estimates)
 results.write(rows + claims_of.results_rows(paper_b.EXPERIMENT, decided), sm.output.results)
 Path(sm.output.claims).write_text(json.dumps({"claims": decided}, indent=1))
 
-estimates = {label: tables.read(p) for label, p in zip(labels, sm.input.estimates)}
 Path(sm.output.tracks).write_bytes(figures.trajectories(paper_b.trajectory_panels(estimates)))
 if curve is not None:
     published = next((r["paper_value"] for r in rows if r["table"] == paper_b.SNR_TABLE and r["paper_value"]), None)

@@ -26,10 +26,11 @@ for label, path in zip(labels, sm.input.metrics):
 decided = paper_c.claims(per_run, speeds, settings)
 grids = {label: pd.read_csv(path) for label, path in zip(labels, sm.input.sensitivity)}
 rows += sensitivity.results_rows(paper_c.EXPERIMENT, grids, lambda m: paper_c.claims(m, speeds, settings))
+estimates = {label: tables.read(p) for label, p in zip(labels, sm.input.estimates)}
+rows += paper_c.setup_rows(estimates, settings)
 results.write(rows + claims_of.results_rows(paper_c.EXPERIMENT, decided), sm.output.results)
 res = results.read(sm.output.results)
 Path(sm.output.claims).write_text(json.dumps({"claims": decided}, indent=1))
-estimates = {label: tables.read(p) for label, p in zip(labels, sm.input.estimates)}
 Path(sm.output.histogram).write_bytes(figures.error_histograms(
     paper_c.histogram_panels(estimates, settings), "Paper C: position error per model, all runs (their Fig. 4b)"))
 Path(sm.output.cdf).write_bytes(figures.error_cdf(paper_c.cdf_panels(estimates, settings), xmax=1.5))

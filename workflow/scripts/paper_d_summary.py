@@ -26,12 +26,13 @@ cost = paper_d.measure_cost(settings)
 rows += paper_d.cost_rows(cost, paper_cost_ms) + paper_d.operation_rows(counts, paper_cost_ms)
 grids = {label: pd.read_csv(path) for label, path in zip(labels, sm.input.sensitivity)}
 rows += sensitivity.results_rows(paper_d.EXPERIMENT, grids, paper_d.claims)
+estimates = {label: tables.read(p) for label, p in zip(labels, sm.input.estimates)}
+rows += paper_d.setup_rows(estimates)
 results.write(rows + claims_of.results_rows(paper_d.EXPERIMENT, decided), sm.output.results)
 Path(sm.output.claims).write_text(json.dumps({"claims": decided}, indent=1))
 # Wall-clock measurements live apart, so that everything else is byte-reproducible.
 Path(sm.output.cost).write_text(json.dumps({"cost_us": cost}, indent=1))
 log.info("cost per step (us): %s", cost)
 
-estimates = {label: tables.read(p) for label, p in zip(labels, sm.input.estimates)}
 Path(sm.output.cdf).write_bytes(figures.error_cdf(paper_d.cdf_panels(estimates)))
 Path(sm.output.tracks).write_bytes(figures.trajectories(paper_d.trajectory_panels(estimates)))

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import pandas as pd
 
 from wsnloc import results
+from wsnloc.analysis import setup_facts
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
 from wsnloc.estimators import registry
@@ -164,6 +165,25 @@ def claims(metrics: dict[str, pd.DataFrame], motions: dict[str, str], settings: 
             claims_of.record("More anchors give a lower RMSE", verdicts.claim(anchors)),
             claims_of.record("Constant speed is tracked better than variable speed", verdicts.claim(speed)),
             claims_of.record("Motion detection improves every row", verdicts.claim(detection))]
+
+
+def setup_rows(estimates: dict[str, pd.DataFrame], settings: Settings) -> list[dict]:
+    """Set-up facts per scenario (analysis.setup_facts) on Table I's first TOA and RSS rows:
+    the static share of epochs and the UWB / ZigBee anchors used per epoch."""
+    first = {kind: next((row_label(r) for r in settings.rows if r["measurements"] == kind), None)
+             for kind in ("toa", "rss")}
+    rows = []
+    for label, est in estimates.items():
+        plain = est[est["table"] == "Table I"]
+        cells = {kind: plain[plain["row"] == row] for kind, row in first.items() if row}
+        if cells:
+            rows.append(setup_facts.fact_row(EXPERIMENT, "static share of epochs", label,
+                                             setup_facts.static_share(next(iter(cells.values()))), "share"))
+        for kind, name in (("toa", "UWB anchors ranged per epoch"), ("rss", "ZigBee anchors heard per epoch")):
+            if kind in cells:
+                rows.append(setup_facts.fact_row(EXPERIMENT, name, label,
+                                                 setup_facts.measurements_per_epoch(cells[kind]), "count"))
+    return rows
 
 
 def cdf_panels(estimates: dict[str, pd.DataFrame]) -> dict:

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import pandas as pd
 
 from wsnloc import results
+from wsnloc.analysis import setup_facts
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
 from wsnloc.estimators import registry
@@ -115,6 +116,13 @@ def claims(metrics: dict[str, pd.DataFrame]) -> list[dict]:
         classical.append(claims_of.paired(rmse["kf"], rmse["sskf"], "<", f"{label}: classical - steady-state KF"))
     return [claims_of.record("Fusion beats both UWB only and IMU only", verdicts.claim(fusion)),
             claims_of.record("The classical KF is somewhat better than the steady-state KF", verdicts.claim(classical))]
+
+
+def setup_rows(estimates: dict[str, pd.DataFrame]) -> list[dict]:
+    """Set-up facts per scenario (analysis.setup_facts): the static share of the 5 Hz epochs."""
+    return [setup_facts.fact_row(EXPERIMENT, "static share of epochs", label,
+                                 setup_facts.static_share(est[est["method"] == "sskf"]), "share")
+            for label, est in estimates.items()]
 
 
 SNR_TABLE = "Dead reckoning RMSE against accelerometer SNR"

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import pandas as pd
 
 from wsnloc import results
+from wsnloc.analysis import setup_facts
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
 from wsnloc.estimators import registry
@@ -136,6 +137,19 @@ def claims(metrics: dict[str, pd.DataFrame], speeds: dict[str, str], settings: S
     return [claims_of.record("P < PV < PVA (Table I, every speed)", verdicts.claim(order)),
             claims_of.record("The error grows with speed (every model)", verdicts.claim(speed)),
             claims_of.record("More beacons give a lower RMSE (Table II, every model)", verdicts.claim(beacons))]
+
+
+def setup_rows(estimates: dict[str, pd.DataFrame], settings: Settings) -> list[dict]:
+    """Set-up facts per scenario (analysis.setup_facts) on the P model with Table I's
+    beacons: the static share of epochs and the beacons ranged per epoch."""
+    rows = []
+    for label, est in estimates.items():
+        cell = _table_1(est, settings, "P")
+        rows += [setup_facts.fact_row(EXPERIMENT, "static share of epochs", label, setup_facts.static_share(cell),
+                                      "share"),
+                 setup_facts.fact_row(EXPERIMENT, "beacons ranged per epoch", label,
+                                      setup_facts.measurements_per_epoch(cell), "count")]
+    return rows
 
 
 def anchor_curves(res: pd.DataFrame, settings: Settings) -> dict:

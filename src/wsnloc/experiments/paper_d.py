@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from wsnloc import results
+from wsnloc.analysis import setup_facts
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
 from wsnloc.experiments import calibration
@@ -279,6 +280,13 @@ def cost_claim(counts: dict[str, dict], paper_ms: dict[str, float]) -> dict:
         "The Kalman filter is several times costlier per step than the velocity tracker", ratio > 2.0,
         f"operations per step: KF {ops(counts['Kalman filter'])}, velocity tracker {ops(counts['velocity tracker'])}: "
         f"ratio {ratio:.1f} (> 2 claimed; the paper's ratio of times is {paper:.0f})")
+
+
+def setup_rows(estimates: dict[str, pd.DataFrame]) -> list[dict]:
+    """Set-up facts per scenario (analysis.setup_facts): the static share of the epochs."""
+    return [setup_facts.fact_row(EXPERIMENT, "static share of epochs", label,
+                                 setup_facts.static_share(_select(est, "minmax", "uwb", "raw")), "share")
+            for label, est in estimates.items()]
 
 
 FIGURE_CURVES = {   # label: (localizer, technique, stage)
