@@ -14,6 +14,7 @@ rule paper_b:
         sensitivity="data/processed/{dataset}/{scenario}/paper_b/sensitivity.csv",
     params:
         settings=PAPER_B,
+        simulated=lambda w: f"{w.dataset}/{w.scenario}" in PAPER_B["simulation_scenarios"],
     priority: PRIORITY["summary"]
     log:
         "logs/paper_b/{dataset}-{scenario}.log",

@@ -13,7 +13,8 @@ from wsnloc.workflow import script_logger
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "paper_b")
 campaign = Campaign.load(sm.input.campaign)
-settings = paper_b.Settings.from_config(sm.params.settings)
+spec = paper_b.scenario_config(sm.params.settings, sm.params.simulated)
+settings = paper_b.Settings.from_config(spec)
 settings.check_against(campaign)
 estimates, metrics, data = [], [], {}
 runs = load_runs(sm.input.tables, paper_b.INPUT_TABLES, sm.input.imu_5hz)
@@ -34,5 +35,5 @@ def fusion_variant(spec: dict, sigma: str, run: str) -> pd.DataFrame:
     return sensitivity.replace_cells(metrics, run, paper_b.run_metrics(fused, runs[run]["truth"]), ["method"])
 
 
-grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_b", metrics, fusion_variant)
+grid = sensitivity.grid_metrics(spec, "experiments.paper_b", metrics, fusion_variant)
 grid.to_csv(sm.output.sensitivity, index=False, float_format="%.6g")

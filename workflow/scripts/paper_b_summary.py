@@ -26,7 +26,7 @@ if sm.params.snr_curve["runs"] and sm.params.snr_scenario:
     dataset, scenario = sm.params.snr_scenario.split("/", 1)
     curve = imu_snr.rmse_against_snr(Campaign.load(sm.input.snr_campaign[0]), scenario, sm.params.snr_curve["snrs_db"],
                                       sm.params.snr_curve["runs"], sm.params.seed, sm.params.resample,
-                                      sm.params.settings["static_bias_s"], dataset)
+                                      paper_b.scenario_config(sm.params.settings, True)["static_bias_s"], dataset)
     rows += paper_b.snr_rows(curve, sm.params.snr_scenario, paper)
 grids = {label: pd.read_csv(path) for label, path in zip(labels, sm.input.sensitivity)}
 rows += sensitivity.results_rows(paper_b.EXPERIMENT, grids, paper_b.claims)
