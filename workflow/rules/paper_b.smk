@@ -33,11 +33,11 @@ rule paper_b_summary:
         snr_campaign=[config["datasets"][d]["campaign"] for d, _ in experiment_pairs(PAPER_B, "simulation_scenarios")[:1]],
     output:
         results="data/processed/paper_b/results.csv",
-        snr="data/processed/paper_b/figures/dr_rmse_vs_snr.png",
+        snr=report("data/processed/paper_b/figures/dr_rmse_vs_snr.png", category="Paper B", caption="../report/figure.rst"),
         claims="data/processed/paper_b/claims.json",
-        tracks="data/processed/paper_b/figures/trajectories.png",
-        errors="data/processed/paper_b/figures/error_over_time.png",
-        cdf="data/processed/paper_b/figures/error_cdf.png",
+        tracks=report("data/processed/paper_b/figures/trajectories.png", category="Paper B", caption="../report/figure.rst"),
+        errors=report("data/processed/paper_b/figures/error_over_time.png", category="Paper B", caption="../report/figure.rst"),
+        cdf=report("data/processed/paper_b/figures/error_cdf.png", category="Paper B", caption="../report/figure.rst"),
     params:
         labels=[f"{d}/{s}" for d, s in PAPER_B_PAIRS],
         simulated=[f"{d}/{s}" for d, s in experiment_pairs(PAPER_B, "simulation_scenarios")],

@@ -32,8 +32,8 @@ rule paper_d_summary:
         results="data/processed/paper_d/results.csv",
         claims="data/processed/paper_d/claims.json",
         cost="data/processed/paper_d/cost.json",
-        cdf="data/processed/paper_d/figures/error_cdf.png",
-        tracks="data/processed/paper_d/figures/trajectories.png",
+        cdf=report("data/processed/paper_d/figures/error_cdf.png", category="Paper D", caption="../report/figure.rst"),
+        tracks=report("data/processed/paper_d/figures/trajectories.png", category="Paper D", caption="../report/figure.rst"),
     params:
         settings=PAPER_D,
         labels=[f"{d}/{s}" for d, s in PAPER_D_PAIRS],

@@ -35,9 +35,9 @@ rule paper_a_summary:
     output:
         results="data/processed/paper_a/results.csv",
         claims="data/processed/paper_a/claims.json",
-        cdf="data/processed/paper_a/figures/error_cdf.png",
-        tracks="data/processed/paper_a/figures/trajectories.png",
-        anchors="data/processed/paper_a/figures/rmse_vs_anchors.png",
+        cdf=report("data/processed/paper_a/figures/error_cdf.png", category="Paper A", caption="../report/figure.rst"),
+        tracks=report("data/processed/paper_a/figures/trajectories.png", category="Paper A", caption="../report/figure.rst"),
+        anchors=report("data/processed/paper_a/figures/rmse_vs_anchors.png", category="Paper A", caption="../report/figure.rst"),
     params:
         settings=PAPER_A,
         labels=[f"{d}/{s}" for d, s in PAPER_A_PAIRS],
@@ -82,10 +82,10 @@ rule paper_c_summary:
     output:
         results="data/processed/paper_c/results.csv",
         claims="data/processed/paper_c/claims.json",
-        histogram="data/processed/paper_c/figures/error_histogram.png",
-        cdf="data/processed/paper_c/figures/error_cdf.png",
-        tracks="data/processed/paper_c/figures/trajectories.png",
-        anchors="data/processed/paper_c/figures/rmse_vs_anchors.png",
+        histogram=report("data/processed/paper_c/figures/error_histogram.png", category="Paper C", caption="../report/figure.rst"),
+        cdf=report("data/processed/paper_c/figures/error_cdf.png", category="Paper C", caption="../report/figure.rst"),
+        tracks=report("data/processed/paper_c/figures/trajectories.png", category="Paper C", caption="../report/figure.rst"),
+        anchors=report("data/processed/paper_c/figures/rmse_vs_anchors.png", category="Paper C", caption="../report/figure.rst"),
     params:
         settings=PAPER_C,
         labels=[f"{d}/{s}" for d, s in PAPER_C_PAIRS],

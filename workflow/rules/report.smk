@@ -1,4 +1,8 @@
 # One self-contained HTML report and the results contract (reports/results.csv).
+# The page, results.csv and the papers' figures are also registered with Snakemake's
+# report(), so `snakemake --report report.zip` packages them with the run's provenance.
+report: "../report/workflow.rst"
+
 STUDY_OUTPUTS = ["results.csv", "figures/error_cdf.png", "figures/error_over_time.png", "figures/trajectories.png"]
 
 
@@ -61,8 +65,8 @@ rule report:
             else []
         ),
     output:
-        html="reports/index.html",
-        results="reports/results.csv",
+        html=report("reports/index.html", category="Report", caption="../report/page.rst"),
+        results=report("reports/results.csv", category="Report", caption="../report/page.rst"),
     params:
         config=config,
         paper_d_labels=[f"{d}/{s}" for d, s in PAPER_D_PAIRS],
