@@ -96,3 +96,25 @@ def test_explanations_cite_the_computed_numbers_and_skip_missing_ones():
     no_nlos = explanations.Numbers(results.frame(rows), {"d/s": {"range_error_pooled": {"LOS": {"n": 10}}}})
     assert all("nan" not in line and "NLOS" not in line for line in explanations.paper_b(no_nlos, ["d/s"], []))
     assert math.isnan(numbers.value("B", "RMSE", "missing", "d/s"))
+
+
+def test_paper_c_noise_curves_follow_each_models_own_sigma():
+    from wsnloc.experiments import paper_c
+
+    settings = paper_c.Settings(epoch_s=0.5, table_1_subset="6", table_2_subsets=["6"], table_2_scenario="c/s",
+                                range_sigma_m=0.05, max_range_m=10, p_sigma_m=0.15, pv_accel_sigma_mps2=0.3,
+                                pva_accel_sigma_mps2=0.1, pva_bias_walk_sigma=0.01, initial_sigma_m=1,
+                                initial_speed_sigma_mps=0.1, initial_bias_sigma_mps2=0.1, static_bias_s=4)
+    rows = []
+    for setting, sigma, factor in (("x1", None, 1.0), ("pv_accel_sigma_mps2 x2", "pv_accel_sigma_mps2", 2.0),
+                                   ("p_sigma_m x2", "p_sigma_m", 2.0)):
+        for model in paper_c.MODELS:
+            own = sigma == paper_c.MODEL_SIGMA[model]
+            for run, noise in (("run-01", -0.01), ("run-02", 0.01)):
+                rows.append({"subset": "6", "model": model, "rmse": 0.2 * (factor if own else 1.0) + noise,
+                             "run": run, "setting": setting, "sigma": sigma, "factor": factor})
+    curves = paper_c.noise_curves(pd.DataFrame(rows), settings)     # sigma None as read back from CSV
+    assert curves["PV (pv_accel_sigma_mps2)"]["x"].tolist() == [1.0, 2.0]
+    assert curves["PV (pv_accel_sigma_mps2)"]["value"].tolist() == pytest.approx([0.2, 0.4])
+    assert curves["P (p_sigma_m)"]["value"].tolist() == pytest.approx([0.2, 0.4])
+    assert "PVA (pva_accel_sigma_mps2)" not in curves       # its sigma was not scaled: one point only

@@ -86,6 +86,7 @@ rule paper_c_summary:
         cdf=report("data/processed/paper_c/figures/error_cdf.png", category="Paper C", caption="../report/figure.rst"),
         tracks=report("data/processed/paper_c/figures/trajectories.png", category="Paper C", caption="../report/figure.rst"),
         anchors=report("data/processed/paper_c/figures/rmse_vs_anchors.png", category="Paper C", caption="../report/figure.rst"),
+        noise=report("data/processed/paper_c/figures/rmse_vs_noise.png", category="Paper C", caption="../report/figure.rst"),
     params:
         settings=PAPER_C,
         labels=[f"{d}/{s}" for d, s in PAPER_C_PAIRS],

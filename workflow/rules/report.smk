@@ -36,6 +36,7 @@ rule report:
                 "data/processed/paper_c/figures/error_cdf.png",
                 "data/processed/paper_c/figures/trajectories.png",
                 "data/processed/paper_c/figures/rmse_vs_anchors.png",
+                "data/processed/paper_c/figures/rmse_vs_noise.png",
             ]
             if PAPER_C_PAIRS
             else []

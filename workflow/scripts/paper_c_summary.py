@@ -35,5 +35,12 @@ Path(sm.output.histogram).write_bytes(figures.error_histograms(
     paper_c.histogram_panels(estimates, settings), "Paper C: position error per model, all runs (their Fig. 4b)"))
 Path(sm.output.cdf).write_bytes(figures.error_cdf(paper_c.cdf_panels(estimates, settings), xmax=1.5))
 Path(sm.output.tracks).write_bytes(figures.trajectories(paper_c.trajectory_panels(estimates, settings)))
+curves = paper_c.noise_curves(grids.get(settings.table_2_scenario, pd.DataFrame()), settings) \
+    if settings.table_2_scenario in grids and not grids[settings.table_2_scenario].empty else {}
+Path(sm.output.noise).write_bytes(figures.curve_with_interval(
+    curves, "factor on the model's a-priori noise sigma", "Table I RMSE [m]",
+    f"Paper C: RMSE against the a-priori noise, {settings.table_2_scenario} (first runs; PVA: assumed IMU)",
+    logx=True)
+    if curves else figures.placeholder("no sensitivity grid (experiments.paper_c.sensitivity.runs: 0)"))
 Path(sm.output.anchors).write_bytes(figures.rmse_vs_anchors(paper_c.anchor_curves(res, settings),
                                                              "Paper C: RMSE against the number of beacons"))

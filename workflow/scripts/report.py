@@ -50,7 +50,8 @@ for study, spec in sm.params.studies.items():
 SECTIONS = {   # paper: (section builder, figure names, labels)
     "A": (paper_a_section, ("error_cdf", "trajectories", "rmse_vs_anchors"), sm.params.paper_a_labels),
     "B": (paper_b_section, ("trajectories", "error_over_time", "error_cdf", "dr_rmse_vs_snr"), sm.params.paper_b_labels),
-    "C": (paper_c_section, ("error_histogram", "error_cdf", "trajectories", "rmse_vs_anchors"), sm.params.paper_c_labels),
+    "C": (paper_c_section, ("error_histogram", "error_cdf", "trajectories", "rmse_vs_anchors", "rmse_vs_noise"),
+          sm.params.paper_c_labels),
     "D": (paper_d_section, ("error_cdf", "trajectories"), sm.params.paper_d_labels),
 }
 numbers = explanations.Numbers(final_results, {summary["label"]: summary for summary in summaries})

@@ -23,7 +23,9 @@ from wsnloc.errors import ConfigError
 from wsnloc.estimators import registry
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import claims as claims_of
+from wsnloc.experiments.sensitivity import BASELINE
 from wsnloc.metrics import verdicts
+from wsnloc.metrics.stats import mean_ci95
 from wsnloc.metrics.tracking import cell_metrics, score
 
 EXPERIMENT = "C"
@@ -150,6 +152,23 @@ def setup_rows(estimates: dict[str, pd.DataFrame], settings: Settings) -> list[d
                  setup_facts.fact_row(EXPERIMENT, "beacons ranged per epoch", label,
                                       setup_facts.measurements_per_epoch(cell), "count")]
     return rows
+
+
+MODEL_SIGMA = {"P": "p_sigma_m", "PV": "pv_accel_sigma_mps2", "PVA": "pva_accel_sigma_mps2"}
+
+
+def noise_curves(grid: pd.DataFrame, settings: Settings) -> dict[str, pd.DataFrame]:
+    """Table I RMSE (m) of each model against the factor applied to its own a-priori sigma
+    (MODEL_SIGMA), from one scenario's sensitivity grid (experiments.sensitivity): per model
+    a frame x (factor), value (mean over the sampled runs), ci95_low, ci95_high."""
+    cell = grid[grid["subset"] == settings.table_1_subset]
+    curves = {}
+    for model, sigma in MODEL_SIGMA.items():
+        own = cell[(cell["model"] == model) & ((cell["setting"] == BASELINE) | (cell["sigma"] == sigma))]
+        points = [(factor, *mean_ci95(group["rmse"])) for factor, group in own.groupby("factor", sort=True)]
+        if len(points) > 1:
+            curves[f"{model} ({sigma})"] = pd.DataFrame(points, columns=["x", "value", "ci95_low", "ci95_high"])
+    return curves
 
 
 def anchor_curves(res: pd.DataFrame, settings: Settings) -> dict:

@@ -68,7 +68,8 @@ def sample_runs(spec: dict, run_names) -> list[str]:
 
 def grid_metrics(spec: dict, where: str, metrics: pd.DataFrame, evaluate: Callable[[dict, str, str], pd.DataFrame],
                  allowed=None) -> pd.DataFrame:
-    """Per-run metrics of every setting on the sampled runs, with a `setting` column.
+    """Per-run metrics of every setting on the sampled runs, with columns `setting`, `sigma`
+    (the scaled key, "" for the baseline) and `factor` (1 for the baseline).
 
     metrics: the main per-run metrics (baseline); evaluate(variant_spec, sigma, run) -> that
     run's metrics under the variant (the caller's estimators on the already loaded run;
@@ -76,9 +77,11 @@ def grid_metrics(spec: dict, where: str, metrics: pd.DataFrame, evaluate: Callab
     """
     grid = variants(spec, where, allowed)
     runs = sample_runs(spec, metrics["run"].unique())
-    frames = [metrics[metrics["run"].isin(runs)].assign(setting=BASELINE)]
-    for label, sigma, variant in grid:
-        frames += [evaluate(variant, sigma, run).assign(run=run, setting=label) for run in runs]
+    frames = [metrics[metrics["run"].isin(runs)].assign(setting=BASELINE, sigma="", factor=1.0)]
+    factors = [f for _ in (spec.get("sensitivity") or {}).get("sigmas", []) for f in spec["sensitivity"]["factors"]]
+    for (label, sigma, variant), factor in zip(grid, factors):
+        frames += [evaluate(variant, sigma, run).assign(run=run, setting=label, sigma=sigma, factor=float(factor))
+                   for run in runs]
     return pd.concat(frames, ignore_index=True)
 
 

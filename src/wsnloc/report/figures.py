@@ -245,7 +245,8 @@ def error_histograms(errors: dict[str, pd.Series], title: str, xmax: float = 1.5
 
 
 def curve_with_interval(curves: dict[str, pd.DataFrame], xlabel: str, ylabel: str, title: str,
-                        references: dict[str, float] | None = None, logy: bool = False) -> bytes:
+                        references: dict[str, float] | None = None, logy: bool = False,
+                        logx: bool = False) -> bytes:
     """One line per label through (x, value) with its 95% interval as a band (frames with
     columns x, value, ci95_low, ci95_high), and horizontal reference lines (e.g. a paper's value)."""
     fig, ax = plt.subplots(figsize=(6.5, 3.8), layout="constrained")
@@ -258,6 +259,11 @@ def curve_with_interval(curves: dict[str, pd.DataFrame], xlabel: str, ylabel: st
         ax.axhline(value, color="0.3", ls="--", lw=1, label=label)
     if logy:
         ax.set_yscale("log")
+    if logx:
+        ax.set_xscale("log", base=2)
+        ticks = sorted({float(x) for frame in curves.values() for x in frame["x"]})
+        ax.set_xticks(ticks, [f"{x:g}" for x in ticks])
+        ax.minorticks_off()
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=10)
