@@ -118,3 +118,25 @@ def test_paper_c_noise_curves_follow_each_models_own_sigma():
     assert curves["PV (pv_accel_sigma_mps2)"]["value"].tolist() == pytest.approx([0.2, 0.4])
     assert curves["P (p_sigma_m)"]["value"].tolist() == pytest.approx([0.2, 0.4])
     assert "PVA (pva_accel_sigma_mps2)" not in curves       # its sigma was not scaled: one point only
+
+
+def test_static_share_sweep_lengthens_the_rest_and_pairs_the_runs(campaign):
+    from wsnloc.analysis import static_share
+    from wsnloc.experiments import paper_a
+
+    spec = {"epoch_s": 0.5, "rows": [{"measurements": "toa", "uwb": "UWB=12"},
+                                     {"measurements": "hybrid", "uwb": "UWB=12", "zigbee": "ZigBee=21"}],
+            "uwb_preliminary_filter": True, "max_range_m": 50.0, "range_sigma_m": 0.3, "rss_calibration": "other_run",
+            "rss_model": {"p0_dbm": -50.0, "path_loss_exponent": 3.0, "sigma_db": 5.5, "d0_m": 1.0},
+            "accel_sigma_mps2": 0.3, "initial_sigma_m": 1.0, "initial_speed_sigma_mps": 0.3,
+            "motion_threshold_mps2": 0.05, "static_reference_s": 4.0}
+    sweep = static_share.gain_against_rest(campaign, "constant", [5.0, 30.0], 2, 11, spec)
+    assert list(sweep["run"]) == ["run-01", "run-02"] * 2
+    share = sweep.groupby("rest_s")["static_share"].mean()
+    constant = campaign.section("scenarios", "constant")
+    assert share[30.0] > share[5.0] + 0.15 and campaign.section("scenarios", "constant") == constant   # copy only
+    assert np.allclose(sweep["gain_m"], sweep["rmse_detection_m"] - sweep["rmse_plain_m"])
+    rows = results.frame(paper_a.static_sweep_rows(sweep, "newcom/constant"))
+    assert set(rows["column"]) == {"final rest 5 s", "final rest 30 s"} and (rows["runs"] == 2).all()
+    curve = paper_a.static_sweep_curve(sweep)
+    assert curve["x"].tolist() == pytest.approx(sorted(share.tolist()))

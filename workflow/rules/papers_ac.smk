@@ -38,10 +38,15 @@ rule paper_a_summary:
         cdf=report("data/processed/paper_a/figures/error_cdf.png", category="Paper A", caption="../report/figure.rst"),
         tracks=report("data/processed/paper_a/figures/trajectories.png", category="Paper A", caption="../report/figure.rst"),
         anchors=report("data/processed/paper_a/figures/rmse_vs_anchors.png", category="Paper A", caption="../report/figure.rst"),
+        static=report("data/processed/paper_a/figures/gain_vs_static_share.png", category="Paper A", caption="../report/figure.rst"),
     params:
         settings=PAPER_A,
         labels=[f"{d}/{s}" for d, s in PAPER_A_PAIRS],
         campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in PAPER_A_PAIRS},
+        seed=config["seed"],
+        sweep_campaign=config["datasets"][PAPER_A["static_sweep"]["scenario"].split("/")[0]]["campaign"]
+        if PAPER_A and PAPER_A.get("static_sweep", {}).get("runs")
+        else "",
     priority: PRIORITY["summary"]
     log:
         "logs/paper_a/summary.log",

@@ -24,6 +24,7 @@ rule report:
                 "data/processed/paper_a/figures/error_cdf.png",
                 "data/processed/paper_a/figures/trajectories.png",
                 "data/processed/paper_a/figures/rmse_vs_anchors.png",
+                "data/processed/paper_a/figures/gain_vs_static_share.png",
             ]
             if PAPER_A_PAIRS
             else []

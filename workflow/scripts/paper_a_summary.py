@@ -6,6 +6,7 @@ from pathlib import Path
 import pandas as pd
 
 from wsnloc import results
+from wsnloc.analysis import static_share
 from wsnloc.campaign import Campaign
 from wsnloc.config import read_yaml
 from wsnloc.experiments import claims as claims_of, paper_a, sensitivity
@@ -28,10 +29,25 @@ grids = {label: pd.read_csv(path) for label, path in zip(labels, sm.input.sensit
 rows += sensitivity.results_rows(paper_a.EXPERIMENT, grids, lambda m: paper_a.claims(m, motions, settings))
 estimates = {label: tables.read(p) for label, p in zip(labels, sm.input.estimates)}
 rows += paper_a.setup_rows(estimates, settings)
+sweep_spec = sm.params.settings.get("static_sweep") or {"runs": 0}
+sweep = None
+if sweep_spec["runs"]:
+    dataset, scenario = sweep_spec["scenario"].split("/", 1)
+    sweep = static_share.gain_against_rest(Campaign.load(sm.params.sweep_campaign), scenario, sweep_spec["rests_s"],
+                                           sweep_spec["runs"], sm.params.seed, sm.params.settings, dataset)
+    rows += paper_a.static_sweep_rows(sweep, sweep_spec["scenario"])
 results.write(rows + claims_of.results_rows(paper_a.EXPERIMENT, decided), sm.output.results)
 res = results.read(sm.output.results)
 Path(sm.output.claims).write_text(json.dumps({"claims": decided}, indent=1))
 Path(sm.output.cdf).write_bytes(figures.error_cdf(paper_a.cdf_panels(estimates)))
 Path(sm.output.tracks).write_bytes(figures.trajectories(paper_a.trajectory_panels(estimates)))
+if sweep is not None:
+    Path(sm.output.static).write_bytes(figures.curve_with_interval(
+        {f"hybrid, {sweep_spec['scenario']} ({sweep_spec['runs']} runs per rest)": paper_a.static_sweep_curve(sweep)},
+        "static share of the epochs", "Table II - Table I RMSE [m]",
+        "Paper A: motion detection gain against the static share",
+        {f"paper, {motion}": gain for motion, gain in paper_a.paper_gains(paper, settings).items()}))
+else:
+    Path(sm.output.static).write_bytes(figures.placeholder("no static-share sweep (experiments.paper_a.static_sweep.runs: 0)"))
 Path(sm.output.anchors).write_bytes(figures.rmse_vs_anchors(paper_a.anchor_curves(res, settings),
                                                              "Paper A: RMSE against the number of anchors"))

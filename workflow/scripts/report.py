@@ -48,7 +48,8 @@ for study, spec in sm.params.studies.items():
     context["studies"].append(study_section(final_results, study, spec, figures_uri))
 
 SECTIONS = {   # paper: (section builder, figure names, labels)
-    "A": (paper_a_section, ("error_cdf", "trajectories", "rmse_vs_anchors"), sm.params.paper_a_labels),
+    "A": (paper_a_section, ("error_cdf", "trajectories", "rmse_vs_anchors", "gain_vs_static_share"),
+          sm.params.paper_a_labels),
     "B": (paper_b_section, ("trajectories", "error_over_time", "error_cdf", "dr_rmse_vs_snr"), sm.params.paper_b_labels),
     "C": (paper_c_section, ("error_histogram", "error_cdf", "trajectories", "rmse_vs_anchors", "rmse_vs_noise"),
           sm.params.paper_c_labels),

@@ -22,6 +22,7 @@ from wsnloc.estimators import registry
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import claims as claims_of
 from wsnloc.metrics import verdicts
+from wsnloc.metrics.stats import mean_ci95
 from wsnloc.metrics.tracking import cell_metrics, score
 
 EXPERIMENT = "A"
@@ -184,6 +185,39 @@ def setup_rows(estimates: dict[str, pd.DataFrame], settings: Settings) -> list[d
                 rows.append(setup_facts.fact_row(EXPERIMENT, name, label,
                                                  setup_facts.measurements_per_epoch(cells[kind]), "count"))
     return rows
+
+
+STATIC_TABLE = "Table II gain against static share"
+
+
+def static_sweep_rows(sweep: pd.DataFrame, scenario: str) -> list[dict]:
+    """results rows of the static-share sweep (analysis.static_share): per final rest the
+    static share of the epochs and the Table II - Table I RMSE of the hybrid row (m)."""
+    rows = []
+    for rest, group in sweep.groupby("rest_s", sort=True):
+        column = f"final rest {rest:g} s"
+        rows += [results.row_over_runs(group["static_share"], experiment=EXPERIMENT, table=STATIC_TABLE,
+                                       row="static share of epochs", column=column, scenario=scenario, metric="share"),
+                 results.row_over_runs(group["gain_m"], experiment=EXPERIMENT, table=STATIC_TABLE,
+                                       row="hybrid: Table II - Table I", column=column, scenario=scenario,
+                                       metric="rmse_gain_m")]
+    return rows
+
+
+def static_sweep_curve(sweep: pd.DataFrame) -> pd.DataFrame:
+    """Gain (m, mean and 95% interval over runs) against the mean static share, per final rest."""
+    points = [(group["static_share"].mean(), *mean_ci95(group["gain_m"])) for _, group in sweep.groupby("rest_s")]
+    return pd.DataFrame(sorted(points), columns=["x", "value", "ci95_low", "ci95_high"])
+
+
+def paper_gains(paper: dict, settings: Settings) -> dict[str, float]:
+    """The paper's Table II - Table I RMSE of the first hybrid row, per speed profile (m)."""
+    hybrid = next((r for r in settings.rows if r["measurements"] == "hybrid"), None)
+    if hybrid is None:
+        return {}
+    return {motion: paper_value(paper, hybrid, "Table II", motion) - paper_value(paper, hybrid, "Table I", motion)
+            for motion in ("constant", "variable")
+            if paper_value(paper, hybrid, "Table I", motion) is not None}
 
 
 def cdf_panels(estimates: dict[str, pd.DataFrame]) -> dict:

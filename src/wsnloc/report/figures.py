@@ -255,8 +255,8 @@ def curve_with_interval(curves: dict[str, pd.DataFrame], xlabel: str, ylabel: st
         low, high = frame["ci95_low"].to_numpy(float), frame["ci95_high"].to_numpy(float)
         if np.isfinite(low).any():
             ax.fill_between(frame["x"], low, high, color=line.get_color(), alpha=0.2, lw=0)
-    for label, value in (references or {}).items():
-        ax.axhline(value, color="0.3", ls="--", lw=1, label=label)
+    for (label, value), style in zip((references or {}).items(), ("--", ":", "-.", (0, (5, 1)))):
+        ax.axhline(value, color="0.3", ls=style, lw=1.2, label=label)
     if logy:
         ax.set_yscale("log")
     if logx:
