@@ -140,3 +140,27 @@ def test_static_share_sweep_lengthens_the_rest_and_pairs_the_runs(campaign):
     assert set(rows["column"]) == {"final rest 5 s", "final rest 30 s"} and (rows["runs"] == 2).all()
     curve = paper_a.static_sweep_curve(sweep)
     assert curve["x"].tolist() == pytest.approx(sorted(share.tolist()))
+
+
+def test_nlos_severity_sweep_adds_the_configured_excess_per_wall(campaign):
+    from wsnloc.analysis import nlos_severity
+    from wsnloc.analysis.simulated_runs import with_value
+    from wsnloc.metrics.ranging import range_errors
+
+    with pytest.raises(KeyError, match="radio.uwb.no_such_key"):
+        with_value(campaign, ("radio", "uwb", "no_such_key"), 1.0)
+
+    def nlos_excess(severe, tables):
+        rows = []
+        for name, t in tables.items():
+            errors = range_errors(t["ranges"], t["truth"], severe)
+            nlos = errors[errors["walls"] > 0]
+            rows.append({"run": name, "per_wall_m": float(np.median(nlos["error_m"] / nlos["walls"]))})
+        return pd.DataFrame(rows)
+
+    sweep = nlos_severity.sweep(campaign, "constant", [0.3, 2.3], 1, 5, nlos_excess)
+    by_setting = sweep.set_index("setting")["per_wall_m"]
+    low, high = (by_setting[nlos_severity.setting_label(v, 1)] for v in (0.3, 2.3))
+    # same seeds: the channel part of each NLOS range is shared, the wall part grows by 2 m per wall
+    assert high - low == pytest.approx(2.0, abs=0.05)
+    assert campaign.section("radio", "uwb")["excess_path_per_wall_m"] == 0.3

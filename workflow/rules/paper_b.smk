@@ -1,4 +1,6 @@
 # Paper B: dead reckoning + UWB Min-Max fused by a steady-state KF (and the classical KF).
+
+
 PAPER_B = config["experiments"].get("paper_b")
 PAPER_B_PAIRS = experiment_pairs(PAPER_B) + experiment_pairs(PAPER_B, "simulation_scenarios")
 
@@ -46,6 +48,7 @@ rule paper_b_summary:
         snr_scenario=next((f"{d}/{s}" for d, s in experiment_pairs(PAPER_B, "simulation_scenarios")), ""),
         seed=config["seed"],
         resample=config["resample"],
+        nlos_campaign=nlos_campaign(PAPER_B),
     priority: PRIORITY["summary"]
     log:
         "logs/paper_b/summary.log",

@@ -1,4 +1,12 @@
 # Paper D: Min-Max / multilateration, P-mix / F-mix, velocity tracking vs Kalman filter.
+
+
+def nlos_campaign(spec):
+    """Campaign file of an experiment's NLOS-severity sweep scenario ("" when the sweep is off)."""
+    sweep = (spec or {}).get("nlos_sweep") or {}
+    return config["datasets"][sweep["scenario"].split("/")[0]]["campaign"] if sweep.get("runs") else ""
+
+
 PAPER_D = config["experiments"].get("paper_d")
 PAPER_D_PAIRS = experiment_pairs(PAPER_D)
 
@@ -37,6 +45,8 @@ rule paper_d_summary:
     params:
         settings=PAPER_D,
         labels=[f"{d}/{s}" for d, s in PAPER_D_PAIRS],
+        seed=config["seed"],
+        nlos_campaign=nlos_campaign(PAPER_D),
     priority: PRIORITY["summary"]
     log:
         "logs/paper_d/summary.log",

@@ -6,9 +6,9 @@ from pathlib import Path
 import pandas as pd
 
 from wsnloc import results
-from wsnloc.config import read_yaml
-from wsnloc.analysis import imu_snr
+from wsnloc.analysis import imu_snr, nlos_severity
 from wsnloc.campaign import Campaign
+from wsnloc.config import read_yaml
 from wsnloc.experiments import claims as claims_of, paper_b, sensitivity
 from wsnloc.io import tables
 from wsnloc.report import figures
@@ -29,6 +29,14 @@ if sm.params.snr_curve["runs"] and sm.params.snr_scenario:
                                       paper_b.scenario_config(sm.params.settings, True)["static_bias_s"], dataset)
     rows += paper_b.snr_rows(curve, sm.params.snr_scenario, paper)
 grids = {label: pd.read_csv(path) for label, path in zip(labels, sm.input.sensitivity)}
+nlos = sm.params.settings.get("nlos_sweep") or {"runs": 0}
+if nlos["runs"]:      # claims against NLOS ranging severity, on extra simulated runs of one scenario
+    dataset, scenario = nlos["scenario"].split("/", 1)
+    settings = paper_b.Settings.from_config(paper_b.scenario_config(sm.params.settings, nlos["scenario"] in simulated))
+    severity = nlos_severity.sweep(
+        Campaign.load(sm.params.nlos_campaign), scenario, nlos["excess_per_wall_m"], nlos["runs"], sm.params.seed,
+        lambda campaign, tables: paper_b.evaluate_runs(tables, campaign, settings, sm.params.resample), dataset)
+    rows += sensitivity.results_rows(paper_b.EXPERIMENT, {nlos["scenario"]: severity}, paper_b.claims)
 rows += sensitivity.results_rows(paper_b.EXPERIMENT, grids, paper_b.claims)
 estimates = {label: tables.read(p) for label, p in zip(labels, sm.input.estimates)}
 rows += paper_b.setup_rows(estimates)

@@ -7,6 +7,8 @@ import pandas as pd
 
 from wsnloc import results
 from wsnloc.config import read_yaml
+from wsnloc.analysis import nlos_severity
+from wsnloc.campaign import Campaign
 from wsnloc.experiments import claims as claims_of, paper_d, sensitivity
 from wsnloc.io import tables
 from wsnloc.report import figures
@@ -25,6 +27,13 @@ decided = paper_d.claims(per_run) + [paper_d.cost_claim(counts, paper_cost_ms)]
 cost = paper_d.measure_cost(settings)
 rows += paper_d.cost_rows(cost, paper_cost_ms) + paper_d.operation_rows(counts, paper_cost_ms)
 grids = {label: pd.read_csv(path) for label, path in zip(labels, sm.input.sensitivity)}
+nlos = sm.params.settings.get("nlos_sweep") or {"runs": 0}
+if nlos["runs"]:      # claims against NLOS ranging severity, on extra simulated runs of one scenario
+    dataset, scenario = nlos["scenario"].split("/", 1)
+    severity = nlos_severity.sweep(
+        Campaign.load(sm.params.nlos_campaign), scenario, nlos["excess_per_wall_m"], nlos["runs"], sm.params.seed,
+        lambda campaign, tables: paper_d.evaluate_runs(tables, campaign, settings), dataset)
+    rows += sensitivity.results_rows(paper_d.EXPERIMENT, {nlos["scenario"]: severity}, paper_d.claims)
 rows += sensitivity.results_rows(paper_d.EXPERIMENT, grids, paper_d.claims)
 estimates = {label: tables.read(p) for label, p in zip(labels, sm.input.estimates)}
 rows += paper_d.setup_rows(estimates)

@@ -1,9 +1,8 @@
 """Paper A's Table II gain (motion detection) against the share of time the target stands still.
 
 Motion detection can only help while the target is static. For each length of the final
-rest (`static_end_s` of the scenario, in s) the campaign simulator writes runs 1..`runs`
-of `scenario` with that rest (seeds of the workflow's runs, wsnloc.sim.seeding, so the
-runs are paired across rests), the project's reader ingests them, and paper A's first
+rest (`static_end_s` of the scenario, in s) runs 1..`runs` of `scenario` are simulated
+with that rest (analysis.simulated_runs: paired across rests), and paper A's first
 hybrid row is estimated without (Table I) and with (Table II) motion detection (RSS
 model as configured in experiments.paper_a: calibrated on another run of the same rest).
 Per run: the static share of the epochs (analysis.setup_facts) and the gain
@@ -12,27 +11,14 @@ Per run: the static share of the epochs (analysis.setup_facts) and the gain
 
 from __future__ import annotations
 
-import copy
-import tempfile
-from pathlib import Path
-
 import pandas as pd
 
 from wsnloc.analysis.setup_facts import static_share
+from wsnloc.analysis.simulated_runs import simulate_tables, with_value
 from wsnloc.campaign import Campaign
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import calibration, paper_a
-from wsnloc.io.newcom import ingest_run
 from wsnloc.metrics.tracking import cell_metrics
-from wsnloc.sim.newcom import simulate_run
-from wsnloc.sim.seeding import run_seed_sequence
-
-
-def with_final_rest(campaign: Campaign, scenario: str, rest_s: float) -> Campaign:
-    """A copy of the campaign whose `scenario` rests `rest_s` seconds at the end."""
-    spec = copy.deepcopy(campaign.spec)
-    spec["scenarios"][scenario]["static_end_s"] = float(rest_s)
-    return Campaign(campaign.name, campaign.format, spec, campaign.source)
 
 
 def gain_against_rest(campaign: Campaign, scenario: str, rests_s, runs: int, seed: int, spec: dict,
@@ -47,13 +33,8 @@ def gain_against_rest(campaign: Campaign, scenario: str, rests_s, runs: int, see
     settings = paper_a.Settings.from_config({**spec, "rows": [hybrid]})
     out = []
     for rest_s in rests_s:
-        rested = with_final_rest(campaign, scenario, rest_s)
-        with tempfile.TemporaryDirectory() as tmp:
-            tables = {}
-            for run in range(1, runs + 1):
-                run_dir = simulate_run(rested, scenario, run_seed_sequence(seed, dataset, scenario, run),
-                                       Path(tmp) / f"run-{run:02d}")
-                tables[run_dir.name] = ingest_run(run_dir, rested)[0]
+        rested = with_value(campaign, ("scenarios", scenario, "static_end_s"), float(rest_s))
+        tables = simulate_tables(rested, scenario, runs, seed, dataset)
         zigbee = list(rested.anchors_of("zigbee")["anchor_id"])
         models = calibration.rss_models_for_runs(tables, rested, zigbee, settings.rss_calibration, settings.rss_model)
         for name, run_tables in tables.items():

@@ -23,6 +23,7 @@ from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import claims as claims_of
 from wsnloc.metrics import verdicts
 from wsnloc.metrics.tracking import cell_metrics, score
+from wsnloc.signal.resample import resample_imu
 
 EXPERIMENT = "B"
 INPUT_TABLES = ("ranges", "rss", "truth", "anchors", "imu_5hz")   # the processed tables a run needs (see load_runs)
@@ -91,6 +92,16 @@ def run(data: RunData, settings: Settings, methods=tuple(METHOD_ESTIMATOR)) -> p
 
 def run_metrics(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
     return cell_metrics(estimates, ["method"], truth)
+
+
+def evaluate_runs(run_tables: dict[str, dict], campaign: Campaign, settings: Settings, resample: dict) -> pd.DataFrame:
+    """Per-run metrics of the four methods on runs given as raw-rate tables (e.g. extra
+    simulated runs), their IMU resampled with the workflow's `resample` settings."""
+    frames = []
+    for name, tables in run_tables.items():
+        data = RunData(dict(tables, imu_5hz=resample_imu(tables["imu"], **resample)), campaign, None, name)
+        frames.append(run_metrics(run(data, settings), tables["truth"]).assign(run=name))
+    return pd.concat(frames, ignore_index=True)
 
 
 def results_rows(metrics: pd.DataFrame, scenario: str, paper: dict, simulated_setup: bool) -> list[dict]:

@@ -134,6 +134,14 @@ def rss_models_for_runs(run_tables: dict[str, dict], campaign: Campaign, setting
     return calibration.rss_models_for_runs(run_tables, campaign, members, settings.rss_calibration, settings.rss_model)
 
 
+def evaluate_runs(run_tables: dict[str, dict], campaign: Campaign, settings: Settings) -> pd.DataFrame:
+    """Per-run metrics of every cell on runs given as tables (e.g. extra simulated runs),
+    each run's RSS model calibrated as in the workflow (rss_models_for_runs)."""
+    models = rss_models_for_runs(run_tables, campaign, settings)
+    return pd.concat([run_metrics(run(RunData(tables, campaign, models[name], name), settings), tables["truth"])
+                      .assign(run=name) for name, tables in run_tables.items()], ignore_index=True)
+
+
 # ---- tables, claims and cost -------------------------------------------------------------
 
 TABLES = {
