@@ -23,7 +23,8 @@ def test_variants_scale_one_sigma_at_a_time_and_leave_the_config_alone():
     assert [label for label, _, _ in grid] == ["fix_sigma_m x0.5", "fix_sigma_m x2", "kalman.accel_sigma_mps2 x0.5",
                                                "kalman.accel_sigma_mps2 x2"]
     scaled = {label: spec for label, _, spec in grid}
-    assert scaled["fix_sigma_m x2"]["fix_sigma_m"] == 2.0 and scaled["fix_sigma_m x2"]["kalman"]["accel_sigma_mps2"] == 0.5
+    assert scaled["fix_sigma_m x2"]["fix_sigma_m"] == 2.0
+    assert scaled["fix_sigma_m x2"]["kalman"]["accel_sigma_mps2"] == 0.5
     assert scaled["kalman.accel_sigma_mps2 x0.5"]["kalman"]["accel_sigma_mps2"] == 0.25
     assert SPEC["fix_sigma_m"] == 1.0 and SPEC["kalman"]["accel_sigma_mps2"] == 0.5
     assert sensitivity.variants({**SPEC, "sensitivity": {"runs": 0, "sigmas": ["fix_sigma_m"]}}, "x") == []

@@ -29,6 +29,7 @@ for name, run_tables in runs.items():
 tables.write("estimates_paper_a", pd.concat(estimates, ignore_index=True), sm.output.estimates)
 metrics = pd.concat(metrics, ignore_index=True)
 metrics.to_csv(sm.output.metrics, index=False, float_format="%.6g")
-grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_a", metrics, lambda spec, _, run: paper_a.run_metrics(
-    paper_a.run(data[run], paper_a.Settings.from_config(spec)), runs[run]["truth"]))
+grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_a", metrics, lambda spec, _, run:
+                                paper_a.run_metrics(paper_a.run(data[run], paper_a.Settings.from_config(spec)),
+                                                    runs[run]["truth"]))
 grid.to_csv(sm.output.sensitivity, index=False, float_format="%.6g")

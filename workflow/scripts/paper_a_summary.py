@@ -48,6 +48,7 @@ if sweep is not None:
         "Paper A: motion detection gain against the static share",
         {f"paper, {motion}": gain for motion, gain in paper_a.paper_gains(paper, settings).items()}))
 else:
-    Path(sm.output.static).write_bytes(figures.placeholder("no static-share sweep (experiments.paper_a.static_sweep.runs: 0)"))
+    Path(sm.output.static).write_bytes(
+        figures.placeholder("no static-share sweep (experiments.paper_a.static_sweep.runs: 0)"))
 Path(sm.output.anchors).write_bytes(figures.rmse_vs_anchors(paper_a.anchor_curves(res, settings),
                                                              "Paper A: RMSE against the number of anchors"))

@@ -8,7 +8,6 @@ import pandas as pd
 from wsnloc import results
 from wsnloc.campaign import Campaign
 from wsnloc.io import tables
-from wsnloc.experiments import paper_a, paper_c
 from wsnloc.report import explanations, figures
 from wsnloc.config import read_yaml
 from wsnloc.report.render import build_context, png_data_uri, render
@@ -50,34 +49,13 @@ for study, spec in sm.params.studies.items():
 SECTIONS = {   # paper: (section builder, figure names, labels)
     "A": (paper_a_section, ("error_cdf", "trajectories", "rmse_vs_anchors", "gain_vs_static_share"),
           sm.params.paper_a_labels),
-    "B": (paper_b_section, ("trajectories", "error_over_time", "error_cdf", "dr_rmse_vs_snr"), sm.params.paper_b_labels),
+    "B": (paper_b_section, ("trajectories", "error_over_time", "error_cdf", "dr_rmse_vs_snr"),
+          sm.params.paper_b_labels),
     "C": (paper_c_section, ("error_histogram", "error_cdf", "trajectories", "rmse_vs_anchors", "rmse_vs_noise"),
           sm.params.paper_c_labels),
     "D": (paper_d_section, ("error_cdf", "trajectories"), sm.params.paper_d_labels),
 }
 numbers = explanations.Numbers(final_results, {summary["label"]: summary for summary in summaries})
-
-
-def scenario_spec(label: str) -> dict:
-    dataset, scenario = label.split("/", 1)
-    return Campaign.load(config["datasets"][dataset]["campaign"]).section("scenarios", scenario)
-
-
-def why_it_differs(paper: str, labels: list[str]) -> list[str]:
-    """The paper's "why it differs" sentences (wsnloc.report.explanations)."""
-    spec = config["experiments"][f"paper_{paper.lower()}"]
-    if paper == "A":
-        hybrid = next((paper_a.row_label(r) for r in spec["rows"] if r["measurements"] == "hybrid"), None)
-        return explanations.paper_a(numbers, labels, {l: scenario_spec(l)["motion"] for l in labels}, hybrid,
-                                    spec["epoch_s"])
-    if paper == "B":
-        simulated = [f"{label}" for label in spec.get("simulation_scenarios", [])]
-        return explanations.paper_b(numbers, [l for l in labels if l not in simulated], simulated)
-    if paper == "C":
-        speeds = {l: paper_c.speed_label(Campaign.load(config["datasets"][l.split("/")[0]]["campaign"]), l.split("/", 1)[1])
-                  for l in labels}
-        return explanations.paper_c(numbers, labels, speeds, spec["epoch_s"])
-    return explanations.paper_d(numbers, labels)
 
 
 context["papers"] = []
@@ -91,7 +69,7 @@ for paper, (builder, figure_names, labels) in SECTIONS.items():
     section = builder(final_results, claims, figures_uri, papers[paper], list(labels),
                       config["experiments"][f"paper_{paper.lower()}"])
     section["sensitivity"] = sensitivity_table(final_results, paper, section["claims"])
-    section["why"] = why_it_differs(paper, list(labels))
+    section["why"] = explanations.for_paper(paper, numbers, config, list(labels))
     context["papers"].append(section)
 context["summary"] = summary(context["papers"])
 html = render(sm.input.template, context)

@@ -30,7 +30,8 @@ def with_value(campaign: Campaign, keys: tuple[str, ...], value) -> Campaign:
     return Campaign(campaign.name, campaign.format, spec, campaign.source)
 
 
-def simulate_tables(campaign: Campaign, scenario: str, runs: int, seed: int, dataset: str = "newcom") -> dict[str, dict]:
+def simulate_tables(campaign: Campaign, scenario: str, runs: int, seed: int,
+                    dataset: str = "newcom") -> dict[str, dict]:
     """Tables (ranges, rss, imu, truth, anchors, ...) of runs 1..`runs`, by run name."""
     tables = {}
     with tempfile.TemporaryDirectory() as tmp:

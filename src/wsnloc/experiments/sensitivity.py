@@ -48,14 +48,15 @@ def variants(spec: dict, where: str, allowed=None) -> list[tuple[str, str, dict]
         node = spec
         for key in parents:
             node = node.get(key) if isinstance(node, dict) else None
-        if not isinstance(node, dict) or not isinstance(node.get(leaf), (int, float)) or isinstance(node.get(leaf), bool):
+        value = node.get(leaf) if isinstance(node, dict) else None
+        if not isinstance(value, (int, float)) or isinstance(value, bool):
             raise ConfigError(f"config key '{where}.sensitivity.sigmas.{i}': {sigma!r} is not a numeric key of {where}")
         for factor in grid["factors"]:
             scaled = copy.deepcopy(spec)
             target = scaled
             for key in parents:
                 target = target[key]
-            target[leaf] = node[leaf] * factor
+            target[leaf] = value * factor
             out.append((setting_label(sigma, factor), sigma, scaled))
     return out
 

@@ -11,6 +11,7 @@ import math
 import pandas as pd
 
 from wsnloc.analysis.setup_facts import SETUP_TABLE
+from wsnloc.campaign import Campaign
 
 
 class Numbers:
@@ -70,15 +71,16 @@ def paper_a(n: Numbers, scenarios: list[str], motions: dict[str, str], hybrid: s
         motion = motions.get(sc, sc)
         static = n.fact(A, "static share of epochs", sc)
         ours = n.value(A, "Table II", hybrid, motion) - n.value(A, "Table I", hybrid, motion)
-        paper = n.value(A, "Table II", hybrid, motion, "paper_value") - n.value(A, "Table I", hybrid, motion, "paper_value")
+        paper = (n.value(A, "Table II", hybrid, motion, "paper_value")
+                 - n.value(A, "Table I", hybrid, motion, "paper_value"))
         if _finite(static, ours, paper):
             out.append(f"{sc}: motion detection can only help while the cart stands still, {static:.0%} of the epochs "
                        f"here (the paper does not state its share); Table II changes the {hybrid} RMSE by "
                        f"{ours:+.3f} m, the paper's by {paper:+.3f} m.")
         uwb, zigbee = (n.fact(A, f, sc) for f in ("UWB anchors ranged per epoch", "ZigBee anchors heard per epoch"))
         if _finite(uwb, zigbee):
-            out.append(f"{sc}: the robot hears {uwb:.1f} UWB and {zigbee:.1f} ZigBee anchors per {epoch_s:g} s epoch, more than "
-                       f"the paper's \"only few UWB and few ZigBee anchor nodes\".")
+            out.append(f"{sc}: the robot hears {uwb:.1f} UWB and {zigbee:.1f} ZigBee anchors per {epoch_s:g} s "
+                       f"epoch, more than the paper's \"only few UWB and few ZigBee anchor nodes\".")
         r, fit = n.ranging(sc), n.rss_fit(sc)
         if _finite(r["nlos_share"], r["nlos_bias_m"], r["los_median_m"]):
             out.append(f"{sc}: {r['nlos_share']:.0%} of the UWB ranges cross a wall, with a median excess of "
@@ -169,3 +171,27 @@ def paper_d(n: Numbers, scenarios: list[str]) -> list[str]:
                    f"step, the paper measured {paper:.0f} times its time on a StrongARM; the wall-clock ratio of "
                    f"Python code measures interpreter overhead, not arithmetic.")
     return out
+
+
+def for_paper(paper: str, numbers: Numbers, config: dict, labels: list[str]) -> list[str]:
+    """The sentences of one paper ("A" ... "D") on its scenarios `labels` (dataset/scenario),
+    with the scenario details (speed profile, speed) read from the campaign files of `config`."""
+    from wsnloc.experiments import paper_a as a, paper_c as c
+
+    spec = config["experiments"][f"paper_{paper.lower()}"]
+
+    def campaign_of(label: str) -> Campaign:
+        return Campaign.load(config["datasets"][label.split("/", 1)[0]]["campaign"])
+
+    if paper == "A":
+        hybrid = next((a.row_label(r) for r in spec["rows"] if r["measurements"] == "hybrid"), None)
+        motions = {label: campaign_of(label).section("scenarios", label.split("/", 1)[1])["motion"]
+                   for label in labels}
+        return paper_a(numbers, labels, motions, hybrid, spec["epoch_s"])
+    if paper == "B":
+        simulated = list(spec.get("simulation_scenarios", []))
+        return paper_b(numbers, [label for label in labels if label not in simulated], simulated)
+    if paper == "C":
+        speeds = {label: c.speed_label(campaign_of(label), label.split("/", 1)[1]) for label in labels}
+        return paper_c(numbers, labels, speeds, spec["epoch_s"])
+    return paper_d(numbers, labels)
