@@ -52,7 +52,8 @@ if curve is not None:
         "accelerometer SNR [dB]", "dead-reckoning RMSE [m]", "Paper B: dead reckoning against the accelerometer SNR",
         {"paper: IMU only, simulation (60 dB)": published} if published else None, logy=True))
 else:
-    Path(sm.output.snr).write_bytes(figures.placeholder("no SNR curve (experiments.paper_b.snr_curve.runs: 0)"))
+    Path(sm.output.snr).write_bytes(figures.placeholder(
+        "no SNR curve (it needs experiments.paper_b.snr_curve.runs > 0 and a simulation scenario)"))
 Path(sm.output.cdf).write_bytes(figures.error_cdf(paper_b.cdf_panels(estimates), xmax=5.0))
 Path(sm.output.errors).write_bytes(figures.error_over_time(paper_b.error_panels(estimates)))
 log.info("paper B summary over %s", labels)
