@@ -136,5 +136,26 @@ def test_paper_b_on_a_simulated_run(campaign, simulated_run):
     rows = results.frame(paper_b.results_rows(metrics.reset_index(), "newcom/constant", paper, False))
     uwb = rows[(rows["table"] == "RMSE") & (rows["row"] == "UWB only (Min-Max)")]
     assert uwb["paper_value"].iloc[0] == 3.25
-    claims = paper_b.claims(rows, ["newcom/constant"])
+    claims = paper_b.claims({"newcom/constant": metrics.reset_index().assign(run="run-01")})
     assert [c["claim"] for c in claims][0].startswith("Fusion beats")
+    assert all(c["verdict"] == "inconclusive" for c in claims)     # one run: no interval
+
+
+def test_simulation_scenarios_take_no_bias_estimate_by_default():
+    spec = {"static_bias_s": 4.0, "simulation_static_bias_s": 0.0, "fix_sigma_m": 1.0}
+    assert paper_b.scenario_config(spec, simulated=True)["static_bias_s"] == 0.0
+    assert paper_b.scenario_config(spec, simulated=False) == spec
+    assert paper_b.scenario_config({"static_bias_s": 4.0}, simulated=True)["static_bias_s"] == 0.0
+
+
+def test_bias_estimate_adds_error_on_the_bias_free_simulated_accelerometer(campaign):
+    """Paper B's simulated unit (noise model snr) has no bias: estimating one over the first
+    4 s at rest turns the mean of 20 noise samples into a constant acceleration error, which
+    dead reckoning integrates twice."""
+    from wsnloc.analysis.imu_snr import dead_reckoning_rmse
+
+    resample = {"rate_hz": 5.0, "grid_rate_hz": 500.0, "max_gap_s": 0.1, "kaiser_beta": 8.0}
+    with_estimate, without = (
+        [dead_reckoning_rmse(campaign, "b_simulation", 60.0, run, 20130101, resample, bias_s) for run in (1, 2, 3)]
+        for bias_s in (4.0, 0.0))
+    assert np.mean(without) < np.mean(with_estimate)

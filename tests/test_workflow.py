@@ -64,6 +64,34 @@ def test_builds_report_and_results(workdir):
     assert "http://" not in html and "https://" not in html.replace("https://json-schema.org", "")
 
 
+def test_verdicts_sensitivity_and_explanations_reach_results_and_report(workdir):
+    results = pd.read_csv(workdir / "reports" / "results.csv")
+    verdicts = results[results["table"] == "Claims"]
+    assert set(verdicts["experiment"]) == {"A", "B", "C", "D"}
+    assert set(verdicts["column"]) <= {"holds", "does not hold", "inconclusive"}
+    assert set(verdicts["value"]) <= {-1, 0, 1}
+    sensitivity = results[results["table"] == "Sensitivity"]
+    assert set(sensitivity["experiment"]) == {"A", "B", "C", "D"} and "x1" in set(sensitivity["column"])
+    html = (workdir / "reports" / "index.html").read_text()
+    assert html.index('id="overview"') < html.index('id="paper-A"') < html.index('id="study-workbench"') \
+        < min(html.index('id="data-newcom"'), html.index('id="data-cricket"')) < html.index('id="provenance"')
+    assert all(f'id="why-{p}"' in html and f'id="sensitivity-{p}"' in html for p in "ABCD")
+    assert "paper: —" not in html
+    start = html.index('<section id="data-cricket"')
+    cricket = html[start:html.index("<section", start + 1)]
+    assert "ZigBee" not in cricket and "status 0" not in cricket
+
+
+def test_snakemake_report_packages_the_page_and_figures(workdir):
+    import zipfile
+
+    result = snakemake(workdir, "--report", "report.zip")
+    assert result.returncode == 0, result.stderr[-3000:]
+    names = zipfile.ZipFile(workdir / "report.zip").namelist()
+    assert any(n.endswith("/index.html") for n in names) and any(n.endswith("/results.csv") for n in names)
+    assert sum(n.endswith(".png") for n in names) >= 10
+
+
 def test_rerun_has_nothing_to_do(workdir):
     result = snakemake(workdir, "-n")
     assert result.returncode == 0

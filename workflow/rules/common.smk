@@ -110,3 +110,15 @@ def study_cell_inputs(w):
         inputs["donors"] = [p for s in config["datasets"][w.dataset]["scenarios"] if s != w.scenario
                             for p in tables_of(w.dataset, s)]
     return inputs
+
+
+def sweep_campaign(spec, key):
+    """[campaign file] of an experiment's sweep scenario (spec[key]: scenario, runs); [] when off."""
+    sweep = (spec or {}).get(key) or {}
+    return [campaign_of_label(sweep["scenario"])] if sweep.get("runs") else []
+
+
+def campaign_of_label(label):
+    """Campaign file of a dataset/scenario label."""
+    dataset, _ = label.split("/", 1)
+    return config["datasets"][dataset]["campaign"]

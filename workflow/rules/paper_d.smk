@@ -1,4 +1,6 @@
 # Paper D: Min-Max / multilateration, P-mix / F-mix, velocity tracking vs Kalman filter.
+
+
 PAPER_D = config["experiments"].get("paper_d")
 PAPER_D_PAIRS = experiment_pairs(PAPER_D)
 
@@ -10,6 +12,7 @@ rule paper_d:
     output:
         estimates="data/processed/{dataset}/{scenario}/paper_d/estimates.parquet",
         metrics="data/processed/{dataset}/{scenario}/paper_d/metrics.csv",
+        sensitivity="data/processed/{dataset}/{scenario}/paper_d/sensitivity.csv",
     params:
         settings=PAPER_D,
     priority: PRIORITY["estimator"]
@@ -24,17 +27,20 @@ rule paper_d:
 rule paper_d_summary:
     input:
         metrics=[f"data/processed/{d}/{s}/paper_d/metrics.csv" for d, s in PAPER_D_PAIRS],
+        sensitivity=[f"data/processed/{d}/{s}/paper_d/sensitivity.csv" for d, s in PAPER_D_PAIRS],
         estimates=[f"data/processed/{d}/{s}/paper_d/estimates.parquet" for d, s in PAPER_D_PAIRS],
         papers="config/papers.yaml",
+        nlos_campaign=sweep_campaign(PAPER_D, "nlos_sweep"),
     output:
         results="data/processed/paper_d/results.csv",
         claims="data/processed/paper_d/claims.json",
         cost="data/processed/paper_d/cost.json",
-        cdf="data/processed/paper_d/figures/error_cdf.png",
-        tracks="data/processed/paper_d/figures/trajectories.png",
+        cdf=report("data/processed/paper_d/figures/error_cdf.png", category="Paper D", caption="../report/figure.rst"),
+        tracks=report("data/processed/paper_d/figures/trajectories.png", category="Paper D", caption="../report/figure.rst"),
     params:
         settings=PAPER_D,
         labels=[f"{d}/{s}" for d, s in PAPER_D_PAIRS],
+        seed=config["seed"],
     priority: PRIORITY["summary"]
     log:
         "logs/paper_d/summary.log",

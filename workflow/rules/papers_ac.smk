@@ -14,6 +14,7 @@ rule paper_a:
         estimates="data/processed/{dataset}/{scenario}/paper_a/estimates.parquet",
         metrics="data/processed/{dataset}/{scenario}/paper_a/metrics.csv",
         quality="data/processed/{dataset}/{scenario}/paper_a/quality.parquet",
+        sensitivity="data/processed/{dataset}/{scenario}/paper_a/sensitivity.csv",
     params:
         settings=PAPER_A,
     priority: PRIORITY["estimator"]
@@ -28,22 +29,26 @@ rule paper_a:
 rule paper_a_summary:
     input:
         metrics=[f"data/processed/{d}/{s}/paper_a/metrics.csv" for d, s in PAPER_A_PAIRS],
+        sensitivity=[f"data/processed/{d}/{s}/paper_a/sensitivity.csv" for d, s in PAPER_A_PAIRS],
         estimates=[f"data/processed/{d}/{s}/paper_a/estimates.parquet" for d, s in PAPER_A_PAIRS],
         quality=[f"data/processed/{d}/{s}/paper_a/quality.parquet" for d, s in PAPER_A_PAIRS],
         campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_A_PAIRS}),
         papers="config/papers.yaml",
+        sweep_campaign=sweep_campaign(PAPER_A, "static_sweep"),
     output:
         results="data/processed/paper_a/results.csv",
         claims="data/processed/paper_a/claims.json",
-        cdf="data/processed/paper_a/figures/error_cdf.png",
-        tracks="data/processed/paper_a/figures/trajectories.png",
-        anchors="data/processed/paper_a/figures/rmse_vs_anchors.png",
-        bounds="data/processed/paper_a/figures/pcrb_vs_rmse.png",
-        consistency="data/processed/paper_a/figures/consistency.png",
+        cdf=report("data/processed/paper_a/figures/error_cdf.png", category="Paper A", caption="../report/figure.rst"),
+        tracks=report("data/processed/paper_a/figures/trajectories.png", category="Paper A", caption="../report/figure.rst"),
+        anchors=report("data/processed/paper_a/figures/rmse_vs_anchors.png", category="Paper A", caption="../report/figure.rst"),
+        static=report("data/processed/paper_a/figures/gain_vs_static_share.png", category="Paper A", caption="../report/figure.rst"),
+        bounds=report("data/processed/paper_a/figures/pcrb_vs_rmse.png", category="Paper A", caption="../report/figure.rst"),
+        consistency=report("data/processed/paper_a/figures/consistency.png", category="Paper A", caption="../report/figure.rst"),
     params:
         settings=PAPER_A,
         labels=[f"{d}/{s}" for d, s in PAPER_A_PAIRS],
         campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in PAPER_A_PAIRS},
+        seed=config["seed"],
     priority: PRIORITY["summary"]
     log:
         "logs/paper_a/summary.log",
@@ -62,6 +67,7 @@ rule paper_c:
         estimates="data/processed/{dataset}/{scenario}/paper_c/estimates.parquet",
         metrics="data/processed/{dataset}/{scenario}/paper_c/metrics.csv",
         quality="data/processed/{dataset}/{scenario}/paper_c/quality.parquet",
+        sensitivity="data/processed/{dataset}/{scenario}/paper_c/sensitivity.csv",
     params:
         settings=PAPER_C,
         label="{dataset}/{scenario}",
@@ -77,6 +83,7 @@ rule paper_c:
 rule paper_c_summary:
     input:
         metrics=[f"data/processed/{d}/{s}/paper_c/metrics.csv" for d, s in PAPER_C_PAIRS],
+        sensitivity=[f"data/processed/{d}/{s}/paper_c/sensitivity.csv" for d, s in PAPER_C_PAIRS],
         estimates=[f"data/processed/{d}/{s}/paper_c/estimates.parquet" for d, s in PAPER_C_PAIRS],
         quality=[f"data/processed/{d}/{s}/paper_c/quality.parquet" for d, s in PAPER_C_PAIRS],
         campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_C_PAIRS}),
@@ -84,12 +91,13 @@ rule paper_c_summary:
     output:
         results="data/processed/paper_c/results.csv",
         claims="data/processed/paper_c/claims.json",
-        histogram="data/processed/paper_c/figures/error_histogram.png",
-        cdf="data/processed/paper_c/figures/error_cdf.png",
-        tracks="data/processed/paper_c/figures/trajectories.png",
-        anchors="data/processed/paper_c/figures/rmse_vs_anchors.png",
-        bounds="data/processed/paper_c/figures/pcrb_vs_rmse.png",
-        consistency="data/processed/paper_c/figures/consistency.png",
+        histogram=report("data/processed/paper_c/figures/error_histogram.png", category="Paper C", caption="../report/figure.rst"),
+        cdf=report("data/processed/paper_c/figures/error_cdf.png", category="Paper C", caption="../report/figure.rst"),
+        tracks=report("data/processed/paper_c/figures/trajectories.png", category="Paper C", caption="../report/figure.rst"),
+        anchors=report("data/processed/paper_c/figures/rmse_vs_anchors.png", category="Paper C", caption="../report/figure.rst"),
+        noise=report("data/processed/paper_c/figures/rmse_vs_noise.png", category="Paper C", caption="../report/figure.rst"),
+        bounds=report("data/processed/paper_c/figures/pcrb_vs_rmse.png", category="Paper C", caption="../report/figure.rst"),
+        consistency=report("data/processed/paper_c/figures/consistency.png", category="Paper C", caption="../report/figure.rst"),
     params:
         settings=PAPER_C,
         labels=[f"{d}/{s}" for d, s in PAPER_C_PAIRS],

@@ -1,4 +1,8 @@
 # One self-contained HTML report and the results contract (reports/results.csv).
+# The page, results.csv and the papers' figures are also registered with Snakemake's
+# report(), so `snakemake --report report.zip` packages them with the run's provenance.
+report: "../report/workflow.rst"
+
 STUDY_OUTPUTS = ["results.csv", "figures/error_cdf.png", "figures/error_over_time.png", "figures/trajectories.png",
                  "figures/pcrb_vs_rmse.png", "figures/consistency.png"]
 
@@ -23,6 +27,7 @@ rule report:
                 "data/processed/paper_a/figures/rmse_vs_anchors.png",
                 "data/processed/paper_a/figures/pcrb_vs_rmse.png",
                 "data/processed/paper_a/figures/consistency.png",
+                "data/processed/paper_a/figures/gain_vs_static_share.png",
             ]
             if PAPER_A_PAIRS
             else []
@@ -37,6 +42,7 @@ rule report:
                 "data/processed/paper_c/figures/rmse_vs_anchors.png",
                 "data/processed/paper_c/figures/pcrb_vs_rmse.png",
                 "data/processed/paper_c/figures/consistency.png",
+                "data/processed/paper_c/figures/rmse_vs_noise.png",
             ]
             if PAPER_C_PAIRS
             else []
@@ -52,6 +58,7 @@ rule report:
                 "data/processed/paper_b/figures/trajectories.png",
                 "data/processed/paper_b/figures/error_over_time.png",
                 "data/processed/paper_b/figures/error_cdf.png",
+                "data/processed/paper_b/figures/dr_rmse_vs_snr.png",
             ]
             if PAPER_B_PAIRS
             else []
@@ -68,8 +75,8 @@ rule report:
             else []
         ),
     output:
-        html="reports/index.html",
-        results="reports/results.csv",
+        html=report("reports/index.html", category="Report", caption="../report/page.rst"),
+        results=report("reports/results.csv", category="Report", caption="../report/page.rst"),
     params:
         config=config,
         paper_d_labels=[f"{d}/{s}" for d, s in PAPER_D_PAIRS],

@@ -8,7 +8,7 @@ from wsnloc.analysis.filter_quality import grouped_quality
 from wsnloc.analysis.paper_bounds import PAPER_A_KEYS, paper_a_params
 from wsnloc.campaign import Campaign
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments import calibration, paper_a
+from wsnloc.experiments import calibration, paper_a, sensitivity
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.workflow import script_logger
@@ -21,15 +21,20 @@ settings.check_against(campaign)
 runs = load_runs(sm.input.tables, paper_a.INPUT_TABLES)
 zigbee = list(campaign.anchors_of("zigbee")["anchor_id"])
 models = calibration.rss_models_for_runs(runs, campaign, zigbee, settings.rss_calibration, settings.rss_model)
-estimates, metrics, qualities = [], [], []
+estimates, metrics, qualities, data = [], [], [], {}
 for name, run_tables in runs.items():
-    data = RunData(run_tables, campaign, models[name], name)
-    est = paper_a.run(data, settings).assign(run=name)
-    quality, efficiency = grouped_quality(data, est, PAPER_A_KEYS, paper_a_params(settings))
+    data[name] = RunData(run_tables, campaign, models[name], name)
+    est = paper_a.run(data[name], settings).assign(run=name)
+    quality, efficiency = grouped_quality(data[name], est, PAPER_A_KEYS, paper_a_params(settings))
     estimates.append(est)
     qualities.append(quality.assign(run=name))
     metrics.append(paper_a.run_metrics(est, run_tables["truth"]).merge(efficiency, on=PAPER_A_KEYS).assign(run=name))
     log.info("%s: RSS model %s", name, json.dumps(models[name]))
 tables.write("estimates_paper_a", pd.concat(estimates, ignore_index=True), sm.output.estimates)
-pd.concat(metrics, ignore_index=True).to_csv(sm.output.metrics, index=False, float_format="%.6g")
+metrics = pd.concat(metrics, ignore_index=True)
+metrics.to_csv(sm.output.metrics, index=False, float_format="%.6g")
 pd.concat(qualities, ignore_index=True).to_parquet(sm.output.quality, index=False, compression="zstd")
+grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_a", metrics, lambda spec, _, run:
+                                paper_a.run_metrics(paper_a.run(data[run], paper_a.Settings.from_config(spec)),
+                                                    runs[run]["truth"]))
+grid.to_csv(sm.output.sensitivity, index=False, float_format="%.6g")

@@ -8,11 +8,11 @@ import pandas as pd
 from wsnloc import results
 from wsnloc.campaign import Campaign
 from wsnloc.io import tables
-from wsnloc.report import figures
+from wsnloc.report import explanations, figures
 from wsnloc.config import read_yaml
 from wsnloc.report.render import build_context, png_data_uri, render
 from wsnloc.report.sections import (paper_a_section, paper_b_section, paper_c_section, paper_d_section,
-                                    static_bounds_section, study_section)
+                                    sensitivity_table, static_bounds_section, study_section, summary)
 from wsnloc.workflow import script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
@@ -51,13 +51,17 @@ for study, spec in sm.params.studies.items():
     context["studies"].append(study_section(final_results, study, spec, figures_uri))
 
 SECTIONS = {   # paper: (section builder, figure names, labels)
-    "A": (paper_a_section, ("error_cdf", "trajectories", "rmse_vs_anchors", "pcrb_vs_rmse", "consistency"),
-          sm.params.paper_a_labels),
-    "B": (paper_b_section, ("trajectories", "error_over_time", "error_cdf"), sm.params.paper_b_labels),
-    "C": (paper_c_section, ("error_histogram", "error_cdf", "trajectories", "rmse_vs_anchors", "pcrb_vs_rmse",
-                            "consistency"), sm.params.paper_c_labels),
+    "A": (paper_a_section, ("error_cdf", "trajectories", "rmse_vs_anchors", "gain_vs_static_share", "pcrb_vs_rmse",
+                            "consistency"), sm.params.paper_a_labels),
+    "B": (paper_b_section, ("trajectories", "error_over_time", "error_cdf", "dr_rmse_vs_snr"),
+          sm.params.paper_b_labels),
+    "C": (paper_c_section, ("error_histogram", "error_cdf", "trajectories", "rmse_vs_anchors", "rmse_vs_noise",
+                            "pcrb_vs_rmse", "consistency"), sm.params.paper_c_labels),
     "D": (paper_d_section, ("error_cdf", "trajectories"), sm.params.paper_d_labels),
 }
+numbers = explanations.Numbers(final_results, {summary["label"]: summary for summary in summaries})
+
+
 context["papers"] = []
 for paper, (builder, figure_names, labels) in SECTIONS.items():
     files = getattr(sm.input, f"paper_{paper.lower()}")
@@ -65,11 +69,13 @@ for paper, (builder, figure_names, labels) in SECTIONS.items():
         continue
     outputs = {Path(p).name: Path(p) for p in files}
     claims = json.loads(outputs["claims.json"].read_text())
-    if "cost.json" in outputs:                       # paper D's wall-clock cost claim
-        claims["claims"] += json.loads(outputs["cost.json"].read_text())["claims"]
     figures_uri = {name: png_data_uri(outputs[f"{name}.png"].read_bytes()) for name in figure_names}
-    context["papers"].append(builder(final_results, claims, figures_uri, papers[paper], list(labels),
-                                     config["experiments"][f"paper_{paper.lower()}"]))
+    section = builder(final_results, claims, figures_uri, papers[paper], list(labels),
+                      config["experiments"][f"paper_{paper.lower()}"])
+    section["sensitivity"] = sensitivity_table(final_results, paper, section["claims"])
+    section["why"] = explanations.for_paper(paper, numbers, config, list(labels))
+    context["papers"].append(section)
+context["summary"] = summary(context["papers"])
 html = render(sm.input.template, context)
 Path(sm.output.html).write_text(html, encoding="utf-8")
 log.info("report: %d bytes, %d results rows", len(html), len(all_results))

@@ -12,14 +12,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
 import pandas as pd
 
 from wsnloc import results
+from wsnloc.analysis import setup_facts
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
 from wsnloc.estimators import registry
 from wsnloc.estimators.run_data import RunData
+from wsnloc.experiments import claims as claims_of
+from wsnloc.metrics import verdicts
+from wsnloc.metrics.stats import mean_ci95
 from wsnloc.metrics.tracking import cell_metrics, score
 
 EXPERIMENT = "A"
@@ -124,50 +127,100 @@ def results_rows(metrics: pd.DataFrame, scenario: str, motion: str, settings: Se
     return out
 
 
-def claims(res: pd.DataFrame, settings: Settings) -> list[dict]:
-    sel = res[(res["experiment"] == EXPERIMENT) & (res["metric"] == "rmse_m") & res["table"].isin(["Table I", "Table II"])]
-    value = {(r.table, r.row, r.column): r.value for r in sel.itertuples()}
-    motions = sorted(sel["column"].unique())
-    labels = [row_label(r) for r in settings.rows]
+def claims(metrics: dict[str, pd.DataFrame], motions: dict[str, str], settings: Settings) -> list[dict]:
+    """Paper A's claims decided on per-run RMSE (experiments.claims): metrics[label] is a
+    scenario's per-run metrics.csv, motions[label] its speed profile (constant / variable).
+
+    Rows and tables of one scenario share their runs (paired); constant against variable
+    compares two scenarios (independent runs, Welch interval).
+    """
     by_kind = {kind: [row_label(r) for r in settings.rows if r["measurements"] == kind] for kind in MEASUREMENT_LABEL}
-    out = []
+    labels = [row_label(r) for r in settings.rows]
+    tables = ("Table I", "Table II")
 
-    def check(text, cases):
-        out.append({"claim": text, "holds": bool(cases) and all(ok for ok, _ in cases),
-                    "evidence": "; ".join(e for _, e in cases)})
+    def rmse(label, table, row):
+        return claims_of.runs_of(metrics[label], table=table, row=row)
 
-    cases = []
-    for table in ("Table I", "Table II"):
-        for motion in motions:
+    order, anchors, detection = [], [], []
+    for label in metrics:
+        where = f"{label} "
+        for table in tables:
             for hybrid, toa, rss in zip(by_kind["hybrid"], by_kind["toa"], by_kind["rss"]):
-                h, t, r = (value.get((table, x, motion), np.nan) for x in (hybrid, toa, rss))
-                cases.append((h < t < r, f"{table} {motion}: hybrid {h:.3f} < TOA {t:.3f} < RSS {r:.3f}?"))
-    check("Hybrid beats TOA-only, which beats RSS-only", cases)
-
-    cases = []
-    for table in ("Table I", "Table II"):
-        for motion in motions:
+                runs = {"hybrid": rmse(label, table, hybrid), "TOA": rmse(label, table, toa),
+                        "RSS": rmse(label, table, rss)}
+                for lo, hi in (("hybrid", "TOA"), ("TOA", "RSS")):
+                    order.append(claims_of.paired(runs[lo], runs[hi], "<", f"{where}{table}: {lo} - {hi}"))
             for kind, rows in by_kind.items():
                 if len(rows) == 2:
-                    more, fewer = (value.get((table, x, motion), np.nan) for x in rows)
-                    cases.append((more < fewer, f"{table} {motion} {kind}: {rows[0]} {more:.3f} vs {rows[1]} {fewer:.3f}"))
-    check("More anchors give a lower RMSE", cases)
+                    anchors.append(claims_of.paired(rmse(label, table, rows[0]), rmse(label, table, rows[1]), "<",
+                                                    f"{where}{table}: {rows[0]} - {rows[1]}"))
+        for row in labels:
+            detection.append(claims_of.paired(rmse(label, "Table II", row), rmse(label, "Table I", row), "<",
+                                              f"{where}{row}: with - without motion detection"))
+    speed = []
+    constant = [label for label in metrics if motions[label] == "constant"]
+    variable = [label for label in metrics if motions[label] == "variable"]
+    for c, v in zip(constant, variable):
+        for table in tables:
+            for row in labels:
+                speed.append(claims_of.unpaired(rmse(c, table, row), rmse(v, table, row), "<",
+                                                f"{table} {row}: {c} - {v} (independent runs)"))
+    return [claims_of.record("Hybrid beats TOA-only, which beats RSS-only", verdicts.claim(order)),
+            claims_of.record("More anchors give a lower RMSE", verdicts.claim(anchors)),
+            claims_of.record("Constant speed is tracked better than variable speed", verdicts.claim(speed)),
+            claims_of.record("Motion detection improves every row", verdicts.claim(detection))]
 
-    cases = []
-    if {"constant", "variable"} <= set(motions):
-        for table in ("Table I", "Table II"):
-            for label in labels:
-                c, v = value.get((table, label, "constant"), np.nan), value.get((table, label, "variable"), np.nan)
-                cases.append((c < v, f"{table} {label}: constant {c:.3f} vs variable {v:.3f}"))
-    check("Constant speed is tracked better than variable speed", cases)
 
-    cases = []
-    for motion in motions:
-        for label in labels:
-            plain, md = value.get(("Table I", label, motion), np.nan), value.get(("Table II", label, motion), np.nan)
-            cases.append((md < plain, f"{motion} {label}: {plain:.3f} -> {md:.3f} with motion detection"))
-    check("Motion detection improves every row", cases)
-    return out
+def setup_rows(estimates: dict[str, pd.DataFrame], settings: Settings) -> list[dict]:
+    """Set-up facts per scenario (analysis.setup_facts) on Table I's first TOA and RSS rows:
+    the static share of epochs and the UWB / ZigBee anchors used per epoch."""
+    first = {kind: next((row_label(r) for r in settings.rows if r["measurements"] == kind), None)
+             for kind in ("toa", "rss")}
+    rows = []
+    for label, est in estimates.items():
+        plain = est[est["table"] == "Table I"]
+        cells = {kind: plain[plain["row"] == row] for kind, row in first.items() if row}
+        if cells:
+            rows.append(setup_facts.fact_row(EXPERIMENT, "static share of epochs", label,
+                                             setup_facts.static_share(next(iter(cells.values()))), "share"))
+        for kind, name in (("toa", "UWB anchors ranged per epoch"), ("rss", "ZigBee anchors heard per epoch")):
+            if kind in cells:
+                rows.append(setup_facts.fact_row(EXPERIMENT, name, label,
+                                                 setup_facts.measurements_per_epoch(cells[kind]), "count"))
+    return rows
+
+
+STATIC_TABLE = "Table II gain against static share"
+
+
+def static_sweep_rows(sweep: pd.DataFrame, scenario: str) -> list[dict]:
+    """results rows of the static-share sweep (analysis.static_share): per final rest the
+    static share of the epochs and the Table II - Table I RMSE of the hybrid row (m)."""
+    rows = []
+    for rest, group in sweep.groupby("rest_s", sort=True):
+        column = f"final rest {rest:g} s"
+        rows += [results.row_over_runs(group["static_share"], experiment=EXPERIMENT, table=STATIC_TABLE,
+                                       row="static share of epochs", column=column, scenario=scenario, metric="share"),
+                 results.row_over_runs(group["gain_m"], experiment=EXPERIMENT, table=STATIC_TABLE,
+                                       row="hybrid: Table II - Table I", column=column, scenario=scenario,
+                                       metric="rmse_gain_m")]
+    return rows
+
+
+def static_sweep_curve(sweep: pd.DataFrame) -> pd.DataFrame:
+    """Gain (m, mean and 95% interval over runs) against the mean static share, per final rest."""
+    points = [(group["static_share"].mean(), *mean_ci95(group["gain_m"])) for _, group in sweep.groupby("rest_s")]
+    return pd.DataFrame(sorted(points), columns=["x", "value", "ci95_low", "ci95_high"])
+
+
+def paper_gains(paper: dict, settings: Settings) -> dict[str, float]:
+    """The paper's Table II - Table I RMSE of the first hybrid row, per speed profile (m)."""
+    hybrid = next((r for r in settings.rows if r["measurements"] == "hybrid"), None)
+    if hybrid is None:
+        return {}
+    return {motion: paper_value(paper, hybrid, "Table II", motion) - paper_value(paper, hybrid, "Table I", motion)
+            for motion in ("constant", "variable")
+            if paper_value(paper, hybrid, "Table I", motion) is not None}
 
 
 def cdf_panels(estimates: dict[str, pd.DataFrame]) -> dict:

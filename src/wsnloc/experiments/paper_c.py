@@ -14,19 +14,27 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
 import pandas as pd
 
 from wsnloc import results
+from wsnloc.analysis import setup_facts
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
 from wsnloc.estimators import registry
 from wsnloc.estimators.run_data import RunData
+from wsnloc.experiments import claims as claims_of
+from wsnloc.experiments.sensitivity import BASELINE
+from wsnloc.metrics import verdicts
+from wsnloc.metrics.stats import mean_ci95
 from wsnloc.metrics.tracking import cell_metrics, score
 
 EXPERIMENT = "C"
 INPUT_TABLES = ("ranges", "truth", "anchors", "imu_5hz")   # the processed tables a run needs (see load_runs)
 MODELS = ("P", "PV", "PVA")
+# The a-priori sigmas and the models they act on (P: p_sigma_m; PV: white acceleration;
+# PVA: acceleration input noise and bias walk; the range sigma: all).
+SIGMA_MODELS = {"range_sigma_m": MODELS, "p_sigma_m": ("P",), "pv_accel_sigma_mps2": ("PV",),
+                "pva_accel_sigma_mps2": ("PVA",), "pva_bias_walk_sigma": ("PVA",)}
 
 
 @dataclass
@@ -75,10 +83,10 @@ DETAIL_METRICS = {"median": "median_m", "p95": "p95_m", "max": "max_m", "sqrt_pc
                   "efficiency": "efficiency_ratio"}
 
 
-def run(data: RunData, settings: Settings, subsets: list[str]) -> pd.DataFrame:
-    """Estimates of the three models for each beacon subset, scored against truth."""
+def run(data: RunData, settings: Settings, subsets: list[str], models=MODELS) -> pd.DataFrame:
+    """Estimates of the (given) motion models for each beacon subset, scored against truth."""
     frames = [registry.run("ekf", data, estimator_params(settings, model, subset), where="experiments.paper_c")
-              .assign(model=model, subset=subset) for subset in subsets for model in MODELS]
+              .assign(model=model, subset=subset) for subset in subsets for model in models]
     return score(pd.concat(frames, ignore_index=True), data.table("truth"))
 
 
@@ -117,28 +125,62 @@ def results_rows(metrics: pd.DataFrame, scenario_label: str, speed: str, setting
     return out
 
 
-def claims(res: pd.DataFrame, speeds: list[str], settings: Settings) -> list[dict]:
-    sel = res[(res["experiment"] == EXPERIMENT) & (res["metric"] == "rmse_m")]
-    t1 = {(r.row, r.column): r.value for r in sel[sel["table"] == "Table I"].itertuples()}
-    t2 = {(r.row, r.column): r.value for r in sel[sel["table"] == "Table II"].itertuples()}
-    out = []
+def claims(metrics: dict[str, pd.DataFrame], speeds: dict[str, str], settings: Settings) -> list[dict]:
+    """Paper C's claims decided on per-run RMSE (experiments.claims): metrics[label] is a
+    scenario's per-run metrics.csv, speeds[label] its speed ("20 cm/s").
 
-    def check(text, cases):
-        out.append({"claim": text, "holds": bool(cases) and all(ok for ok, _ in cases),
-                    "evidence": "; ".join(e for _, e in cases)})
+    Models and beacon sets of one scenario share their runs (paired); speeds are different
+    scenarios (independent runs, Welch interval).
+    """
+    def rmse(label, subset, model):
+        return claims_of.runs_of(metrics[label], subset=subset, model=model)
 
-    check("P < PV < PVA (Table I, every speed)",
-          [(t1.get(("P", s), np.nan) < t1.get(("PV", s), np.nan) < t1.get(("PVA", s), np.nan),
-            f"{s}: P {t1.get(('P', s), np.nan):.3f}, PV {t1.get(('PV', s), np.nan):.3f}, PVA {t1.get(('PVA', s), np.nan):.3f}")
-           for s in speeds])
-    check("The error grows with speed (every model)",
-          [(all(t1.get((m, a), np.nan) < t1.get((m, b), np.nan) for a, b in zip(speeds, speeds[1:])),
-            f"{m}: " + " -> ".join(f"{t1.get((m, s), np.nan):.3f}" for s in speeds)) for m in MODELS])
-    subsets = settings.table_2_subsets
-    check("More beacons give a lower RMSE (Table II, every model)",
-          [(all(t2.get((a, m), np.nan) > t2.get((b, m), np.nan) for a, b in zip(subsets, subsets[1:])),
-            f"{m}: " + " -> ".join(f"{t2.get((s, m), np.nan):.3f}" for s in subsets)) for m in MODELS])
-    return out
+    order = [claims_of.paired(rmse(label, settings.table_1_subset, lo), rmse(label, settings.table_1_subset, hi), "<",
+                              f"{speeds[label]}: {lo} - {hi}")
+             for label in metrics for lo, hi in zip(MODELS, MODELS[1:])]
+    by_speed = sorted(metrics, key=lambda label: float(speeds[label].split()[0]))
+    speed = [claims_of.unpaired(rmse(slow, settings.table_1_subset, m), rmse(fast, settings.table_1_subset, m), "<",
+                                f"{m}: {speeds[slow]} - {speeds[fast]} (independent runs)")
+             for m in MODELS for slow, fast in zip(by_speed, by_speed[1:])]
+    beacons = []
+    if settings.table_2_scenario in metrics:
+        subsets = settings.table_2_subsets
+        beacons = [claims_of.paired(rmse(settings.table_2_scenario, more, m), rmse(settings.table_2_scenario, fewer, m),
+                                    "<", f"{m}: beacons {more} - {fewer}")
+                   for m in MODELS for fewer, more in zip(subsets, subsets[1:])]
+    return [claims_of.record("P < PV < PVA (Table I, every speed)", verdicts.claim(order)),
+            claims_of.record("The error grows with speed (every model)", verdicts.claim(speed)),
+            claims_of.record("More beacons give a lower RMSE (Table II, every model)", verdicts.claim(beacons))]
+
+
+def setup_rows(estimates: dict[str, pd.DataFrame], settings: Settings) -> list[dict]:
+    """Set-up facts per scenario (analysis.setup_facts) on the P model with Table I's
+    beacons: the static share of epochs and the beacons ranged per epoch."""
+    rows = []
+    for label, est in estimates.items():
+        cell = _table_1(est, settings, "P")
+        rows += [setup_facts.fact_row(EXPERIMENT, "static share of epochs", label, setup_facts.static_share(cell),
+                                      "share"),
+                 setup_facts.fact_row(EXPERIMENT, "beacons ranged per epoch", label,
+                                      setup_facts.measurements_per_epoch(cell), "count")]
+    return rows
+
+
+MODEL_SIGMA = {"P": "p_sigma_m", "PV": "pv_accel_sigma_mps2", "PVA": "pva_accel_sigma_mps2"}
+
+
+def noise_curves(grid: pd.DataFrame, settings: Settings) -> dict[str, pd.DataFrame]:
+    """Table I RMSE (m) of each model against the factor applied to its own a-priori sigma
+    (MODEL_SIGMA), from one scenario's sensitivity grid (experiments.sensitivity): per model
+    a frame x (factor), value (mean over the sampled runs), ci95_low, ci95_high."""
+    cell = grid[grid["subset"] == settings.table_1_subset]
+    curves = {}
+    for model, sigma in MODEL_SIGMA.items():
+        own = cell[(cell["model"] == model) & ((cell["setting"] == BASELINE) | (cell["sigma"] == sigma))]
+        points = [(factor, *mean_ci95(group["rmse"])) for factor, group in own.groupby("factor", sort=True)]
+        if len(points) > 1:
+            curves[f"{model} ({sigma})"] = pd.DataFrame(points, columns=["x", "value", "ci95_low", "ci95_high"])
+    return curves
 
 
 def anchor_curves(res: pd.DataFrame, settings: Settings) -> dict:

@@ -16,13 +16,16 @@ import numpy as np
 import pandas as pd
 
 from wsnloc import results
+from wsnloc.analysis import setup_facts
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
 from wsnloc.experiments import calibration
 from wsnloc.estimators import registry
 from wsnloc.estimators.run_data import RunData
+from wsnloc.experiments import claims as claims_of
 from wsnloc.estimators.trackers import kalman_matrices
 from wsnloc.filters.kalman import KalmanFilter
+from wsnloc.metrics import op_counts, verdicts
 from wsnloc.metrics.tracking import cell_metrics, score
 from wsnloc.tracking.velocity_bounded import VelocityBoundedTracker
 
@@ -32,6 +35,8 @@ TECHNIQUES = ("narrowband", "uwb", "pmix", "fmix")
 LOCALIZER_LABEL = {"minmax": "Min-Max", "multilateration": "Multilateration"}
 TECHNIQUE_LABEL = {"narrowband": "narrowband", "uwb": "UWB", "pmix": "P-mix", "fmix": "F-mix"}
 COST_LABEL = {"velocity": "velocity tracker", "kalman": "Kalman filter"}
+# The a-priori sigmas of paper D: the comparison KF's (they act on its cells only).
+SENSITIVITY_SIGMAS = ("kalman.accel_sigma_mps2", "kalman.position_sigma_m", "kalman.initial_speed_sigma_mps")
 
 
 @dataclass
@@ -110,11 +115,11 @@ def _names(estimator: str) -> set[str]:
     return {p.name for p in registry.get(estimator).params}
 
 
-def run(data: RunData, settings: Settings) -> pd.DataFrame:
-    """All estimates of one run (every cell), scored against its truth."""
+def run(data: RunData, settings: Settings, stages=("raw", "velocity", "kalman")) -> pd.DataFrame:
+    """All estimates of one run (every cell of the given stages), scored against its truth."""
     frames = [registry.run(name, data, params, where="experiments.paper_d")[["t", "x", "y"]]
               .assign(localizer=loc, technique=tech, stage=stage)
-              for loc, tech, stage, name, params in cells(settings)]
+              for loc, tech, stage, name, params in cells(settings) if stage in stages]
     return score(pd.concat(frames, ignore_index=True), data.table("truth"))
 
 
@@ -127,6 +132,14 @@ def rss_models_for_runs(run_tables: dict[str, dict], campaign: Campaign, setting
     """RSS model per run (see wsnloc.experiments.calibration)."""
     members = campaign.spec["subsets"][settings.narrowband_subset]
     return calibration.rss_models_for_runs(run_tables, campaign, members, settings.rss_calibration, settings.rss_model)
+
+
+def evaluate_runs(run_tables: dict[str, dict], campaign: Campaign, settings: Settings) -> pd.DataFrame:
+    """Per-run metrics of every cell on runs given as tables (e.g. extra simulated runs),
+    each run's RSS model calibrated as in the workflow (rss_models_for_runs)."""
+    models = rss_models_for_runs(run_tables, campaign, settings)
+    return pd.concat([run_metrics(run(RunData(tables, campaign, models[name], name), settings), tables["truth"])
+                      .assign(run=name) for name, tables in run_tables.items()], ignore_index=True)
 
 
 # ---- tables, claims and cost -------------------------------------------------------------
@@ -201,76 +214,87 @@ def cost_rows(cost_us: dict[str, float], paper_ms: dict[str, float]) -> list[dic
     return rows
 
 
-def _rmse(res: pd.DataFrame, table: str, row: str, column: str, scenario: str) -> float:
-    sel = res[(res["experiment"] == EXPERIMENT) & (res["table"] == table) & (res["row"] == row)
-              & (res["column"] == column) & (res["scenario"] == scenario) & (res["metric"] == "rmse_m")]
-    return float(sel["value"].iloc[0]) if len(sel) else float("nan")
+def operation_counts(settings: Settings) -> dict[str, dict]:
+    """Arithmetic operations per step of both trackers and their ratios (metrics.op_counts)."""
+    return op_counts.cost_table(settings.tracker_window)
 
 
-def claims(res: pd.DataFrame, scenarios: list[str]) -> list[dict]:
-    """Each published claim of paper D, checked on our results, with the deciding numbers."""
-    out = []
-    locs = list(LOCALIZER_LABEL.values())
-    techs = list(TECHNIQUE_LABEL.values())
-
-    def check(text, cases):
-        holds = all(ok for ok, _ in cases)
-        out.append({"claim": text, "holds": holds, "evidence": "; ".join(e for _, e in cases)})
-
-    cases = []
-    for sc in scenarios:
-        for loc in locs:
-            single = min(_rmse(res, "Table 1", loc, t, sc) for t in ("narrowband", "UWB"))
-            fused = min(_rmse(res, "Table 1", loc, t, sc) for t in ("P-mix", "F-mix"))
-            cases.append((fused < single, f"{sc} {loc}: best fusion {fused:.3f} vs best single {single:.3f} m"))
-    check("Fusion beats a single source", cases)
-
-    cases = []
-    for sc in scenarios:
-        for loc in locs:
-            values = {t: _rmse(res, "Table 1", loc, t, sc) for t in techs}
-            best = min(values, key=values.get)
-            cases.append((best == "F-mix", f"{sc} {loc}: best is {best} ({values[best]:.3f} m; F-mix {values['F-mix']:.3f} m)"))
-    check("F-mix is the best fusion and technique", cases)
-
-    cases = []
-    for sc in scenarios:
-        for loc in locs:
-            for t in techs:
-                before, after = _rmse(res, "Table 1", loc, t, sc), _rmse(res, "Table 2", loc, t, sc)
-                cases.append((after < before, f"{sc} {loc} {t}: {before:.3f} -> {after:.3f} m"))
-    check("Velocity tracking lowers the RMSE in every cell", cases)
-
-    cases = []
-    for sc in scenarios:
-        table2 = {(loc, t): _rmse(res, "Table 2", loc, t, sc) for loc in locs for t in techs}
-        best = min(table2, key=table2.get)
-        cases.append((best[1] == "F-mix", f"{sc}: lowest with tracking is {best[0]} {best[1]} ({table2[best]:.3f} m)"))
-    check("F-mix followed by velocity tracking gives the lowest RMSE", cases)
-
-    cases = []
-    for sc in scenarios:
-        for t in techs:
-            mm, ml = _rmse(res, "Table 1", "Min-Max", t, sc), _rmse(res, "Table 1", "Multilateration", t, sc)
-            cases.append((mm < ml, f"{sc} {t}: Min-Max {mm:.3f} vs multilateration {ml:.3f} m"))
-    check("Min-Max is more accurate than multilateration", cases)
-
-    cases = []
-    for sc in scenarios:
-        kf, vel = _rmse(res, "Table 3", "Kalman filter", "F-mix", sc), _rmse(res, "Table 3", "velocity tracker", "F-mix", sc)
-        cases.append((kf < vel <= 1.25 * kf, f"{sc} Min-Max F-mix: KF {kf:.3f} vs velocity {vel:.3f} m"))
-    check("The Kalman filter is slightly more accurate than the velocity tracker (within 25%)", cases)
-    return out
+def operation_rows(counts: dict[str, dict], paper_ms: dict[str, float]) -> list[dict]:
+    """results.csv rows of the operation counts per step (machine-independent, reproducible):
+    per tracker the total and each operation kind; the Kalman / velocity ratio of totals
+    beside the paper's ratio of times (72 ms / 12 ms on a 200 MHz SA-110)."""
+    common = {"experiment": EXPERIMENT, "table": "Cost", "scenario": "operation count", "metric": "ops_per_step"}
+    rows = [results.single_row(counts[label][kind], row=label, column=f"{kind} per step", **common)
+            for label in COST_LABEL.values() for kind in (*op_counts.OPERATIONS, "total")]
+    rows.append(results.single_row(counts["Kalman / velocity"]["total"], **{**common, "metric": "ratio"},
+                                   row="Kalman / velocity", column="total per step",
+                                   paper_value=paper_ms["Kalman filter"] / paper_ms["velocity tracker"]))
+    return rows
 
 
-def cost_claim(cost_us: dict[str, float], paper_ms: dict[str, float]) -> dict:
-    """Paper D: the KF costs about 6x the velocity tracker per step (72 ms vs 12 ms)."""
-    ratio = cost_us["kalman"] / cost_us["velocity"]
+def claims(metrics: dict[str, pd.DataFrame]) -> list[dict]:
+    """Each published claim of paper D decided on per-run RMSE (experiments.claims), paired
+    within each scenario (metrics[label] is its per-run metrics.csv). Where a claim names
+    "the best" cell, the best is chosen by the mean over runs, then compared run by run.
+    """
+    fusion, fmix_best, tracking, fmix_tracked, minmax, kalman = [], [], [], [], [], []
+    for label, per_run in metrics.items():
+        def rmse(localizer, technique, stage="raw"):
+            return claims_of.runs_of(per_run, localizer=localizer, technique=technique, stage=stage)
+
+        def best(localizers, techniques, stage="raw"):
+            return min(((loc, t) for loc in localizers for t in techniques),
+                       key=lambda cell: rmse(*cell, stage).mean())
+
+        def compare(a, b):
+            return claims_of.paired(rmse(*a), rmse(*b), "<", f"{label}: {_cell_name(*a)} - {_cell_name(*b)}")
+
+        for loc in LOCALIZER_LABEL:
+            fusion.append(compare(best([loc], ("pmix", "fmix")), best([loc], ("narrowband", "uwb"))))
+            fmix_best += [compare((loc, "fmix"), (loc, t)) for t in TECHNIQUES if t != "fmix"]
+            tracking += [compare((loc, t, "velocity"), (loc, t)) for t in TECHNIQUES]
+        winner = best(LOCALIZER_LABEL, ["fmix"], "velocity")
+        fmix_tracked += [compare((*winner, "velocity"), (loc, t, "velocity"))
+                         for loc in LOCALIZER_LABEL for t in TECHNIQUES if t != "fmix"]
+        minmax += [compare(("minmax", t), ("multilateration", t)) for t in TECHNIQUES]
+        kf, velocity = rmse("minmax", "fmix", "kalman"), rmse("minmax", "fmix", "velocity")
+        kalman += [compare(("minmax", "fmix", "kalman"), ("minmax", "fmix", "velocity")),
+                   claims_of.paired(velocity, 1.25 * kf, "<", f"{label}: Min-Max F-mix + velocity - 1.25 x KF")]
+    return [claims_of.record("Fusion beats a single source", verdicts.claim(fusion)),
+            claims_of.record("F-mix is the best fusion and technique", verdicts.claim(fmix_best)),
+            claims_of.record("Velocity tracking lowers the RMSE in every cell", verdicts.claim(tracking)),
+            claims_of.record("F-mix followed by velocity tracking gives the lowest RMSE", verdicts.claim(fmix_tracked)),
+            claims_of.record("Min-Max is more accurate than multilateration", verdicts.claim(minmax)),
+            claims_of.record("The Kalman filter is slightly more accurate than the velocity tracker (within 25%)",
+                             verdicts.claim(kalman))]
+
+
+def _cell_name(localizer: str, technique: str, stage: str = "raw") -> str:
+    suffix = {"raw": "", "velocity": " + velocity", "kalman": " + KF"}[stage]
+    return f"{LOCALIZER_LABEL[localizer]} {TECHNIQUE_LABEL[technique]}{suffix}"
+
+
+def cost_claim(counts: dict[str, dict], paper_ms: dict[str, float]) -> dict:
+    """Paper D: the KF costs about 6x the velocity tracker per step (72 ms vs 12 ms on a
+    200 MHz SA-110), decided on the machine-independent operation counts: the claim holds
+    when the KF needs more than twice the tracker's arithmetic operations per step."""
+    ratio = counts["Kalman / velocity"]["total"]
     paper = paper_ms["Kalman filter"] / paper_ms["velocity tracker"]
-    return {"claim": "The Kalman filter is several times costlier per step than the velocity tracker",
-            "holds": bool(ratio > 2.0),
-            "evidence": f"this machine: KF {cost_us['kalman']:.1f} us, velocity {cost_us['velocity']:.1f} us per step "
-                        f"(ratio {ratio:.1f}; paper {paper:.0f} on a 200 MHz SA-110)"}
+
+    def ops(c):
+        return f"{c['total']} ({c['mul']} mul, {c['add']} add, {c['div']} div, {c['sqrt']} sqrt)"
+
+    return claims_of.decided_record(
+        "The Kalman filter is several times costlier per step than the velocity tracker", ratio > 2.0,
+        f"operations per step: KF {ops(counts['Kalman filter'])}, velocity tracker {ops(counts['velocity tracker'])}: "
+        f"ratio {ratio:.1f} (> 2 claimed; the paper's ratio of times is {paper:.0f})")
+
+
+def setup_rows(estimates: dict[str, pd.DataFrame]) -> list[dict]:
+    """Set-up facts per scenario (analysis.setup_facts): the static share of the epochs."""
+    return [setup_facts.fact_row(EXPERIMENT, "static share of epochs", label,
+                                 setup_facts.static_share(_select(est, "minmax", "uwb", "raw")), "share")
+            for label, est in estimates.items()]
 
 
 FIGURE_CURVES = {   # label: (localizer, technique, stage)

@@ -256,3 +256,31 @@ def error_histograms(errors: dict[str, pd.Series], title: str, xmax: float = 1.5
     axes[0][0].set_ylabel("density")
     fig.suptitle(title, fontsize=10)
     return to_png(fig)
+
+
+def curve_with_interval(curves: dict[str, pd.DataFrame], xlabel: str, ylabel: str, title: str,
+                        references: dict[str, float] | None = None, logy: bool = False,
+                        logx: bool = False) -> bytes:
+    """One line per label through (x, value) with its 95% interval as a band (frames with
+    columns x, value, ci95_low, ci95_high), and horizontal reference lines (e.g. a paper's value)."""
+    fig, ax = plt.subplots(figsize=(6.5, 3.8), layout="constrained")
+    for label, frame in curves.items():
+        line, = ax.plot(frame["x"], frame["value"], marker="o", label=label)
+        low, high = frame["ci95_low"].to_numpy(float), frame["ci95_high"].to_numpy(float)
+        if np.isfinite(low).any():
+            ax.fill_between(frame["x"], low, high, color=line.get_color(), alpha=0.2, lw=0)
+    for (label, value), style in zip((references or {}).items(), ("--", ":", "-.", (0, (5, 1)))):
+        ax.axhline(value, color="0.3", ls=style, lw=1.2, label=label)
+    if logy:
+        ax.set_yscale("log")
+    if logx:
+        ax.set_xscale("log", base=2)
+        ticks = sorted({float(x) for frame in curves.values() for x in frame["x"]})
+        ax.set_xticks(ticks, [f"{x:g}" for x in ticks])
+        ax.minorticks_off()
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    return to_png(fig)

@@ -112,6 +112,7 @@ def build_context(config: dict, summaries: list[dict], results: pd.DataFrame, fi
         "banner": data_banner(config),
         "datasets": datasets,
         "experiments": sorted(results["experiment"].dropna().unique()),
+        "summary": [],                   # per paper, filled in once the paper sections are built (sections.summary)
         "provenance": {
             "config_hash": config_hash(config),
             "config_yaml": yaml.safe_dump(config, sort_keys=False),

@@ -9,20 +9,25 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from wsnloc.metrics.verdicts import VERDICTS, paper_value_inside
+
 
 def _cell(results: pd.DataFrame, **keys) -> dict:
     match = np.ones(len(results), dtype=bool)
     for column, value in keys.items():
         match &= results[column].to_numpy() == value      # numpy, not pandas: ~400 cells per report
     if not match.any():
-        return {"value": None, "low": None, "high": None, "runs": None, "paper": None, "delta": None}
+        return {"value": None, "low": None, "high": None, "runs": None, "paper": None, "delta": None, "inside": False}
     row = results.iloc[int(np.argmax(match))]
     paper = row["paper_value"] if pd.notna(row["paper_value"]) else None
     value = row["value"] if pd.notna(row["value"]) else None
-    delta = value - paper if value is not None and paper is not None else None
-    return {"value": value, "low": row["ci95_low"] if pd.notna(row["ci95_low"]) else None,
-            "high": row["ci95_high"] if pd.notna(row["ci95_high"]) else None,
-            "runs": int(row["runs"]) if pd.notna(row["runs"]) else None, "paper": paper, "delta": delta}
+    low = row["ci95_low"] if pd.notna(row["ci95_low"]) else None
+    high = row["ci95_high"] if pd.notna(row["ci95_high"]) else None
+    inside = paper_value_inside(paper, np.nan if low is None else low, np.nan if high is None else high)
+    # The red/green difference only where the paper's value lies outside our 95% interval.
+    delta = value - paper if value is not None and paper is not None and not inside else None
+    return {"value": value, "low": low, "high": high, "runs": int(row["runs"]) if pd.notna(row["runs"]) else None,
+            "paper": paper, "delta": delta, "inside": inside}
 
 
 def paper_table(results: pd.DataFrame, *, experiment: str, table: str, scenario: str, rows: list[str],
@@ -63,7 +68,7 @@ def paper_d_section(results: pd.DataFrame, claims: dict, figures: dict[str, str]
         tables.append(paper_table(results, experiment="D", table="Table 3", scenario=scenario,
                                   rows=["velocity tracker", "Kalman filter"], columns=techs, metric="rmse_m",
                                   title="Table 3: velocity tracking vs Kalman filter on Min-Max fixes, RMSE [m]"))
-    cost = results[(results["experiment"] == "D") & (results["table"] == "Cost")].to_dict(orient="records")
+    cost = cost_table(results)
     return {
         "id": "D", "title": paper["title"], "citation": paper["citation"],
         "published": bool(paper.get("tables_published", True)),
@@ -74,10 +79,33 @@ def paper_d_section(results: pd.DataFrame, claims: dict, figures: dict[str, str]
 
 
 
+def cost_table(results: pd.DataFrame) -> list[dict]:
+    """Paper D's Cost table: per tracker (and their ratio) the measured time per step (us),
+    the arithmetic operations per step (metrics.op_counts) and the paper's time (us)."""
+    from wsnloc.experiments.paper_d import COST_LABEL
+
+    sel = results[(results["experiment"] == "D") & (results["table"] == "Cost")]
+
+    def value(row, column, metric):
+        match = sel[(sel["row"] == row) & (sel["column"] == column) & (sel["metric"] == metric)]
+        return (match["value"].iloc[0], match["paper_value"].iloc[0]) if len(match) else (None, None)
+
+    lines = []
+    for label in (*COST_LABEL.values(), "Kalman / velocity"):
+        ratio = label == "Kalman / velocity"
+        time_metric = "ratio" if ratio else "us_per_step"
+        time, paper = value(label, "time per step", time_metric)
+        ops = value(label, "total per step", "ratio" if ratio else "ops_per_step")[0]
+        kinds = {kind: value(label, f"{kind} per step", "ops_per_step")[0] for kind in ("mul", "add", "div", "sqrt")}
+        lines.append({"label": label, "ratio": ratio, "time": time, "operations": ops, "kinds": kinds,
+                      "paper": paper})
+    return lines
+
+
 def paper_b_section(results: pd.DataFrame, claims: dict, figures: dict[str, str], paper: dict,
                     scenarios: list[str], settings: dict) -> dict:
     """Context of paper B's section: RMSE and max error per method and scenario."""
-    from wsnloc.experiments.paper_b import METHODS
+    from wsnloc.experiments.paper_b import METHODS, SNR_TABLE
 
     methods = list(METHODS.values())
     tables = []
@@ -89,6 +117,11 @@ def paper_b_section(results: pd.DataFrame, claims: dict, figures: dict[str, str]
             grid["rows"].append({"label": method, "cells": [
                 _cell(sel, row=method, scenario=sc, metric=metric) for sc in scenarios]})
         tables.append(grid)
+    snr_columns = _columns(results, "B", SNR_TABLE)
+    if snr_columns:
+        tables.append(grid_table(results, experiment="B", table=SNR_TABLE, rows=[METHODS["imu"]], columns=snr_columns,
+                                 metric="rmse_m", title=f"{SNR_TABLE}, RMSE [m] (noise added to the 5 Hz output)",
+                                 scenario=", ".join(dict.fromkeys(results[results["table"] == SNR_TABLE]["scenario"]))))
     details = [{"title": f"Detail, {sc}", "metrics": ["median_m", "p95_m"],
                 "lines": [{"label": m, "cells": [_cell(results, experiment="B", table="Detail", scenario=sc, row=m,
                                                        column=stat, metric=f"{stat}_m") for stat in ("median", "p95")]}
@@ -232,3 +265,41 @@ def static_bounds_section(results: pd.DataFrame, dataset: str, maps: str) -> dic
              "rmse": [_cell(rows, row=row, column=c) for c in monte_carlo]}
             for row in dict.fromkeys(rows["row"])]})
     return {"path": path_lines, "searches": searches, "maps": maps}
+
+
+def summary(papers: list[dict]) -> list[dict]:
+    """The report's top summary, per paper section: table cells with a paper value and how
+    many of those lie inside our 95% interval; claims per verdict."""
+    out = []
+    for p in papers:
+        cells = [cell for table in p["tables"] for row in table["rows"] for cell in row["cells"]
+                 if cell["paper"] is not None]
+        verdict_counts = {v: sum(c["verdict"] == v for c in p["claims"]) for v in VERDICTS}
+        out.append({"id": p["id"], "title": p["title"], "cells": len(cells),
+                    "inside": sum(cell["inside"] for cell in cells), "claims": len(p["claims"]),
+                    "verdicts": verdict_counts})
+    return out
+
+
+def sensitivity_table(results: pd.DataFrame, experiment: str, claims: list[dict]) -> dict:
+    """A paper's claims against its sensitivity settings (experiments.sensitivity): the verdict
+    over all runs, the baseline and every setting on the sampled runs, and whether the sampled
+    verdict is the same at every setting (robust) or flips."""
+    from wsnloc.experiments.claims import VERDICT_CODE
+    from wsnloc.experiments.sensitivity import BASELINE, TABLE
+
+    verdict_of = {code: verdict for verdict, code in VERDICT_CODE.items()}
+    sel = results[(results["experiment"] == experiment) & (results["table"] == TABLE)]
+    if sel.empty:
+        return {"settings": [], "rows": []}
+    settings = [BASELINE] + [c for c in dict.fromkeys(sel["column"]) if c != BASELINE]
+    rows = []
+    for c in claims:
+        mine = sel[sel["row"] == c["claim"]]
+        code = dict(zip(mine["column"], mine["value"]))
+        cells = [verdict_of.get(int(code[s])) if s in code and pd.notna(code[s]) else None for s in settings]
+        runs = mine["runs"].dropna()
+        rows.append({"claim": c["claim"], "all_runs": c["verdict"], "cells": cells,
+                     "robust": len(set(cells)) == 1 and cells[0] is not None,
+                     "runs": int(runs.min()) if len(runs) else None})
+    return {"settings": settings, "rows": rows}

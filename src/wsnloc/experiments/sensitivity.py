@@ -1,0 +1,110 @@
+"""Sensitivity of a paper's claim verdicts to its a-priori filter settings.
+
+Config `experiments.paper_x.sensitivity`: `sigmas` (config keys of the paper's a-priori
+noise sigmas, dotted for nested keys, e.g. "kalman.accel_sigma_mps2"), `factors` (e.g.
+[0.5, 2]) and `runs` (the first `runs` Monte Carlo runs of each scenario; 0 turns it off).
+One sigma is scaled at a time: setting "range_sigma_m x0.5" is the paper's configuration
+with range_sigma_m halved. The per-scenario jobs re-run the paper's estimators on those
+runs for every setting (the runs already loaded for the main tables); the baseline "x1"
+is the main per-run metrics of the same runs. The summary job decides every claim per
+setting (experiments.claims) and writes results rows:
+  table "Sensitivity", row = claim, column = setting, metric "verdict",
+  value = claims.VERDICT_CODE (+1 holds, 0 inconclusive, -1 does not hold), runs = runs used.
+A verdict is robust when it is the same at every setting, baseline included.
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import Callable
+
+import pandas as pd
+
+from wsnloc.errors import ConfigError
+from wsnloc.experiments import claims as claims_of
+
+BASELINE = "x1"
+TABLE = "Sensitivity"
+
+
+def setting_label(sigma: str, factor: float) -> str:
+    return f"{sigma} x{factor:g}"
+
+
+def variants(spec: dict, where: str, allowed=None) -> list[tuple[str, str, dict]]:
+    """(setting label, sigma, the paper's config with that sigma scaled) for every sigma and factor.
+
+    `where` is the paper's config key (e.g. "experiments.paper_a"), for error messages;
+    `allowed`, when given, the sigmas the caller's evaluation handles.
+    """
+    grid = spec.get("sensitivity") or {}
+    if not grid.get("runs"):
+        return []
+    out = []
+    for i, sigma in enumerate(grid.get("sigmas", [])):
+        if allowed is not None and sigma not in allowed:
+            raise ConfigError(f"config key '{where}.sensitivity.sigmas.{i}': {sigma!r} is not one of {list(allowed)}")
+        *parents, leaf = sigma.split(".")
+        node = spec
+        for key in parents:
+            node = node.get(key) if isinstance(node, dict) else None
+        value = node.get(leaf) if isinstance(node, dict) else None
+        if not isinstance(value, (int, float)) or isinstance(value, bool):
+            raise ConfigError(f"config key '{where}.sensitivity.sigmas.{i}': {sigma!r} is not a numeric key of {where}")
+        for factor in grid["factors"]:
+            scaled = copy.deepcopy(spec)
+            target = scaled
+            for key in parents:
+                target = target[key]
+            target[leaf] = value * factor
+            out.append((setting_label(sigma, factor), sigma, scaled))
+    return out
+
+
+def sample_runs(spec: dict, run_names) -> list[str]:
+    """The runs the grid is evaluated on: the first `sensitivity.runs` in run order."""
+    grid = spec.get("sensitivity") or {}
+    return sorted(run_names)[: int(grid.get("runs") or 0)]
+
+
+def grid_metrics(spec: dict, where: str, metrics: pd.DataFrame, evaluate: Callable[[dict, str, str], pd.DataFrame],
+                 allowed=None) -> pd.DataFrame:
+    """Per-run metrics of every setting on the sampled runs, with columns `setting`, `sigma`
+    (the scaled key, "" for the baseline) and `factor` (1 for the baseline).
+
+    metrics: the main per-run metrics (baseline); evaluate(variant_spec, sigma, run) -> that
+    run's metrics under the variant (the caller's estimators on the already loaded run;
+    `sigma` lets it re-run only the cells the scaled sigma acts on, see `replace_cells`).
+    """
+    grid = variants(spec, where, allowed)
+    runs = sample_runs(spec, metrics["run"].unique())
+    frames = [metrics[metrics["run"].isin(runs)].assign(setting=BASELINE, sigma="", factor=1.0)]
+    factors = [f for _ in (spec.get("sensitivity") or {}).get("sigmas", []) for f in spec["sensitivity"]["factors"]]
+    for (label, sigma, variant), factor in zip(grid, factors):
+        frames += [evaluate(variant, sigma, run).assign(run=run, setting=label, sigma=sigma, factor=float(factor))
+                   for run in runs]
+    return pd.concat(frames, ignore_index=True)
+
+
+def replace_cells(metrics: pd.DataFrame, run: str, rerun: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
+    """One run's baseline metrics with the re-run cells (matched on the `keys` columns) replaced."""
+    done = set(map(tuple, rerun[keys].to_numpy()))
+    base = metrics[metrics["run"] == run].drop(columns="run")
+    kept = base[[tuple(cell) not in done for cell in base[keys].to_numpy()]]
+    return pd.concat([kept, rerun], ignore_index=True)
+
+
+def results_rows(experiment: str, grids: dict[str, pd.DataFrame], decide: Callable[[dict], list[dict]]) -> list[dict]:
+    """Every claim's verdict at every setting: grids[scenario label] is that scenario's
+    sensitivity.csv; decide(per-run metrics by scenario label) -> claims records."""
+    if not grids or any(grid.empty for grid in grids.values()):
+        return []
+    settings = list(dict.fromkeys(s for grid in grids.values() for s in grid["setting"]))
+    rows = []
+    for setting in settings:
+        for rec in decide({label: grid[grid["setting"] == setting] for label, grid in grids.items()}):
+            rows.append({"experiment": experiment, "table": TABLE, "row": rec["claim"], "column": setting,
+                         "scenario": "all", "metric": "verdict", "value": claims_of.VERDICT_CODE[rec["verdict"]],
+                         "ci95_low": None, "ci95_high": None,
+                         "runs": min((p["runs"] for p in rec["parts"]), default=None), "paper_value": None})
+    return rows

@@ -1,0 +1,125 @@
+"""Claims decided on per-run metrics: paired and Welch intervals against scipy, run alignment,
+results rows, and papers' claims on per-run tables whose answer is known by construction."""
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import stats
+
+from wsnloc import results
+from wsnloc.experiments import claims, paper_c, paper_d
+from wsnloc.metrics import op_counts
+from wsnloc.metrics.verdicts import DOES_NOT_HOLD, HOLDS, INCONCLUSIVE
+from wsnloc.report.sections import _cell, summary
+
+RUNS = [f"run-{i:02d}" for i in range(1, 21)]
+
+
+def test_unpaired_interval_is_welchs_from_scipy():
+    rng = np.random.default_rng(1)
+    a, b = rng.normal(0.40, 0.05, 12), rng.normal(0.55, 0.15, 20)
+    result = claims.unpaired(a, b, "<", "a - b")
+    expected = stats.ttest_ind(a, b, equal_var=False).confidence_interval(0.95)
+    assert (result.ci95_low, result.ci95_high) == pytest.approx((expected.low, expected.high))
+    assert result.mean_diff == pytest.approx(a.mean() - b.mean()) and result.runs == 12
+    assert result.verdict == HOLDS and claims.unpaired(a, b, ">", "a - b").verdict == DOES_NOT_HOLD
+    assert claims.unpaired(a[:1], b, "<", "one run").verdict == INCONCLUSIVE
+
+
+def test_paired_aligns_runs_by_name_and_drops_unmatched():
+    a = pd.Series([1.0, 2.0, 3.0, 9.0], index=["run-01", "run-02", "run-03", "run-09"])
+    b = pd.Series([2.5, 1.1, 2.1], index=["run-03", "run-01", "run-02"])     # other order, run-09 missing
+    result = claims.paired(a, b, "<", "a - b")
+    assert result.runs == 3 and result.mean_diff == pytest.approx(np.mean([-0.1, -0.1, 0.5]))
+
+
+def test_results_rows_give_the_verdict_code_and_every_comparison():
+    part = claims.paired(pd.Series([1.0, 1.1, 0.9], index=RUNS[:3]), pd.Series([2.0, 2.2, 1.9], index=RUNS[:3]),
+                         "<", "x - y")
+    from wsnloc.metrics.verdicts import claim
+    rec = claims.record("x beats y", claim([part]))
+    assert rec["verdict"] == HOLDS and "x - y < 0? -1.033 m" in rec["evidence"]
+    rows = results.frame(claims.results_rows("Z", [rec, claims.decided_record("fixed", False, "counted")]))
+    verdict_rows = rows[rows["metric"] == "verdict"]
+    assert verdict_rows["value"].tolist() == [1, -1] and verdict_rows["column"].tolist() == [HOLDS, DOES_NOT_HOLD]
+    part_row = rows[rows["table"] == claims.PARTS_TABLE].iloc[0]
+    assert (part_row["value"], part_row["ci95_low"], part_row["runs"]) == (part.mean_diff, part.ci95_low, 3)
+
+
+def _paper_d_metrics(rng, minmax_offset):
+    """Per-run RMSE of every paper D cell: a per-run common level (what pairing removes) plus
+    a cell offset; Min-Max sits `minmax_offset` m from multilateration."""
+    level = rng.normal(1.0, 0.3, len(RUNS))
+    technique = {"narrowband": 0.6, "uwb": 0.3, "pmix": 0.2, "fmix": 0.1}
+    stage = {"raw": 0.0, "velocity": -0.05, "kalman": -0.08}
+    rows = []
+    for loc, loc_offset in (("minmax", minmax_offset), ("multilateration", 0.0)):
+        for t, t_offset in technique.items():
+            for s, s_offset in stage.items():
+                values = level + loc_offset + t_offset + s_offset + rng.normal(0, 0.005, len(RUNS))
+                rows += [{"localizer": loc, "technique": t, "stage": s, "rmse": v, "run": r}
+                         for v, r in zip(values, RUNS)]
+    return pd.DataFrame(rows)
+
+
+def test_paper_d_claims_follow_the_constructed_ordering():
+    rng = np.random.default_rng(7)
+    decided = {c["claim"]: c["verdict"] for c in paper_d.claims({"x/better": _paper_d_metrics(rng, -0.1)})}
+    assert decided["Fusion beats a single source"] == HOLDS
+    assert decided["F-mix is the best fusion and technique"] == HOLDS
+    assert decided["Velocity tracking lowers the RMSE in every cell"] == HOLDS
+    assert decided["F-mix followed by velocity tracking gives the lowest RMSE"] == HOLDS
+    assert decided["Min-Max is more accurate than multilateration"] == HOLDS
+    assert decided["The Kalman filter is slightly more accurate than the velocity tracker (within 25%)"] == HOLDS
+    worse = {c["claim"]: c["verdict"] for c in paper_d.claims({"x/worse": _paper_d_metrics(rng, +0.1)})}
+    assert worse["Min-Max is more accurate than multilateration"] == DOES_NOT_HOLD
+    equal = {c["claim"]: c["verdict"] for c in paper_d.claims({"x/equal": _paper_d_metrics(rng, 0.0)})}
+    assert equal["Min-Max is more accurate than multilateration"] == INCONCLUSIVE
+
+
+def test_paper_d_cost_claim_is_decided_on_operation_counts():
+    counts = op_counts.cost_table(window=6)
+    rec = paper_d.cost_claim(counts, {"velocity tracker": 12.0, "Kalman filter": 72.0})
+    ratio = op_counts.kalman_step().total / op_counts.velocity_tracker_step(6).total
+    assert rec["verdict"] == (HOLDS if ratio > 2 else DOES_NOT_HOLD) and f"ratio {ratio:.1f}" in rec["evidence"]
+    rows = results.frame(paper_d.operation_rows(counts, {"velocity tracker": 12.0, "Kalman filter": 72.0}))
+    total = rows[(rows["row"] == "Kalman filter") & (rows["column"] == "total per step")]["value"].iloc[0]
+    assert total == op_counts.kalman_step().total
+    assert rows[rows["metric"] == "ratio"]["paper_value"].iloc[0] == pytest.approx(6.0)
+
+
+def test_paper_c_speed_claim_compares_independent_scenarios():
+    rng = np.random.default_rng(3)
+    settings = paper_c.Settings(epoch_s=0.5, table_1_subset="6", table_2_subsets=["3", "6"], table_2_scenario="c/s20",
+                                range_sigma_m=0.05, max_range_m=10, p_sigma_m=0.1, pv_accel_sigma_mps2=0.1,
+                                pva_accel_sigma_mps2=0.1, pva_bias_walk_sigma=0.01, initial_sigma_m=1,
+                                initial_speed_sigma_mps=0.1, initial_bias_sigma_mps2=0.1, static_bias_s=4)
+
+    def scenario(level):
+        return pd.DataFrame([{"subset": subset, "model": m, "rmse": level + 0.05 * k + extra + rng.normal(0, 0.01),
+                              "run": r} for subset, extra in (("6", 0.0), ("3", 0.1))
+                             for k, m in enumerate(paper_c.MODELS) for r in RUNS])
+
+    metrics = {"c/s20": scenario(0.3), "c/s40": scenario(0.4), "c/s60": scenario(0.5)}
+    speeds = {"c/s20": "20 cm/s", "c/s40": "40 cm/s", "c/s60": "60 cm/s"}
+    decided = {c["claim"]: c for c in paper_c.claims(metrics, speeds, settings)}
+    assert [decided[k]["verdict"] for k in decided] == [HOLDS, HOLDS, HOLDS]
+    assert "(independent runs)" in decided["The error grows with speed (every model)"]["evidence"]
+
+
+def test_cells_show_the_difference_only_where_the_paper_lies_outside_our_interval():
+    res = results.frame([
+        results.row_over_runs([0.40, 0.42, 0.44], experiment="A", table="T", row="r", column="in", scenario="s",
+                              metric="rmse_m", paper_value=0.43),
+        results.row_over_runs([0.40, 0.42, 0.44], experiment="A", table="T", row="r", column="out", scenario="s",
+                              metric="rmse_m", paper_value=0.60),
+        results.row_over_runs([0.40, 0.42, 0.44], experiment="A", table="T", row="r", column="none", scenario="s",
+                              metric="rmse_m")])
+    inside, outside, none = (_cell(res, column=c) for c in ("in", "out", "none"))
+    assert inside["inside"] and inside["delta"] is None
+    assert not outside["inside"] and outside["delta"] == pytest.approx(0.42 - 0.60)
+    assert none["paper"] is None and none["delta"] is None and not none["inside"]
+    section = {"id": "A", "title": "t", "tables": [{"rows": [{"cells": [inside, outside, none]}]}],
+               "claims": [{"verdict": HOLDS}, {"verdict": INCONCLUSIVE}, {"verdict": INCONCLUSIVE}]}
+    assert summary([section]) == [{"id": "A", "title": "t", "cells": 2, "inside": 1, "claims": 3,
+                                   "verdicts": {HOLDS: 1, DOES_NOT_HOLD: 0, INCONCLUSIVE: 2}}]

@@ -1,0 +1,167 @@
+"""Sensitivity grid, set-up facts and "why it differs" sentences on inputs with known answers."""
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from wsnloc import results
+from wsnloc.analysis import setup_facts
+from wsnloc.errors import ConfigError
+from wsnloc.experiments import paper_b, sensitivity
+from wsnloc.metrics.verdicts import DOES_NOT_HOLD, HOLDS
+from wsnloc.report import explanations
+from wsnloc.report.sections import sensitivity_table
+
+SPEC = {"fix_sigma_m": 1.0, "kalman": {"accel_sigma_mps2": 0.5},
+        "sensitivity": {"runs": 2, "factors": [0.5, 2.0], "sigmas": ["fix_sigma_m", "kalman.accel_sigma_mps2"]}}
+
+
+def test_variants_scale_one_sigma_at_a_time_and_leave_the_config_alone():
+    grid = sensitivity.variants(SPEC, "experiments.paper_x")
+    assert [label for label, _, _ in grid] == ["fix_sigma_m x0.5", "fix_sigma_m x2", "kalman.accel_sigma_mps2 x0.5",
+                                               "kalman.accel_sigma_mps2 x2"]
+    scaled = {label: spec for label, _, spec in grid}
+    assert scaled["fix_sigma_m x2"]["fix_sigma_m"] == 2.0
+    assert scaled["fix_sigma_m x2"]["kalman"]["accel_sigma_mps2"] == 0.5
+    assert scaled["kalman.accel_sigma_mps2 x0.5"]["kalman"]["accel_sigma_mps2"] == 0.25
+    assert SPEC["fix_sigma_m"] == 1.0 and SPEC["kalman"]["accel_sigma_mps2"] == 0.5
+    assert sensitivity.variants({**SPEC, "sensitivity": {"runs": 0, "sigmas": ["fix_sigma_m"]}}, "x") == []
+
+
+def test_unknown_or_refused_sigma_names_the_config_key():
+    bad = {**SPEC, "sensitivity": {**SPEC["sensitivity"], "sigmas": ["fix_sigma_m", "kalman.nope"]}}
+    with pytest.raises(ConfigError, match=r"experiments.paper_x.sensitivity.sigmas.1"):
+        sensitivity.variants(bad, "experiments.paper_x")
+    with pytest.raises(ConfigError, match=r"sensitivity.sigmas.0.*not one of"):
+        sensitivity.variants(SPEC, "experiments.paper_x", allowed=("kalman.accel_sigma_mps2",))
+
+
+def _paper_b_metrics(runs, fusion_gain):
+    rows = []
+    for i, run in enumerate(runs):
+        level = 1.0 + 0.3 * i
+        for method, value in (("uwb", level), ("imu", level + 1.0), ("sskf", level - fusion_gain),
+                              ("kf", level - fusion_gain - 0.01 * (1 + 0.1 * i))):
+            rows.append({"method": method, "rmse": value, "run": run})
+    return pd.DataFrame(rows)
+
+
+def test_grid_reruns_only_the_sampled_runs_and_decides_each_setting():
+    runs = [f"run-{i:02d}" for i in range(1, 6)]
+    metrics = _paper_b_metrics(runs, 0.2)
+    calls = []
+
+    def evaluate(spec, sigma, run):
+        calls.append((sigma, run))
+        # a large fix sigma makes the fusion worse than UWB only in this constructed case
+        gain = 0.2 if spec["fix_sigma_m"] <= 1.0 else -0.2
+        rerun = _paper_b_metrics(runs, gain)
+        rerun = rerun[(rerun["run"] == run) & rerun["method"].isin(paper_b.SENSITIVITY_METHODS)].drop(columns="run")
+        return sensitivity.replace_cells(metrics, run, rerun, ["method"])
+
+    spec = {"fix_sigma_m": 1.0, "sensitivity": {"runs": 3, "factors": [0.5, 2.0], "sigmas": ["fix_sigma_m"]}}
+    grid = sensitivity.grid_metrics(spec, "experiments.paper_b", metrics, evaluate)
+    assert sorted(set(run for _, run in calls)) == runs[:3] and len(calls) == 6
+    assert set(grid["setting"]) == {"x1", "fix_sigma_m x0.5", "fix_sigma_m x2"}
+    assert len(grid[grid["setting"] == "fix_sigma_m x2"]) == 3 * 4     # 3 runs x 4 methods, no duplicates
+    rows = results.frame(sensitivity.results_rows("B", {"x/s": grid}, paper_b.claims))
+    fusion = rows[rows["row"] == "Fusion beats both UWB only and IMU only"].set_index("column")["value"]
+    assert fusion.to_dict() == {"x1": 1, "fix_sigma_m x0.5": 1, "fix_sigma_m x2": -1}
+    table = sensitivity_table(rows, "B", [{"claim": "Fusion beats both UWB only and IMU only", "verdict": HOLDS}])
+    assert table["settings"][0] == "x1"
+    assert table["rows"][0]["cells"] == [HOLDS, HOLDS, DOES_NOT_HOLD] and not table["rows"][0]["robust"]
+
+
+def test_static_share_and_measurements_per_epoch():
+    t = np.arange(0, 10, 0.5)
+    x = np.where(t < 2.5, 0.0, 0.3 * (t - 2.5))          # still for the first 2.5 s, then 0.3 m/s
+    cell = pd.DataFrame({"run": "run-01", "t": t, "true_x": x, "true_y": 0.0, "n_meas": np.arange(len(t)) % 3})
+    # speeds: epochs 1..5 still (first takes the second's speed), then moving
+    assert setup_facts.static_share(cell).loc["run-01"] == pytest.approx(6 / len(t))
+    assert setup_facts.measurements_per_epoch(cell).loc["run-01"] == pytest.approx(np.mean(np.arange(len(t)) % 3))
+
+
+def test_explanations_cite_the_computed_numbers_and_skip_missing_ones():
+    rows = [setup_facts.fact_row("B", "static share of epochs", "d/s", pd.Series([0.1, 0.2]), "share"),
+            results.row_over_runs([0.8, 0.9], experiment="B", table="RMSE", row=paper_b.METHODS["uwb"], column="d/s",
+                                  scenario="d/s", metric="rmse_m", paper_value=3.25)]
+    summaries = {"d/s": {"range_error_pooled": {"LOS": {"n": 60, "median": 0.05},
+                                                "NLOS": {"n": 40, "bias": 0.5, "p95": 1.1}}}}
+    numbers = explanations.Numbers(results.frame(rows), summaries)
+    text = explanations.paper_b(numbers, ["d/s"], [])
+    assert any("0.85 m against the paper's 3.25 m: 40% of our UWB ranges are NLOS" in line for line in text)
+    assert any("stands still 15% of the time" in line for line in text)
+    # no NLOS links: the ranging sentence is left out, not written with "nan"
+    no_nlos = explanations.Numbers(results.frame(rows), {"d/s": {"range_error_pooled": {"LOS": {"n": 10}}}})
+    assert all("nan" not in line and "NLOS" not in line for line in explanations.paper_b(no_nlos, ["d/s"], []))
+    assert math.isnan(numbers.value("B", "RMSE", "missing", "d/s"))
+
+
+def test_paper_c_noise_curves_follow_each_models_own_sigma():
+    from wsnloc.experiments import paper_c
+
+    settings = paper_c.Settings(epoch_s=0.5, table_1_subset="6", table_2_subsets=["6"], table_2_scenario="c/s",
+                                range_sigma_m=0.05, max_range_m=10, p_sigma_m=0.15, pv_accel_sigma_mps2=0.3,
+                                pva_accel_sigma_mps2=0.1, pva_bias_walk_sigma=0.01, initial_sigma_m=1,
+                                initial_speed_sigma_mps=0.1, initial_bias_sigma_mps2=0.1, static_bias_s=4)
+    rows = []
+    for setting, sigma, factor in (("x1", None, 1.0), ("pv_accel_sigma_mps2 x2", "pv_accel_sigma_mps2", 2.0),
+                                   ("p_sigma_m x2", "p_sigma_m", 2.0)):
+        for model in paper_c.MODELS:
+            own = sigma == paper_c.MODEL_SIGMA[model]
+            for run, noise in (("run-01", -0.01), ("run-02", 0.01)):
+                rows.append({"subset": "6", "model": model, "rmse": 0.2 * (factor if own else 1.0) + noise,
+                             "run": run, "setting": setting, "sigma": sigma, "factor": factor})
+    curves = paper_c.noise_curves(pd.DataFrame(rows), settings)     # sigma None as read back from CSV
+    assert curves["PV (pv_accel_sigma_mps2)"]["x"].tolist() == [1.0, 2.0]
+    assert curves["PV (pv_accel_sigma_mps2)"]["value"].tolist() == pytest.approx([0.2, 0.4])
+    assert curves["P (p_sigma_m)"]["value"].tolist() == pytest.approx([0.2, 0.4])
+    assert "PVA (pva_accel_sigma_mps2)" not in curves       # its sigma was not scaled: one point only
+
+
+def test_static_share_sweep_lengthens_the_rest_and_pairs_the_runs(campaign):
+    from wsnloc.analysis import static_share
+    from wsnloc.experiments import paper_a
+
+    spec = {"epoch_s": 0.5, "rows": [{"measurements": "toa", "uwb": "UWB=12"},
+                                     {"measurements": "hybrid", "uwb": "UWB=12", "zigbee": "ZigBee=21"}],
+            "uwb_preliminary_filter": True, "max_range_m": 50.0, "range_sigma_m": 0.3, "rss_calibration": "other_run",
+            "rss_model": {"p0_dbm": -50.0, "path_loss_exponent": 3.0, "sigma_db": 5.5, "d0_m": 1.0},
+            "accel_sigma_mps2": 0.3, "initial_sigma_m": 1.0, "initial_speed_sigma_mps": 0.3,
+            "motion_threshold_mps2": 0.05, "static_reference_s": 4.0}
+    sweep = static_share.gain_against_rest(campaign, "constant", [5.0, 30.0], 2, 11, spec)
+    assert list(sweep["run"]) == ["run-01", "run-02"] * 2
+    share = sweep.groupby("rest_s")["static_share"].mean()
+    constant = campaign.section("scenarios", "constant")
+    assert share[30.0] > share[5.0] + 0.15 and campaign.section("scenarios", "constant") == constant   # copy only
+    assert np.allclose(sweep["gain_m"], sweep["rmse_detection_m"] - sweep["rmse_plain_m"])
+    rows = results.frame(paper_a.static_sweep_rows(sweep, "newcom/constant"))
+    assert set(rows["column"]) == {"final rest 5 s", "final rest 30 s"} and (rows["runs"] == 2).all()
+    curve = paper_a.static_sweep_curve(sweep)
+    assert curve["x"].tolist() == pytest.approx(sorted(share.tolist()))
+
+
+def test_nlos_severity_sweep_adds_the_configured_excess_per_wall(campaign):
+    from wsnloc.analysis import nlos_severity
+    from wsnloc.analysis.simulated_runs import with_value
+    from wsnloc.metrics.ranging import range_errors
+
+    with pytest.raises(KeyError, match="radio.uwb.no_such_key"):
+        with_value(campaign, ("radio", "uwb", "no_such_key"), 1.0)
+
+    def nlos_excess(severe, tables):
+        rows = []
+        for name, t in tables.items():
+            errors = range_errors(t["ranges"], t["truth"], severe)
+            nlos = errors[errors["walls"] > 0]
+            rows.append({"run": name, "per_wall_m": float(np.median(nlos["error_m"] / nlos["walls"]))})
+        return pd.DataFrame(rows)
+
+    sweep = nlos_severity.sweep(campaign, "constant", [0.3, 2.3], 1, 5, nlos_excess)
+    by_setting = sweep.set_index("setting")["per_wall_m"]
+    low, high = (by_setting[nlos_severity.setting_label(v, 1)] for v in (0.3, 2.3))
+    # same seeds: the channel part of each NLOS range is shared, the wall part grows by 2 m per wall
+    assert high - low == pytest.approx(2.0, abs=0.05)
+    assert campaign.section("radio", "uwb")["excess_path_per_wall_m"] == 0.3
