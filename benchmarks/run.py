@@ -187,17 +187,22 @@ def script_imports(script: Path) -> str:
     return "; ".join(ast.unparse(node) for node in tree.body if isinstance(node, (ast.Import, ast.ImportFrom)))
 
 
-def bench_job_imports(tree: Path) -> dict[str, float]:
-    """Per workflow script: minimum over 3 runs of a fresh interpreter doing only its imports (s)."""
-    out = {}
-    for script in sorted((tree / "workflow" / "scripts").glob("*.py")):
-        code = script_imports(script)
-        out[script.stem] = min(python(code, tree / "src")[0] for _ in range(3))
+def bench_job_imports(trees: dict[str, Path]) -> dict[str, dict[str, float]]:
+    """Per workflow script and tree: minimum over 3 runs of a fresh interpreter doing only the
+    script's imports (s); the trees alternate, so that a change of load hits both alike."""
+    out = {label: {} for label in trees}
+    for script in sorted((ROOT / "workflow" / "scripts").glob("*.py")):
+        for _ in range(3):
+            for label, tree in trees.items():
+                path = tree / "workflow" / "scripts" / script.name
+                if path.exists():
+                    t = python(script_imports(path), tree / "src")[0]
+                    out[label][script.stem] = min(t, out[label].get(script.stem, t))
     return out
 
 
-def bench_simulator(tree: Path) -> float:
-    """Seconds per simulated run (newcom/variable, SIM_RUNS runs, timed in-process)."""
+def seconds_per_simulated_run(tree: Path) -> float:
+    """Mean seconds per simulated run of `tree`'s simulator (SIM_SCENARIO, SIM_RUNS runs, in-process)."""
     dataset, scenario = SIM_SCENARIO
     target = OUT / f"sim-{tree.name}"
     code = (
@@ -211,6 +216,15 @@ def bench_simulator(tree: Path) -> float:
         f" Path({str(target)!r}) / str(r))\n"
         f"print((time.perf_counter() - t) / {SIM_RUNS})\n")
     return float(python(code, tree / "src")[1])
+
+
+def bench_simulator(trees: dict[str, Path]) -> dict[str, float]:
+    """Seconds per simulated run per tree: best of 3 alternating measurements."""
+    times = {label: [] for label in trees}
+    for _ in range(3):
+        for label, tree in trees.items():
+            times[label].append(seconds_per_simulated_run(tree))
+    return {label: min(t) for label, t in times.items()}
 
 
 def bench_scaling(tree: Path, label: str, sizes: list[int], small: bool) -> list[tuple[int, float, float]]:
@@ -277,7 +291,45 @@ def bench_filters(repeats: int) -> list[tuple[str, float, float]]:
     for name, ours, ref in (("KF, PV model, 2-D position fixes (paper D)", ours_kf, fp_kf),
                             ("EKF, PV model, 8 ranges per update (papers A, C)", ours_ekf, fp_ekf)):
         rows.append((name, median_time(ours, repeats) / n * 1e6, median_time(ref, repeats) / n * 1e6, "<= 1"))
+    batch = batched_ekf(anchors, ranges.reshape(BATCH_RUNS, n // BATCH_RUNS, 8), F, Q)
+    rows.append((f"batched EKF, {BATCH_RUNS} runs stepped together, per run-step (same {n} updates)",
+                 median_time(batch, repeats) / n * 1e6, median_time(fp_ekf, repeats) / n * 1e6, "<= 0.2"))
     return rows
+
+
+BATCH_RUNS = 50
+
+
+def batched_ekf(anchors: np.ndarray, ranges: np.ndarray, F: np.ndarray, Q: np.ndarray):
+    """A function stepping estimators.batched's EKF over ranges (runs, steps, m) to `anchors`
+    (range sigma 0.3 m, start [5, 5, 0, 0], P0 = I, as the filterpy EKF above); it checks
+    once that run 0 ends where filterpy ends on the same ranges."""
+    from filterpy.kalman import ExtendedKalmanFilter as FpEKF
+
+    from wsnloc.estimators.batched import Measurements, predict, update
+    from wsnloc.filters.measurement_models import RangeModel
+
+    runs, steps, m = ranges.shape
+    meas = Measurements.empty(runs, steps, m)
+    meas.count[:], meas.anchors[:], meas.variance[:], meas.z[:] = m, anchors, 0.3**2, ranges
+    every = np.arange(runs)
+    epochs = [meas.at(k, every) for k in range(steps)]
+
+    def step_all():
+        x, P = np.tile([5.0, 5.0, 0.0, 0.0], (runs, 1)), np.tile(np.eye(4), (runs, 1, 1))
+        for epoch in epochs:
+            x, P = predict(x, P, F, Q)
+            x, P, _ = update(x, P, epoch)
+        return x
+
+    model = RangeModel(anchors, np.full(m, 0.3))
+    reference = FpEKF(dim_x=4, dim_z=m)
+    reference.x, reference.F, reference.Q = np.array([5.0, 5.0, 0, 0]), F, Q
+    for z in ranges[0]:
+        reference.predict()
+        reference.update(z, HJacobian=model.jacobian, Hx=model.h, R=model.R())
+    assert np.allclose(step_all()[0], reference.x, atol=1e-6), "batched EKF and filterpy disagree"
+    return step_all
 
 
 def machine() -> str:
@@ -293,8 +345,8 @@ def write(r: dict, path: Path, command: str) -> None:
     w, floor = r["workflow"], r["floor_s"]
     cur, prev = r["scaling_current"], r["scaling_previous"]
     slopes = {k: (slope(cur, c), slope(prev, c)) for k, c in (("wall", 1), ("cpu", 2))}
-    imports_now, imports_before = r["imports_current"], r["imports_previous"]
-    sim_now, sim_before = r["sim_current"], r["sim_previous"]
+    imports_now, imports_before = r["imports"]["current"], r["imports"]["previous"]
+    sim_now, sim_before = r["sim"]["current"], r["sim"]["previous"]
     lines = [
         "# wsnloc benchmarks", "",
         f"Machine: {machine()}  ", f"Command: `{command}`  ",
@@ -316,6 +368,7 @@ def write(r: dict, path: Path, command: str) -> None:
         "", "## Start-up of each job: its script's module-level imports in a fresh interpreter", "",
         "| script | current [s] | previous [s] |", "|---|---|---|",
         *[f"| {name} | {t:.2f} | {imports_before.get(name, float('nan')):.2f} |" for name, t in imports_now.items()],
+        f"| sum | {sum(imports_now.values()):.2f} | {sum(imports_before.values()):.2f} |",
         "", "## Simulator", "",
         f"Seconds per simulated run ({'/'.join(SIM_SCENARIO)}, mean of {SIM_RUNS} runs): current {sim_now:.3f}, "
         f"previous {sim_before:.3f}, ratio {sim_now / sim_before:.2f} (target <= 0.5: {_met(sim_now / sim_before <= 0.5)}).",
@@ -351,8 +404,8 @@ def main() -> int:
                                    text=True, check=True).stdout.strip(),
         "floor_s": import_floor(),
         "filters": bench_filters(args.repeats),
-        "imports_current": bench_job_imports(ROOT), "imports_previous": bench_job_imports(previous),
-        "sim_current": bench_simulator(ROOT), "sim_previous": bench_simulator(previous),
+        "imports": bench_job_imports({"current": ROOT, "previous": previous}),
+        "sim": bench_simulator({"current": ROOT, "previous": previous}),
         "workflow": bench_workflow(args.repeats, args.small),
         "scaling_current": bench_scaling(ROOT, "current", args.mc_runs, args.small),
         "scaling_previous": bench_scaling(previous, "previous", args.mc_runs, args.small),
