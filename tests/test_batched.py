@@ -1,6 +1,5 @@
 """Batched epoch-mode EKF: all runs stepped together give registry.run's estimates, run by run."""
 
-import time
 
 import numpy as np
 import pandas as pd
@@ -87,7 +86,8 @@ def test_noise_free_ranges_are_tracked():
 def test_other_estimators_fall_back_to_one_run_at_a_time():
     t, ids = bursts(20.0)
     datas = [run_data(tables_for(t, ids, walk))]
-    for name, params in (("tracker", {}), ("minmax", {}), ("ekf", {"update": "sequential"})):
+    for name, params in (("tracker", {}), ("minmax", {}), ("velocity_tracker", {}),
+                         ("ekf", {"update": "sequential"})):
         params = dict(params, anchors="all")
         _assert_same(batched.run_many(name, datas, params), [registry.run(name, datas[0], params)])
     with pytest.raises(ValueError, match="epoch-mode EKF"):
@@ -109,3 +109,19 @@ def test_padded_measurements_change_nothing():
     narrow, wide = batched.update(x, P, measurements(3)), batched.update(x, P, measurements(8))
     for a, b in zip(narrow, wide):
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("params", [{"anchors": "UWB=12"}, {"anchors": "UWB=9", "solver": "minmax", "k_smallest": 6}])
+def test_batched_kf_over_fixes_equals_registry_run(campaign, simulated_runs, params):
+    single = [registry.run("kf_tracker", data, params) for data in _datas(simulated_runs, campaign)]
+    batch = batched.run_many("kf_tracker", _datas(simulated_runs, campaign), params)
+    _assert_same(batch, single)
+    assert all(len(s) > 100 for s in single)
+
+
+def test_batched_kf_over_fixes_with_a_gap_in_one_run():
+    t, ids = bursts(40.0)
+    gap = (t > 10.0) & (t < 20.0)
+    datas = [run_data(tables_for(t[~gap], ids[~gap], walk)), run_data(tables_for(t[5:], ids[5:], walk))]
+    single = [registry.run("kf_tracker", d, {"anchors": "all"}) for d in datas]
+    _assert_same(batched.run_many("kf_tracker", datas, {"anchors": "all"}), single)

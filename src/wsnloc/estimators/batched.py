@@ -1,6 +1,7 @@
-"""The epoch-mode EKF (registry `ekf` and its presets with `update: epoch`) stepped on many
-runs at once: every array carries a leading run axis, so one predict and one update per
-epoch cost a few array operations for all Monte Carlo runs of a cell.
+"""The epoch-mode EKF (registry `ekf` and its presets with `update: epoch`) and the KF over
+fixes (`kf_tracker`) stepped on many runs at once: every array carries a leading run axis,
+so one predict and one update per epoch cost a few array operations for all Monte Carlo
+runs of a cell. `run_many` is the one entry point (registry.run over a list of runs).
 
 Same filter as `bayes.run_filter` in epoch mode (same initiator, coasting limit, motion
 detection and PVA input; estimates equal to round-off), for runs whose epoch grids and
@@ -25,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from wsnloc.estimators import bayes, registry
+from wsnloc.estimators import bayes, fixes, registry, trackers
 from wsnloc.estimators.inertial import epoch_inputs, floor_input
 from wsnloc.estimators.measurements import MeasurementSource, rss_params
 from wsnloc.estimators.run_data import RunData
@@ -85,9 +86,14 @@ def update(x: np.ndarray, P: np.ndarray, m: Measurements):
     H = np.zeros((runs, width, x.shape[1]))
     H[..., :2] = np.where(real[..., None], diff * gain[..., None], 0.0)
     y = np.where(real, m.z - h, 0.0)
-    R = m.variance[:, :, None] * np.eye(width)
-    Ht = np.swapaxes(H, 1, 2)
-    PHt = P @ Ht
+    return joseph_update(x, P, y, H, m.variance[:, :, None] * np.eye(width))
+
+
+def joseph_update(x: np.ndarray, P: np.ndarray, y: np.ndarray, H: np.ndarray, R: np.ndarray):
+    """Kalman update of every run with innovation y (runs, m), H (runs or 1, m, n), R (runs or 1, m, m):
+    S = H P H^T + R, K = P H^T S^-1, x <- x + K y, P <- (I - K H) P (I - K H)^T + K R K^T;
+    returns (x, P, NIS = y^T S^-1 y)."""
+    PHt = P @ np.swapaxes(H, -1, -2)
     S_inv = np.linalg.inv(H @ PHt + R)
     K = PHt @ S_inv
     x = x + (K @ y[..., None])[..., 0]
@@ -209,11 +215,43 @@ def run_epoch_ekf(datas: list[RunData], p: dict) -> list[pd.DataFrame]:
     return frames
 
 
+def kalman_tracks(fix_tables: list[pd.DataFrame], matrices: tuple) -> list[pd.DataFrame]:
+    """trackers.kalman_track(fixes, matrices) for every table of per-epoch fixes (t, x, y;
+    NaN without a fix), stepped together: a run starts at its first fix, predicts at every
+    later epoch of its grid and is updated with each fix (z = H x + v); output at its fixes."""
+    F, Q, H, R, P0 = matrices
+    n_runs, n_epochs = len(fix_tables), max([len(f) for f in fix_tables] + [0])
+    t, z = np.full((n_runs, n_epochs), np.nan), np.full((n_runs, n_epochs, 2), np.nan)
+    for i, f in enumerate(fix_tables):
+        t[i, :len(f)], z[i, :len(f)] = f["t"].to_numpy(float), f[["x", "y"]].to_numpy(float)
+    live, has_fix = np.arange(n_epochs)[None, :] < np.array([len(f) for f in fix_tables])[:, None], \
+        np.isfinite(z).all(axis=2)
+    x, P, started = np.zeros((n_runs, 4)), np.zeros((n_runs, 4, 4)), np.zeros(n_runs, bool)
+    out = np.full((n_runs, n_epochs, 6), np.nan)
+    for k in range(n_epochs):
+        rolling = np.flatnonzero(started & live[:, k])
+        x[rolling], P[rolling] = predict(x[rolling], P[rolling], F, Q)
+        first = has_fix[:, k] & ~started
+        x[first], P[first], started[first] = np.column_stack([z[first, k], np.zeros((first.sum(), 2))]), P0, True
+        rows = np.flatnonzero(has_fix[:, k] & ~first)
+        if len(rows):
+            x[rows], P[rows], _ = joseph_update(x[rows], P[rows], z[rows, k] - x[rows] @ H.T, H[None], R[None])
+        out[:, k] = np.column_stack([t[:, k], x[:, 0], x[:, 1], P[:, 0, 0], P[:, 0, 1], P[:, 1, 1]])
+    return [pd.DataFrame(out[i, has_fix[i]], columns=["t", "x", "y", "p_xx", "p_xy", "p_yy"]) for i in range(n_runs)]
+
+
 def run_many(name: str, datas: list[RunData], overrides: dict | None = None, where: str = "") -> list[pd.DataFrame]:
     """registry.run(name, data, overrides, where) for every run of `datas`: the epoch-mode
-    EKF estimators are stepped on all runs together, the others run one run at a time."""
+    EKF estimators and the KF over fixes (kf_tracker) are stepped on all runs together, the
+    others run one run at a time."""
     estimator = registry.get(name)
     p = estimator.resolve(overrides or {}, where)
-    if estimator.function is not bayes.run_filter or not supports(p):
+    if estimator.function is bayes.run_filter and supports(p):
+        frames = run_epoch_ekf(datas, p)
+    elif name == "kf_tracker":
+        matrices = trackers.kalman_matrices(p["epoch_s"], p["accel_sigma_mps2"], p["position_sigma_m"],
+                                            p["initial_speed_sigma_mps"])
+        frames = kalman_tracks([fixes.epoch_fixes(data, p, p["fixes"]) for data in datas], matrices)
+    else:
         return [registry.run(name, data, overrides, where) for data in datas]
-    return [registry.finish(frame) for frame in run_epoch_ekf(datas, p)]
+    return [registry.finish(frame) for frame in frames]
