@@ -334,7 +334,8 @@ def batched_ekf(anchors: np.ndarray, ranges: np.ndarray, F: np.ndarray, Q: np.nd
 
 def machine() -> str:
     cpu = platform.processor() or platform.machine()
-    return f"{platform.system()} {platform.machine()} ({cpu}), {os.cpu_count()} cores, Python {platform.python_version()}"
+    return (f"{platform.system()} {platform.machine()} ({cpu}), {os.cpu_count()} cores, "
+            f"Python {platform.python_version()}")
 
 
 def _met(ok: bool) -> str:
@@ -352,6 +353,8 @@ def write(r: dict, path: Path, command: str) -> None:
         f"Machine: {machine()}  ", f"Command: `{command}`  ",
         f"Date: {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}. Every ratio below comes from this one run; "
         f"\"previous\" is commit `{r['previous']}`, exported beside the current code and built in the same run.", "",
+        *(["**`--small`: one scenario per dataset, a test of this script, not the acceptance measurement "
+            "(run it without `--small`).**", ""] if r["small"] else []),
         "## Cold build against the import floor", "",
         f"Import floor: {floor:.2f} s, the minimum of 5 runs of `python -c \"{IMPORT_FLOOR}\"`.", "",
         "| measure | value | ratio to the import floor | target | met |", "|---|---|---|---|---|",
@@ -371,16 +374,20 @@ def write(r: dict, path: Path, command: str) -> None:
         f"| sum | {sum(imports_now.values()):.2f} | {sum(imports_before.values()):.2f} |",
         "", "## Simulator", "",
         f"Seconds per simulated run ({'/'.join(SIM_SCENARIO)}, mean of {SIM_RUNS} runs): current {sim_now:.3f}, "
-        f"previous {sim_before:.3f}, ratio {sim_now / sim_before:.2f} (target <= 0.5: {_met(sim_now / sim_before <= 0.5)}).",
+        f"previous {sim_before:.3f}, ratio {sim_now / sim_before:.2f} "
+        f"(target <= 0.5: {_met(sim_now / sim_before <= 0.5)}).",
         "", "## Monte Carlo cost per added run (cold builds at several run counts)", "",
-        "| runs | current wall [s] | current CPU [s] | previous wall [s] | previous CPU [s] |", "|---|---|---|---|---|",
+        "| runs | current wall [s] | current CPU [s] | previous wall [s] | previous CPU [s] |",
+        "|---|---|---|---|---|",
         *[f"| {a[0]} | {a[1]:.1f} | {a[2]:.1f} | {b[1]:.1f} | {b[2]:.1f} |" for a, b in zip(cur, prev)], "",
         f"Fitted slope, wall: {slopes['wall'][0]:.2f} s per run now, {slopes['wall'][1]:.2f} s before, ratio "
-        f"{slopes['wall'][0] / slopes['wall'][1]:.2f} (target <= 0.5: {_met(slopes['wall'][0] <= 0.5 * slopes['wall'][1])}); "
+        f"{slopes['wall'][0] / slopes['wall'][1]:.2f} "
+        f"(target <= 0.5: {_met(slopes['wall'][0] <= 0.5 * slopes['wall'][1])}); "
         f"CPU: {slopes['cpu'][0]:.2f} s per run now, {slopes['cpu'][1]:.2f} s before, ratio "
         f"{slopes['cpu'][0] / slopes['cpu'][1]:.2f}.",
         "", "## Estimators per step against filterpy (same inputs, same run)", "",
-        "| filter | wsnloc [us/step] | filterpy [us/step] | ratio (ours / filterpy) | target |", "|---|---|---|---|---|",
+        "| filter | wsnloc [us/step] | filterpy [us/step] | ratio (ours / filterpy) | target |",
+        "|---|---|---|---|---|",
         *[f"| {name} | {a:.2f} | {b:.1f} | {a / b:.3f} | {target} |" for name, a, b, target in r["filters"]], "",
     ]
     path.write_text("\n".join(lines) + "\n")
@@ -397,9 +404,11 @@ def main() -> int:
     args = parser.parse_args()
     if len(args.mc_runs) < 2:
         parser.error("--mc-runs needs at least two run counts to fit a slope")
+    sys.path.insert(0, str(ROOT / "src"))           # the filter benchmarks import this tree's wsnloc
     OUT.mkdir(parents=True, exist_ok=True)
     previous = export_revision(args.previous)
     results = {
+        "small": args.small,
         "previous": subprocess.run(["git", "rev-parse", "--short", args.previous], cwd=ROOT, capture_output=True,
                                    text=True, check=True).stdout.strip(),
         "floor_s": import_floor(),
