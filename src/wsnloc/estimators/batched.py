@@ -105,8 +105,8 @@ def joseph_update(x: np.ndarray, P: np.ndarray, y: np.ndarray, H: np.ndarray, R:
 
 @dataclass
 class _Run:
-    """What the epoch loop of one run reads: its grid, measurement source and records,
-    static epochs and PVA inputs (as in bayes.run_filter)."""
+    """What the epoch loop of one run reads: its grid, measurement source, static epochs and
+    PVA inputs (built as bayes.run_filter builds them)."""
 
     times: np.ndarray
     source: MeasurementSource
