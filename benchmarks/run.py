@@ -402,8 +402,8 @@ def main() -> int:
     parser.add_argument("--small", action="store_true", help="one scenario per dataset: a quick test of this script")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "RESULTS.md")
     args = parser.parse_args()
-    if len(args.mc_runs) < 2:
-        parser.error("--mc-runs needs at least two run counts to fit a slope")
+    if len(args.mc_runs) < 2 or min(args.mc_runs) < 2:
+        parser.error("--mc-runs needs at least two run counts, each >= 2 (RSS calibration uses another run)")
     sys.path.insert(0, str(ROOT / "src"))           # the filter benchmarks import this tree's wsnloc
     OUT.mkdir(parents=True, exist_ok=True)
     previous = export_revision(args.previous)

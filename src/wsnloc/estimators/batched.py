@@ -155,15 +155,31 @@ def supports(p: dict) -> bool:
     return p.get("filter") == "ekf" and p.get("update") == "epoch"
 
 
-def run_epoch_ekf(datas: list[RunData], p: dict) -> list[pd.DataFrame]:
-    """bayes.run_filter(data, p) for every run of `datas` (resolved parameters with
-    filter ekf, update epoch), stepped together; one frame (bayes.COLUMNS, attrs['resets'])
-    per run, in order."""
-    if not supports(p):
+def _shared(p: dict) -> tuple:
+    """What cells stepped together must share: motion model, period, coasting limit, window."""
+    return bayes.motion_model(p), p["epoch_s"], p["max_coast_s"], p["init_window_s"] or p["epoch_s"]
+
+
+def run_epoch_ekf(cells: list[tuple[RunData, dict]]) -> list[pd.DataFrame]:
+    """bayes.run_filter(data, p) for every (run, resolved parameters) cell with filter ekf and
+    update epoch; the cells that share _shared(p) are stepped together (different runs, or
+    one run's measurement kinds, anchor subsets, RSS models and motion detection). One frame
+    (bayes.COLUMNS, attrs['resets']) per cell, in order."""
+    if not all(supports(p) for _, p in cells):
         raise ValueError("run_epoch_ekf steps the epoch-mode EKF only (filter: ekf, update: epoch)")
-    motion, period = bayes.motion_model(p), p["epoch_s"]
-    window = p["init_window_s"] or period
-    runs = [_Run.of(data, p, motion) for data in datas]
+    groups: dict[tuple, list[int]] = {}
+    for i, (_, p) in enumerate(cells):
+        groups.setdefault(_shared(p), []).append(i)
+    frames: list[pd.DataFrame] = [pd.DataFrame()] * len(cells)
+    for shared, members in groups.items():
+        for i, frame in zip(members, _step_together([cells[i] for i in members], *shared)):
+            frames[i] = frame
+    return frames
+
+
+def _step_together(cells: list[tuple[RunData, dict]], motion, period: float, max_coast_s: float,
+                   window: float) -> list[pd.DataFrame]:
+    runs = [_Run.of(data, p, motion) for data, p in cells]
     meas = pack(runs, period)
     F, Q, B = motion.matrices(period)
     n_runs, n_epochs = meas.count.shape
@@ -200,7 +216,7 @@ def run_epoch_ekf(datas: list[RunData], p: dict) -> list[pd.DataFrame]:
             rows = np.flatnonzero(measured)
             x[rows], P[rows], nis[rows] = update(x[rows], P[rows], meas.at(k, rows))
             last_update[rows] = t[rows]
-        lost = tracking & ~measured & (t - last_update > p["max_coast_s"])
+        lost = tracking & ~measured & (t - last_update > max_coast_s)
         started[lost] = False
         resets[lost] += 1
         kept = tracking & ~lost
@@ -247,7 +263,7 @@ def run_many(name: str, datas: list[RunData], overrides: dict | None = None, whe
     estimator = registry.get(name)
     p = estimator.resolve(overrides or {}, where)
     if estimator.function is bayes.run_filter and supports(p):
-        frames = run_epoch_ekf(datas, p)
+        frames = run_epoch_ekf([(data, p) for data in datas])
     elif name == "kf_tracker":
         matrices = trackers.kalman_matrices(p["epoch_s"], p["accel_sigma_mps2"], p["position_sigma_m"],
                                             p["initial_speed_sigma_mps"])
@@ -255,3 +271,13 @@ def run_many(name: str, datas: list[RunData], overrides: dict | None = None, whe
     else:
         return [registry.run(name, data, overrides, where) for data in datas]
     return [registry.finish(frame) for frame in frames]
+
+
+def run_rows(name: str, data: RunData, rows: list[dict], where: str = "") -> list[pd.DataFrame]:
+    """[registry.run(name, data, row, where) for row in rows] (one run, several parameter
+    sets, e.g. the rows of a paper's table): the epoch-mode EKF rows are stepped together."""
+    estimator = registry.get(name)
+    params = [estimator.resolve(row, where) for row in rows]
+    if estimator.function is not bayes.run_filter or not all(supports(p) for p in params):
+        return [registry.run(name, data, row, where) for row in rows]
+    return [registry.finish(frame) for frame in run_epoch_ekf([(data, p) for p in params])]

@@ -20,7 +20,7 @@ import pandas as pd
 from wsnloc import results
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
-from wsnloc.estimators import registry
+from wsnloc.estimators import batched
 from wsnloc.estimators.run_data import RunData
 from wsnloc.metrics.tracking import cell_metrics, score
 
@@ -72,8 +72,10 @@ def estimator_params(settings: Settings, model: str, subset: str) -> dict:
 
 def run(data: RunData, settings: Settings, subsets: list[str]) -> pd.DataFrame:
     """Estimates of the three models for each beacon subset, scored against truth."""
-    frames = [registry.run("ekf", data, estimator_params(settings, model, subset), where="experiments.paper_c")
-              .assign(model=model, subset=subset) for subset in subsets for model in MODELS]
+    cells = [(model, subset) for subset in subsets for model in MODELS]
+    tracks = batched.run_rows("ekf", data, [estimator_params(settings, model, subset) for model, subset in cells],
+                              where="experiments.paper_c")
+    frames = [track.assign(model=model, subset=subset) for track, (model, subset) in zip(tracks, cells)]
     return score(pd.concat(frames, ignore_index=True), data.table("truth"))
 
 
