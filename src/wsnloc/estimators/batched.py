@@ -118,8 +118,10 @@ class _Run:
         source = MeasurementSource(data, p["measurements"], p["anchors"], p["range_sigma_m"], p["preliminary_filter"],
                                    p["max_range_m"], rss_params(data, p) if p["measurements"] != "toa" else None)
         times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
-        static = (static_epochs(data.require("imu", "motion detection"), times, p["epoch_s"],
-                                p["motion_threshold_mps2"], p["static_start_s"])
+        static = (data.cached(("static_epochs", p["epoch_s"], p["motion_threshold_mps2"], p["static_start_s"],
+                               len(times)),       # one run's rows with motion detection share it
+                              lambda: static_epochs(data.require("imu", "motion detection"), times, p["epoch_s"],
+                                                    p["motion_threshold_mps2"], p["static_start_s"]))
                   if p["motion_detection"] else np.zeros(len(times), dtype=bool))
         inputs = epoch_inputs(floor_input(data, p["static_start_s"]), times) if motion.kind == "pva" else None
         return cls(times, source, static, inputs)
@@ -132,21 +134,27 @@ def pack(runs: list[_Run], period: float) -> Measurements:
     width = max([len(e.ranges) + len(e.rss) for es in epochs for e in es] + [1])
     out = Measurements.empty(len(runs), max([len(r.times) for r in runs] + [0]), width)
     for i, (run, run_epochs) in enumerate(zip(runs, epochs)):
-        data, sigma, rss = run.source.data, run.source.range_sigma_m, run.source.rss_params
-        for k, e in enumerate(run_epochs):
-            a, b = len(e.ranges), len(e.ranges) + len(e.rss)
-            out.count[i, k] = b
-            if a:
-                out.anchors[i, k, :a] = data.positions(e.range_ids)
-                out.dz[i, k, :a] = data.height_offsets(e.range_ids) if data.three_d else 0.0
-                out.variance[i, k, :a] = sigma**2
-                out.z[i, k, :a] = e.ranges
-            if b > a:
-                out.kind[i, k, a:b] = RSS
-                out.anchors[i, k, a:b] = data.positions(e.rss_ids)
-                out.p0[i, k, a:b], out.exponent[i, k, a:b] = rss.p0_dbm, rss.path_loss_exponent
-                out.d0[i, k, a:b], out.variance[i, k, a:b] = rss.d0_m, rss.sigma_db**2
-                out.z[i, k, a:b] = e.rss
+        if not run_epochs:
+            continue
+        data, rss = run.source.data, run.source.rss_params
+        n_ranges = np.array([len(e.ranges) for e in run_epochs])
+        counts = n_ranges + np.array([len(e.rss) for e in run_epochs])
+        ids = np.concatenate([np.concatenate([e.range_ids, e.rss_ids]) for e in run_epochs])
+        values = np.concatenate([np.concatenate([e.ranges, e.rss]) for e in run_epochs])
+        epoch = np.repeat(np.arange(len(counts)), counts)
+        slot = np.arange(len(ids)) - np.repeat(np.cumsum(counts) - counts, counts)   # index within the epoch
+        is_rss = slot >= n_ranges[epoch]
+        out.count[i, :len(counts)] = counts
+        out.kind[i, epoch, slot] = np.where(is_rss, RSS, RANGE)
+        out.anchors[i, epoch, slot] = data.positions(ids)
+        out.z[i, epoch, slot] = values
+        out.variance[i, epoch, slot] = run.source.range_sigma_m**2
+        if data.three_d:
+            out.dz[i, epoch[~is_rss], slot[~is_rss]] = data.height_offsets(ids[~is_rss])
+        if is_rss.any():
+            at = (i, epoch[is_rss], slot[is_rss])
+            out.p0[at], out.exponent[at], out.d0[at] = rss.p0_dbm, rss.path_loss_exponent, rss.d0_m
+            out.variance[at] = rss.sigma_db**2
     return out
 
 
