@@ -1,7 +1,8 @@
 """The epoch-mode EKF (registry `ekf` and its presets with `update: epoch`) and the KF over
 fixes (`kf_tracker`) stepped on many runs at once: every array carries a leading run axis,
 so one predict and one update per epoch cost a few array operations for all Monte Carlo
-runs of a cell. `run_many` is the one entry point (registry.run over a list of runs).
+runs of a cell. Entry points: `run_many` (registry.run over the runs of a cell) and
+`run_rows` (registry.run over several parameter sets on one run, e.g. a paper's rows).
 
 Same filter as `bayes.run_filter` in epoch mode (same initiator, coasting limit, motion
 detection and PVA input; estimates equal to round-off), for runs whose epoch grids and
