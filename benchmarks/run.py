@@ -382,7 +382,7 @@ def write(r: dict, path: Path, command: str) -> None:
         *[f"| {a[0]} | {a[1]:.1f} | {a[2]:.1f} | {b[1]:.1f} | {b[2]:.1f} |" for a, b in zip(cur, prev)], "",
         f"Fitted slope, wall: {slopes['wall'][0]:.2f} s per run now, {slopes['wall'][1]:.2f} s before, ratio "
         f"{slopes['wall'][0] / slopes['wall'][1]:.2f} "
-        f"(target <= 0.5: {_met(slopes['wall'][0] <= 0.5 * slopes['wall'][1])}); "
+        f"(target <= 0.5: {_met(0 < slopes['wall'][0] <= 0.5 * slopes['wall'][1])}); "
         f"CPU: {slopes['cpu'][0]:.2f} s per run now, {slopes['cpu'][1]:.2f} s before, ratio "
         f"{slopes['cpu'][0] / slopes['cpu'][1]:.2f}.",
         "", "## Estimators per step against filterpy (same inputs, same run)", "",

@@ -93,14 +93,14 @@ def _zigbee_lines(campaign: Campaign, traj, rng, clock_ms: int) -> list[str]:
         + shadow + rng.normal(0.0, spec["fast_fading_sigma_db"], dist.shape)
     rssi = np.round(power).astype(int)
     heard = (rssi >= spec["sensitivity_dbm"]) & (rng.random(dist.shape) >= spec["reply_loss"])
-    ids = anchors["anchor_id"].tolist()
+    k, j = np.nonzero(heard)                                  # row-major: per broadcast, anchor order
+    pairs = list(map("%s:%d".__mod__, zip(anchors["anchor_id"].to_numpy(object)[j].tolist(), rssi[k, j].tolist())))
+    counts = heard.sum(axis=1)
+    ends = np.cumsum(counts)
     lines = ["# newcom-zigbee v1", "# t_ms seq n anchor:rssi_dbm ..."]
-    for k, t in enumerate(times_ms):
-        cols = np.flatnonzero(heard[k])
-        if len(cols) == 0:
-            continue          # nothing reached the gateway: a gap in seq
-        pairs = " ".join(f"{ids[j]}:{rssi[k, j]}" for j in cols)
-        lines.append(f"{int(t) + clock_ms} {(k + 1) % 256} {len(cols)} {pairs}")
+    for b in np.flatnonzero(counts).tolist():                 # none heard: a gap in seq
+        lines.append(f"{int(times_ms[b]) + clock_ms} {(b + 1) % 256} {counts[b]} "
+                     + " ".join(pairs[ends[b] - counts[b]:ends[b]]))
     return lines
 
 
