@@ -1,16 +1,27 @@
-"""Performance measurements of wsnloc on this machine; writes benchmarks/RESULTS.md.
+"""Performance measurements of wsnloc on this machine, as ratios measured in one run; writes
+benchmarks/RESULTS.md.
 
-    python benchmarks/run.py [--repeats 3] [--scaling 20 100 500]
+    python benchmarks/run.py --previous REV [--repeats 3] [--mc-runs 5 10 20] [--small]
 
-Every figure is the median of repeated runs. Workflow timings run in scratch copies of
-the workflow under benchmarks/out/ (git-ignored), never in the working tree.
+REV is the commit to compare against (e.g. the last commit before a performance change). It is
+exported with `git archive` into benchmarks/out/previous/ (no worktree, no checkout) and its
+workflow runs there with its own PYTHONPATH, beside the current code, in the same run.
+Absolute times differ 2x and more between machines, so the acceptance figures are ratios:
+- import floor: minimum over 5 runs of `python -c "import numpy, pandas, ..."` (IMPORT_FLOOR);
+- cold build (wall, and CPU = user + system of snakemake and every job it started) / floor;
+- Monte Carlo cost per added run: slope of a least-squares line through cold-build times at
+  several run counts, current / previous;
+- estimators per step against filterpy on identical inputs.
+`--small` uses one scenario per dataset (a test of this script, not a benchmark). All builds
+run in scratch copies under benchmarks/out/ (git-ignored), never in the working tree.
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
 import datetime
-import io
+import os
 import platform
 import re
 import resource
@@ -22,11 +33,13 @@ import time
 from pathlib import Path
 
 import numpy as np
-import pyarrow.csv as pacsv
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "benchmarks" / "out"
+IMPORT_FLOOR = "import numpy, pandas, pyarrow.parquet, scipy.signal, matplotlib.pyplot"
+SIM_SCENARIO = ("newcom", "variable")
+SIM_RUNS = 5
 
 
 def median_time(fn, repeats: int) -> float:
@@ -38,35 +51,87 @@ def median_time(fn, repeats: int) -> float:
     return statistics.median(times)
 
 
-def workflow_copy(name: str, edit=None) -> Path:
-    target = OUT / name
-    if target.exists():
-        shutil.rmtree(target)
-    target.mkdir(parents=True)
-    shutil.copy(ROOT / "Snakefile", target)
-    shutil.copytree(ROOT / "workflow", target / "workflow")
-    shutil.copytree(ROOT / "config", target / "config")
-    if edit:
-        path = target / "config" / "config.yaml"
-        config = yaml.safe_load(path.read_text())
-        edit(config)
-        path.write_text(yaml.safe_dump(config))
-    return target
-
-
 def children_cpu_s() -> float:
+    """User + system CPU seconds of every finished descendant (jobs count through snakemake)."""
     usage = resource.getrusage(resource.RUSAGE_CHILDREN)
     return usage.ru_utime + usage.ru_stime
 
 
-def snakemake(cwd: Path, *args) -> tuple[float, str]:
+def python(code: str, src: Path) -> tuple[float, str]:
+    """Wall seconds and stdout of `python -c code` with `src` on PYTHONPATH."""
     start = time.perf_counter()
-    result = subprocess.run([sys.executable, "-m", "snakemake", "--cores", "2", *args], cwd=cwd,
+    result = subprocess.run([sys.executable, "-c", code], env={**os.environ, "PYTHONPATH": str(src)},
                             capture_output=True, text=True)
     elapsed = time.perf_counter() - start
     if result.returncode != 0:
-        raise RuntimeError(f"snakemake failed in {cwd}:\n{result.stderr[-2000:]}")
-    return elapsed, result.stdout + result.stderr
+        raise RuntimeError(f"python -c {code!r} failed:\n{result.stderr[-2000:]}")
+    return elapsed, result.stdout
+
+
+def import_floor() -> float:
+    return min(python(IMPORT_FLOOR, ROOT / "src")[0] for _ in range(5))
+
+
+def export_revision(rev: str) -> Path:
+    """The tree of commit `rev` in benchmarks/out/previous (git archive: no checkout, no worktree)."""
+    target = OUT / "previous"
+    if target.exists():
+        shutil.rmtree(target)
+    target.mkdir(parents=True)
+    archive = subprocess.run(["git", "archive", "--format=tar", rev], cwd=ROOT, capture_output=True, check=True)
+    subprocess.run(["tar", "-x", "-C", str(target)], input=archive.stdout, check=True)
+    return target
+
+
+def small_config(config: dict) -> None:
+    """One scenario per dataset (the shape of tests/conftest.py::small_workflow)."""
+    config["datasets"]["newcom"]["scenarios"] = ["constant"]
+    config["datasets"]["cricket"]["scenarios"] = ["speed_40"]
+    experiments = config["experiments"]
+    for name in ("paper_a", "paper_b", "paper_d"):
+        experiments[name]["scenarios"] = ["newcom/constant"]
+    experiments["paper_b"]["simulation_scenarios"] = []
+    experiments["paper_d"]["cost_iterations"] = 500
+    experiments["paper_c"]["scenarios"] = ["cricket/speed_40"]
+    experiments["paper_c"]["table_2_scenario"] = "cricket/speed_40"
+    for study in config.get("studies", {}).values():
+        study["scenarios"] = ["newcom/constant", "cricket/speed_40"]
+
+
+def workflow_copy(tree: Path, name: str, runs: int | None, small: bool) -> Path:
+    """A scratch copy of `tree`'s workflow and config, with `runs` and --small applied."""
+    target = OUT / name
+    if target.exists():
+        shutil.rmtree(target)
+    target.mkdir(parents=True)
+    shutil.copy(tree / "Snakefile", target)
+    shutil.copytree(tree / "workflow", target / "workflow")
+    shutil.copytree(tree / "config", target / "config")
+    path = target / "config" / "config.yaml"
+    config = yaml.safe_load(path.read_text())
+    if runs is not None:
+        config["runs"] = runs
+    if small:
+        small_config(config)
+    path.write_text(yaml.safe_dump(config))
+    return target
+
+
+def snakemake(cwd: Path, src: Path) -> dict:
+    """One `snakemake --cores 2` in `cwd` with `src` on PYTHONPATH: wall, CPU and log."""
+    cpu_before = children_cpu_s()
+    start = time.perf_counter()
+    result = subprocess.run([sys.executable, "-m", "snakemake", "--cores", "2"], cwd=cwd,
+                            env={**os.environ, "PYTHONPATH": str(src)}, capture_output=True, text=True)
+    wall = time.perf_counter() - start
+    if result.returncode != 0:
+        raise RuntimeError(f"snakemake failed in {cwd}:\n{result.stderr[-3000:]}")
+    log = result.stdout + result.stderr
+    return {"wall": wall, "cpu": children_cpu_s() - cpu_before, "log": log, "jobs": jobs_run(log)}
+
+
+def jobs_run(log: str) -> list[str]:
+    return re.findall(r"^(?:local)?rule (\w+):", log, flags=re.M)
 
 
 def seconds_per_rule(log: str) -> dict[str, tuple[int, float]]:
@@ -87,29 +152,94 @@ def seconds_per_rule(log: str) -> dict[str, tuple[int, float]]:
     return dict(sorted(total.items(), key=lambda kv: -kv[1][1]))
 
 
-def jobs_run(log: str) -> list[str]:
-    return re.findall(r"^(?:local)?rule (\w+):", log, flags=re.M)
+def last_job_alone_s(log: str) -> float:
+    """Seconds at the end of the build during which at most one job ran (one core idle)."""
+    stamp, events = None, []
+    for line in log.splitlines():
+        if m := re.match(r"\[(\w{3} \w{3} +\d+ [\d:]+ \d{4})\]", line):
+            stamp = datetime.datetime.strptime(m.group(1), "%a %b %d %H:%M:%S %Y")
+        elif re.match(r"\s+jobid: \d+", line):
+            events.append((stamp, +1))
+        elif re.match(r"Finished jobid: \d+", line):
+            events.append((stamp, -1))
+    running, alone_since = 0, None
+    for when, delta in events:
+        running += delta
+        alone_since = (alone_since or when) if running <= 1 else None
+    return (events[-1][0] - alone_since).total_seconds() if events and alone_since else 0.0
 
 
-def bench_workflow(repeats: int) -> dict:
-    colds, cpus, noops = [], [], []
+def bench_workflow(repeats: int, small: bool) -> dict:
+    builds, noops = [], []
     for k in range(repeats):
-        work = workflow_copy(f"cold-{k}")
-        cpu_before = children_cpu_s()
-        elapsed, log = snakemake(work)
-        colds.append(elapsed)
-        cpus.append(children_cpu_s() - cpu_before)
-        jobs = jobs_run(log)
-        if k == 0:
-            per_rule = seconds_per_rule(log)
-        noops.append(statistics.median(snakemake(work)[0] for _ in range(3)))
-    config = work / "config" / "config.yaml"
-    text = config.read_text()
-    config.write_text(text.replace("tracker: {window: 6,", "tracker: {window: 5,"))
-    edit_time, log = snakemake(work)
-    return {"cold_s": statistics.median(colds), "cold_all": colds, "jobs": len(jobs),
-            "cold_cpu_s": statistics.median(cpus), "per_rule": per_rule,
-            "noop_s": statistics.median(noops), "edit_s": edit_time, "edit_jobs": jobs_run(log)}
+        work = workflow_copy(ROOT, f"cold-{k}", None, small)
+        builds.append(snakemake(work, ROOT / "src"))
+        noops.append(min(snakemake(work, ROOT / "src")["wall"] for _ in range(3)))
+    median = sorted(builds, key=lambda b: b["wall"])[len(builds) // 2]
+    return {"cold_s": median["wall"], "cold_all": [b["wall"] for b in builds], "cpu_s": median["cpu"],
+            "jobs": len(median["jobs"]), "per_rule": seconds_per_rule(median["log"]),
+            "alone_s": last_job_alone_s(median["log"]), "noop_s": statistics.median(noops)}
+
+
+def script_imports(script: Path) -> str:
+    """The module-level import statements of a workflow script, as one line of code."""
+    tree = ast.parse(script.read_text())
+    return "; ".join(ast.unparse(node) for node in tree.body if isinstance(node, (ast.Import, ast.ImportFrom)))
+
+
+def bench_job_imports(trees: dict[str, Path]) -> dict[str, dict[str, float]]:
+    """Per workflow script and tree: minimum over 3 runs of a fresh interpreter doing only the
+    script's imports (s); the trees alternate, so that a change of load hits both alike."""
+    out = {label: {} for label in trees}
+    for script in sorted((ROOT / "workflow" / "scripts").glob("*.py")):
+        for _ in range(3):
+            for label, tree in trees.items():
+                path = tree / "workflow" / "scripts" / script.name
+                if path.exists():
+                    t = python(script_imports(path), tree / "src")[0]
+                    out[label][script.stem] = min(t, out[label].get(script.stem, t))
+    return out
+
+
+def seconds_per_simulated_run(tree: Path) -> float:
+    """Mean seconds per simulated run of `tree`'s simulator (SIM_SCENARIO, SIM_RUNS runs, in-process)."""
+    dataset, scenario = SIM_SCENARIO
+    target = OUT / f"sim-{tree.name}"
+    code = (
+        "import time; from pathlib import Path\n"
+        "from wsnloc.campaign import Campaign\nfrom wsnloc.sim import SIMULATORS\n"
+        "from wsnloc.sim.seeding import run_seed_sequence\n"
+        f"c = Campaign.load({str(tree / 'config' / 'campaigns' / (dataset + '.yaml'))!r})\n"
+        "t = time.perf_counter()\n"
+        f"for r in range({SIM_RUNS}):\n"
+        f"    SIMULATORS[c.format](c, {scenario!r}, run_seed_sequence(1, {dataset!r}, {scenario!r}, r),"
+        f" Path({str(target)!r}) / str(r))\n"
+        f"print((time.perf_counter() - t) / {SIM_RUNS})\n")
+    return float(python(code, tree / "src")[1])
+
+
+def bench_simulator(trees: dict[str, Path]) -> dict[str, float]:
+    """Seconds per simulated run per tree: best of 3 alternating measurements."""
+    times = {label: [] for label in trees}
+    for _ in range(3):
+        for label, tree in trees.items():
+            times[label].append(seconds_per_simulated_run(tree))
+    return {label: min(t) for label, t in times.items()}
+
+
+def bench_scaling(tree: Path, label: str, sizes: list[int], small: bool) -> list[tuple[int, float, float]]:
+    """(runs, wall s, CPU s) of cold builds of `tree`'s workflow at several run counts."""
+    out = []
+    for runs in sizes:
+        work = workflow_copy(tree, f"scaling-{label}-{runs}", runs, small)
+        build = snakemake(work, tree / "src")
+        out.append((runs, build["wall"], build["cpu"]))
+        shutil.rmtree(work)
+    return out
+
+
+def slope(points: list[tuple[int, float, float]], column: int) -> float:
+    return float(np.polyfit([p[0] for p in points], [p[column] for p in points], 1)[0])
 
 
 def bench_filters(repeats: int) -> list[tuple[str, float, float]]:
@@ -160,9 +290,10 @@ def bench_filters(repeats: int) -> list[tuple[str, float, float]]:
     rows = []
     for name, ours, ref in (("KF, PV model, 2-D position fixes (paper D)", ours_kf, fp_kf),
                             ("EKF, PV model, 8 ranges per update (papers A, C)", ours_ekf, fp_ekf)):
-        a = median_time(ours, repeats) / n * 1e6
-        b = median_time(ref, repeats) / n * 1e6
-        rows.append((name, a, b))
+        rows.append((name, median_time(ours, repeats) / n * 1e6, median_time(ref, repeats) / n * 1e6, "<= 1"))
+    batch = batched_ekf(anchors, ranges.reshape(BATCH_RUNS, n // BATCH_RUNS, 8), F, Q)
+    rows.append((f"batched EKF, {BATCH_RUNS} runs stepped together, per run-step (same {n} updates)",
+                 median_time(batch, repeats) / n * 1e6, median_time(fp_ekf, repeats) / n * 1e6, "<= 0.2"))
     return rows
 
 
@@ -208,128 +339,139 @@ def bench_estimators(repeats: int, scenarios=("constant", "variable")) -> list[d
     return rows
 
 
-def bench_ingest(repeats: int) -> dict:
-    """Our imu.log parser (with per-line quarantine) against pyarrow.csv.read_csv on the same bytes."""
-    from wsnloc.campaign import Campaign
-    from wsnloc.io.newcom import parse_imu
-    from wsnloc.io.rawlines import Quarantine, read_raw
-    from wsnloc.signal.resample import resample_imu
-    from wsnloc.sim.newcom import simulate_run
-    from wsnloc.sim.seeding import run_seed_sequence
-
-    campaign = Campaign.load(ROOT / "config" / "campaigns" / "newcom.yaml")
-    run = simulate_run(campaign, "variable", run_seed_sequence(1, "bench", "variable", 1), OUT / "ingest-run")
-    path = run / "imu.log"
-    data = path.read_bytes()
-    megabytes = len(data) / 1e6
-
-    def ours():
-        quarantine = Quarantine()
-        return parse_imu(read_raw(path, quarantine), campaign, quarantine)
-
-    def arrow():
-        return pacsv.read_csv(io.BytesIO(data), read_options=pacsv.ReadOptions(skip_rows=3, autogenerate_column_names=True),
-                              parse_options=pacsv.ParseOptions(delimiter=" "))
-
-    t_ours, t_arrow = median_time(ours, repeats), median_time(arrow, repeats)
-    imu = ours()
-    t_resample = median_time(lambda: resample_imu(imu, 5.0, 500.0, 0.1, 8.0), repeats)
-    return {"mb": megabytes, "ours_mbps": megabytes / t_ours, "arrow_mbps": megabytes / t_arrow,
-            "samples": len(imu), "resample_sps": len(imu) / t_resample}
+BATCH_RUNS = 50
 
 
-def bench_scaling(sizes: list[int]) -> list[tuple[int, float, int]]:
-    """Wall time of a cold build of newcom/constant with paper D, for several run counts."""
-    def edit_for(runs):
-        def edit(config):
-            config["runs"] = runs
-            config["datasets"] = {"newcom": dict(config["datasets"]["newcom"], scenarios=["constant"])}
-            experiments = config["experiments"]
-            experiments["paper_d"]["scenarios"] = ["newcom/constant"]
-            for name in ("paper_a", "paper_b", "paper_c", "generic_ekf"):
-                experiments.pop(name, None)
-        return edit
+def batched_ekf(anchors: np.ndarray, ranges: np.ndarray, F: np.ndarray, Q: np.ndarray):
+    """A function stepping estimators.batched's EKF over ranges (runs, steps, m) to `anchors`
+    (range sigma 0.3 m, start [5, 5, 0, 0], P0 = I, as the filterpy EKF above); it checks
+    once that run 0 ends where filterpy ends on the same ranges."""
+    from filterpy.kalman import ExtendedKalmanFilter as FpEKF
 
-    out = []
-    for runs in sizes:
-        work = workflow_copy(f"scaling-{runs}", edit_for(runs))
-        elapsed, log = snakemake(work)
-        out.append((runs, elapsed, len(jobs_run(log))))
-        shutil.rmtree(work / "data")
-    return out
+    from wsnloc.estimators.batched import Measurements, predict, update
+    from wsnloc.filters.measurement_models import RangeModel
+
+    runs, steps, m = ranges.shape
+    meas = Measurements.empty(runs, steps, m)
+    meas.count[:], meas.anchors[:], meas.variance[:], meas.z[:] = m, anchors, 0.3**2, ranges
+    every = np.arange(runs)
+    epochs = [meas.at(k, every) for k in range(steps)]
+
+    def step_all():
+        x, P = np.tile([5.0, 5.0, 0.0, 0.0], (runs, 1)), np.tile(np.eye(4), (runs, 1, 1))
+        for epoch in epochs:
+            x, P = predict(x, P, F, Q)
+            x, P, _ = update(x, P, epoch)
+        return x
+
+    model = RangeModel(anchors, np.full(m, 0.3))
+    reference = FpEKF(dim_x=4, dim_z=m)
+    reference.x, reference.F, reference.Q = np.array([5.0, 5.0, 0, 0]), F, Q
+    for z in ranges[0]:
+        reference.predict()
+        reference.update(z, HJacobian=model.jacobian, Hx=model.h, R=model.R())
+    assert np.allclose(step_all()[0], reference.x, atol=1e-6), "batched EKF and filterpy disagree"
+    return step_all
 
 
 def machine() -> str:
-    import os
-
     cpu = platform.processor() or platform.machine()
-    return f"{platform.system()} {platform.machine()} ({cpu}), {os.cpu_count()} cores, Python {platform.python_version()}"
-
-
-EDIT_AFFECTED = {"paper_d", "paper_d_summary", "report", "all"}   # what the tracker window feeds
+    return (f"{platform.system()} {platform.machine()} ({cpu}), {os.cpu_count()} cores, "
+            f"Python {platform.python_version()}")
 
 
 def _met(ok: bool) -> str:
     return "yes" if ok else "**no**"
 
 
-def write(results: dict, path: Path, command: str) -> None:
-    w, f, i, s = results["workflow"], results["filters"], results["ingest"], results["scaling"]
-    e = results["estimators"]
+def write(r: dict, path: Path, command: str) -> None:
+    w, floor = r["workflow"], r["floor_s"]
+    cur, prev = r["scaling_current"], r["scaling_previous"]
+    slopes = {k: (slope(cur, c), slope(prev, c)) for k, c in (("wall", 1), ("cpu", 2))}
+    imports_now, imports_before = r["imports"]["current"], r["imports"]["previous"]
+    sim_now, sim_before = r["sim"]["current"], r["sim"]["previous"]
     lines = [
         "# wsnloc benchmarks", "",
         f"Machine: {machine()}  ", f"Command: `{command}`  ",
-        f"Date: {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; every figure is a median of repeated runs.", "",
-        "## Workflow (default config: 6 scenarios x 20 runs, papers A-D)", "",
-        "| measure | value | target | met |", "|---|---|---|---|",
-        f"| cold `snakemake --cores 2` | {w['cold_s']:.1f} s ({', '.join(f'{x:.1f}' for x in w['cold_all'])}), "
-        f"{w['jobs']} jobs | <= 60 s | {_met(w['cold_s'] <= 60)} |",
-        f"| no-op re-run | {w['noop_s']:.1f} s | <= 5 s | {_met(w['noop_s'] <= 5)} |",
-        f"| after editing `experiments.paper_d.tracker.window` | {w['edit_s']:.1f} s; re-ran: {', '.join(w['edit_jobs'])} "
-        f"| only the affected jobs | {_met(set(w['edit_jobs']) <= EDIT_AFFECTED)} |",
-        "", f"CPU time of a cold build (snakemake and its jobs, user + system): {w['cold_cpu_s']:.0f} s "
-        f"on 2 cores, so at least {w['cold_cpu_s'] / 2:.0f} s of wall time.", "",
-        "Where it goes (first cold build; job wall time summed per rule, from Snakemake's log, 1 s resolution):", "",
+        f"Date: {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}. Every ratio below comes from this one run; "
+        f"\"previous\" is commit `{r['previous']}`, exported beside the current code and built in the same run.", "",
+        *(["**`--small`: one scenario per dataset, a test of this script, not the acceptance measurement "
+            "(run it without `--small`).**", ""] if r["small"] else []),
+        "## Cold build against the import floor", "",
+        f"Import floor: {floor:.2f} s, the minimum of 5 runs of `python -c \"{IMPORT_FLOOR}\"`.", "",
+        "| measure | value | ratio to the import floor | target | met |", "|---|---|---|---|---|",
+        f"| cold `snakemake --cores 2`, wall ({w['jobs']} jobs; {', '.join(f'{x:.1f}' for x in w['cold_all'])}) "
+        f"| {w['cold_s']:.1f} s | {w['cold_s'] / floor:.1f} | <= 25 | {_met(w['cold_s'] / floor <= 25)} |",
+        f"| cold build CPU (user + system, snakemake and its jobs) | {w['cpu_s']:.1f} s | {w['cpu_s'] / floor:.1f} "
+        f"| <= 48 (half of ~96) | {_met(w['cpu_s'] / floor <= 48)} |",
+        f"| no-op re-run (best of 3) | {w['noop_s']:.1f} s | {w['noop_s'] / floor:.1f} | | |", "",
+        f"CPU seconds per job: {w['cpu_s'] / max(w['jobs'], 1):.2f}; average busy cores (CPU / wall): "
+        f"{w['cpu_s'] / w['cold_s']:.2f} of 2; time at the end with at most one job running: {w['alone_s']:.0f} s.", "",
+        "Job wall time per rule (median cold build, from Snakemake's log, 1 s resolution):", "",
         "| rule | jobs | job time [s] |", "|---|---|---|",
         *[f"| {rule} | {jobs} | {seconds:.0f} |" for rule, (jobs, seconds) in w["per_rule"].items()],
-        "", "## Estimator time per step against filterpy (same inputs, same run)", "",
-        "| filter | wsnloc [us/step] | filterpy [us/step] | ratio (ours / filterpy) |", "|---|---|---|---|",
-        *[f"| {name} | {a:.1f} | {b:.1f} | {a / b:.2f} |" for name, a, b in f],
-        "", f"Target: no slower than filterpy (ratio <= 1): {_met(all(a <= b for _, a, b in f))}.",
+        "", "## Start-up of each job: its script's module-level imports in a fresh interpreter", "",
+        "| script | current [s] | previous [s] |", "|---|---|---|",
+        *[f"| {name} | {t:.2f} | {imports_before.get(name, float('nan')):.2f} |" for name, t in imports_now.items()],
+        f"| sum | {sum(imports_now.values()):.2f} | {sum(imports_before.values()):.2f} |",
+        "", "## Simulator", "",
+        f"Seconds per simulated run ({'/'.join(SIM_SCENARIO)}, mean of {SIM_RUNS} runs): current {sim_now:.3f}, "
+        f"previous {sim_before:.3f}, ratio {sim_now / sim_before:.2f} "
+        f"(target <= 0.5: {_met(sim_now / sim_before <= 0.5)}).",
+        "", "## Monte Carlo cost per added run (cold builds at several run counts)", "",
+        "| runs | current wall [s] | current CPU [s] | previous wall [s] | previous CPU [s] |",
+        "|---|---|---|---|---|",
+        *[f"| {a[0]} | {a[1]:.1f} | {a[2]:.1f} | {b[1]:.1f} | {b[2]:.1f} |" for a, b in zip(cur, prev)], "",
+        f"Fitted slope, wall: {slopes['wall'][0]:.2f} s per run now, {slopes['wall'][1]:.2f} s before, ratio "
+        f"{slopes['wall'][0] / slopes['wall'][1]:.2f} "
+        f"(target <= 0.5: {_met(0 < slopes['wall'][0] <= 0.5 * slopes['wall'][1])}); "
+        f"CPU: {slopes['cpu'][0]:.2f} s per run now, {slopes['cpu'][1]:.2f} s before, ratio "
+        f"{slopes['cpu'][0] / slopes['cpu'][1]:.2f}.",
+        "", "## Estimators per step against filterpy (same inputs, same run)", "",
+        "| filter | wsnloc [us/step] | filterpy [us/step] | ratio (ours / filterpy) | target |",
+        "|---|---|---|---|---|",
+        *[f"| {name} | {a:.2f} | {b:.1f} | {a / b:.3f} | {target} |" for name, a, b, target in r["filters"]], "",
         "", "## Estimators: time per step on a simulated Newcom++ run (registry, 12 UWB anchors, 0.5 s epochs)", "",
         "| scenario | estimator | output steps | time per step [us] | real-time factor |", "|---|---|---|---|---|",
-        *[f"| {r['scenario']} | {r['estimator']} | {r['steps']} | {r['us_per_step']:.0f} | {r['realtime_factor']:.0f} |"
-          for r in e],
+        *[f"| {x['scenario']} | {x['estimator']} | {x['steps']} | {x['us_per_step']:.0f} | {x['realtime_factor']:.0f} |"
+          for x in r['estimators']],
         "", "Real-time factor: the run time covered by the estimates over the compute time. Target: the particle "
         "filter at 1000 particles faster than real time on the Newcom++ scenarios: "
-        f"{_met(all(r['realtime_factor'] > 1 for r in e if r['estimator'].startswith('particle')))}.",
-        "", "## Ingest and resampling", "",
-        "| measure | value |", "|---|---|",
-        f"| imu.log parse ({i['mb']:.1f} MB, per-line validation + quarantine) | {i['ours_mbps']:.1f} MB/s |",
-        f"| pyarrow.csv.read_csv on the same bytes (no validation) | {i['arrow_mbps']:.1f} MB/s (ratio {i['ours_mbps'] / i['arrow_mbps']:.3f}) |",
-        f"| IMU resampling 500 Hz -> 5 Hz | {i['resample_sps'] / 1e6:.2f} M samples/s ({i['samples']} samples) |",
-        "", "## Monte Carlo scaling (newcom/constant with paper D, cold build)", "",
-        "| runs per scenario | wall time [s] | jobs | s per run |", "|---|---|---|---|",
-        *[f"| {n} | {t:.1f} | {j} | {t / n:.2f} |" for n, t, j in s], "",
+        f"{_met(all(x['realtime_factor'] > 1 for x in r['estimators'] if x['estimator'].startswith('particle')))}.",
     ]
-    if len(s) >= 2:
-        slope = np.polyfit([n for n, _, _ in s], [t for _, t, _ in s], 1)
-        lines.append(f"Linear fit: {slope[0]:.3f} s per run + {slope[1]:.1f} s fixed (job start-up).")
     path.write_text("\n".join(lines) + "\n")
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--scaling", type=int, nargs="*", default=[20, 100, 500])
+    parser.add_argument("--previous", required=True, help="commit to compare against (e.g. 5695a5e)")
+    parser.add_argument("--repeats", type=int, default=3, help="cold builds of the current code")
+    parser.add_argument("--mc-runs", type=int, nargs="+", default=[5, 10, 20],
+                        help="run counts of the Monte Carlo cost fit (at least two)")
+    parser.add_argument("--small", action="store_true", help="one scenario per dataset: a quick test of this script")
+    parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "RESULTS.md")
     args = parser.parse_args()
+    if len(args.mc_runs) < 2 or min(args.mc_runs) < 2:
+        parser.error("--mc-runs needs at least two run counts, each >= 2 (RSS calibration uses another run)")
+    sys.path.insert(0, str(ROOT / "src"))           # the filter benchmarks import this tree's wsnloc
     OUT.mkdir(parents=True, exist_ok=True)
-    results = {"filters": bench_filters(args.repeats), "estimators": bench_estimators(args.repeats),
-               "ingest": bench_ingest(args.repeats),
-               "workflow": bench_workflow(args.repeats), "scaling": bench_scaling(args.scaling)}
+    previous = export_revision(args.previous)
+    results = {
+        "small": args.small,
+        "previous": subprocess.run(["git", "rev-parse", "--short", args.previous], cwd=ROOT, capture_output=True,
+                                   text=True, check=True).stdout.strip(),
+        "floor_s": import_floor(),
+        "filters": bench_filters(args.repeats),
+        "estimators": bench_estimators(args.repeats),
+        "imports": bench_job_imports({"current": ROOT, "previous": previous}),
+        "sim": bench_simulator({"current": ROOT, "previous": previous}),
+        "workflow": bench_workflow(args.repeats, args.small),
+        "scaling_current": bench_scaling(ROOT, "current", args.mc_runs, args.small),
+        "scaling_previous": bench_scaling(previous, "previous", args.mc_runs, args.small),
+    }
     command = "python benchmarks/run.py " + " ".join(sys.argv[1:])
-    write(results, ROOT / "benchmarks" / "RESULTS.md", command.strip())
-    print((ROOT / "benchmarks" / "RESULTS.md").read_text())
+    write(results, args.out, command.strip())
+    print(args.out.read_text())
     return 0
 
 

@@ -55,26 +55,43 @@ def test_variable_profile_stays_in_range_and_stops_half_way():
     assert np.all(np.abs(stop_positions - 24.57 / 2) < 1e-3)
 
 
+def _taps(model, rng, n_links, tap_ns=1.0):
+    link, delays, amplitudes = uwb_channel.impulse_responses(model, rng, n_links)
+    return uwb_channel.tap_powers(link, delays, amplitudes, tap_ns, n_links)
+
+
 def test_first_path_is_never_later_than_strongest_path(campaign):
     spec = campaign.section("radio", "uwb")
     rng = np.random.default_rng(0)
     for name in ("CM3", "CM4"):
-        for _ in range(200):
-            taps = uwb_channel.tap_powers(*uwb_channel.impulse_response(spec["channel_models"][name], rng), 1.0)
-            first = uwb_channel.detect_delay_ns(taps, 1.0, "first_path", 15.0)
-            strongest = uwb_channel.detect_delay_ns(taps, 1.0, "strongest_path", 15.0)
-            assert 0.0 <= first <= strongest
+        taps = _taps(spec["channel_models"][name], rng, 400)
+        first = uwb_channel.detect_delay_ns(taps, 1.0, "first_path", 15.0)
+        strongest = uwb_channel.detect_delay_ns(taps, 1.0, "strongest_path", 15.0)
+        assert first.shape == (400,) and np.all((0.0 <= first) & (first <= strongest))
+
+
+def test_detectors_on_hand_made_taps():
+    powers = np.array([[0.0, 0.02, 1.0, 0.5], [0.5, 0.0, 0.2, 1.0]])
+    assert uwb_channel.detect_delay_ns(powers, 2.0, "strongest_path", 15.0).tolist() == [4.0, 6.0]
+    # 15 dB below the peak: 0.0316 -> the 0.02 tap is below it, the 0.5 tap above
+    assert uwb_channel.detect_delay_ns(powers, 2.0, "first_path", 15.0).tolist() == [4.0, 0.0]
+
+
+def test_tap_powers_sum_rays_coherently_per_link():
+    link = np.array([0, 0, 1, 1])
+    delays = np.array([0.2, 0.7, 0.1, 2.5])
+    amplitudes = np.array([1.0, -1.0, 1j, 2.0])
+    powers = uwb_channel.tap_powers(link, delays, amplitudes, 1.0, 3)
+    np.testing.assert_allclose(powers, [[0, 0, 0], [1, 0, 4], [0, 0, 0]])
 
 
 def test_nlos_strongest_path_is_biased_by_the_diffuse_first_cluster(campaign):
     """CM4's rising first cluster delays the strongest tap by several ns; CM3's LOS ray does not."""
     spec = campaign.section("radio", "uwb")
-    rng = np.random.default_rng(1)
 
     def median_delay(name):
-        delays = [uwb_channel.detect_delay_ns(uwb_channel.tap_powers(
-            *uwb_channel.impulse_response(spec["channel_models"][name], rng), 1.0), 1.0, "strongest_path", 15.0)
-            for _ in range(400)]
+        delays = uwb_channel.detected_delays_ns(spec["channel_models"][name], np.random.default_rng(1), 400, 1.0,
+                                                "strongest_path", 15.0)
         return np.median(delays)
 
     assert median_delay("CM4") > 5.0 > median_delay("CM3")
@@ -82,7 +99,76 @@ def test_nlos_strongest_path_is_biased_by_the_diffuse_first_cluster(campaign):
 
 def test_detector_names_are_checked():
     with pytest.raises(ValueError, match="unknown UWB detector"):
-        uwb_channel.detect_delay_ns(np.ones(3), 1.0, "earliest", 15.0)
+        uwb_channel.detect_delay_ns(np.ones((1, 3)), 1.0, "earliest", 15.0)
+    with pytest.raises(ValueError, match="unknown UWB detector"):
+        uwb_channel.detected_delays_ns({}, np.random.default_rng(0), 0, 1.0, "earliest", 15.0)
+
+
+def _one_link_reference(model, rng):
+    """The channel model drawn one link at a time, as the simulator did before the batched
+    version (an independent transcription of the module docstring's equations)."""
+    beta, l1, l2 = model["ray_mixture_beta"], model["ray_rate_1_per_ns"], model["ray_rate_2_per_ns"]
+    diffuse = bool(model.get("diffuse_first_cluster", False))
+    n_clusters = max(1, rng.poisson(model["mean_clusters"]))
+    cluster_t = np.concatenate([[0.0], np.cumsum(rng.exponential(1 / model["cluster_rate_per_ns"], n_clusters - 1))])
+    cluster_t = cluster_t[cluster_t < uwb_channel.CLUSTER_SPAN * model["cluster_decay_ns"]]
+    delays, powers = [], []
+    for index, t in enumerate(cluster_t):
+        omega = 10 ** ((-10 * np.log10(np.e) * t / model["cluster_decay_ns"]
+                        + rng.normal(0.0, model["cluster_sigma_db"])) / 10)
+        gamma = model["first_cluster_decay_ns"] if diffuse and index == 0 else model["ray_decay_ns"]
+        tau = 0.0
+        for ray in range(10_000):
+            if ray > 0:
+                tau += rng.exponential(1 / l1) if rng.random() < beta else rng.exponential(1 / l2)
+            if tau >= uwb_channel.RAY_SPAN * gamma:
+                break
+            if diffuse and index == 0:
+                rise, chi = model["rise_ns"], model["diffuse_chi"]
+                mean = omega * (1 - chi * np.exp(-tau / rise)) * np.exp(-tau / gamma) \
+                    * (gamma + rise) / (gamma * (gamma + rise * (1 - chi)))
+            else:
+                mean = omega / (gamma * ((1 - beta) * l1 + beta * l2 + 1)) * np.exp(-tau / gamma)
+            m = max(np.exp(rng.normal(model["nakagami_m0"], model["nakagami_sigma_m0"])), 0.5)
+            if ray == 0 and model.get("first_ray_m") is not None:
+                m = model["first_ray_m"]
+            delays.append(t + tau)
+            powers.append(rng.gamma(m, mean / m) * np.exp(1j * rng.uniform(0, 2 * np.pi)))
+    amplitudes = np.sqrt(np.abs(powers)) * np.exp(1j * np.angle(powers))
+    return np.array(delays), amplitudes
+
+
+def _same_mean(a, b) -> bool:
+    return abs(a.mean() - b.mean()) <= 4 * np.sqrt(a.var() / len(a) + b.var() / len(b))
+
+
+@pytest.mark.parametrize("name", ["CM3", "CM4"])
+def test_batched_channel_has_the_statistics_of_one_link_at_a_time(campaign, name):
+    """Over 1500 links: ray count, total energy and detected first-path / strongest-path
+    excess delays have the same distribution (two-sample KS, p > 0.001) and the same mean
+    (difference within 4 standard errors)."""
+    from scipy.stats import ks_2samp
+
+    spec = campaign.section("radio", "uwb")
+    model, tap = spec["channel_models"][name], spec["cir_tap_ns"]
+    n = 1500
+    rng = np.random.default_rng(11)
+    reference = [_one_link_reference(model, rng) for _ in range(n)]
+    ref_rays = np.array([len(d) for d, _ in reference])
+    ref_energy = np.array([np.sum(np.abs(a) ** 2) for _, a in reference])
+    link, delays, amplitudes = uwb_channel.impulse_responses(model, np.random.default_rng(12), n)
+    rays = np.bincount(link, minlength=n)
+    energy = np.bincount(link, weights=np.abs(amplitudes) ** 2, minlength=n)
+    ref_taps = [uwb_channel.tap_powers(np.zeros(len(d), int), d, a, tap, 1) for d, a in reference]
+    taps = uwb_channel.tap_powers(link, delays, amplitudes, tap, n)
+    for detector in ("first_path", "strongest_path"):
+        ref = np.concatenate([uwb_channel.detect_delay_ns(t, tap, detector, 15.0) for t in ref_taps])
+        new = uwb_channel.detect_delay_ns(taps, tap, detector, 15.0)
+        assert ks_2samp(ref, new).pvalue > 1e-3, detector
+        assert _same_mean(ref, new), detector
+    assert ks_2samp(ref_rays, rays).pvalue > 1e-3
+    assert ks_2samp(ref_energy, energy).pvalue > 1e-3
+    assert _same_mean(ref_energy, energy) and _same_mean(ref_rays, rays)
 
 
 def test_shadowing_has_the_gudmundson_correlation():

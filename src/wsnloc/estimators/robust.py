@@ -32,7 +32,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.stats import chi2
 
 LOSSES = ("none", "huber", "cauchy")
 DEFAULT_TUNING = {"huber": 1.345, "cauchy": 2.385}
@@ -43,7 +42,9 @@ WEIGHT_TOLERANCE = 1e-6
 @lru_cache(maxsize=None)
 def gate_threshold(probability: float) -> float:
     """chi2_1^-1(probability): the largest accepted squared normalised innovation d_i^2."""
-    return float(chi2.ppf(probability, 1))
+    from scipy.special import chdtri    # here, not at import: jobs without a gate load no scipy
+
+    return float(chdtri(1.0, 1.0 - probability))
 
 
 def gate(y: np.ndarray, S: np.ndarray, probability: float) -> np.ndarray:

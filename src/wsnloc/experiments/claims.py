@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-from scipy.special import stdtrit
 
 from wsnloc.metrics import verdicts
 from wsnloc.metrics.verdicts import Claim, Comparison
@@ -64,6 +63,8 @@ def unpaired(a, b, side: str, label: str) -> Comparison:
         low = high = mean
     else:
         dof = (va + vb) ** 2 / (va ** 2 / (len(a) - 1) + vb ** 2 / (len(b) - 1))
+        from scipy.special import stdtrit    # here: estimator jobs importing this module load no scipy
+
         half = float(stdtrit(dof, 0.975)) * se
         low, high = mean - half, mean + half
     return Comparison(label, side, verdicts.interval_verdict(low, high, side), mean, low, high, n)

@@ -18,7 +18,7 @@ from wsnloc import results
 from wsnloc.analysis import setup_facts
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
-from wsnloc.estimators import registry
+from wsnloc.estimators import batched
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import claims as claims_of
 from wsnloc.metrics import verdicts
@@ -88,12 +88,11 @@ def estimator_params(settings: Settings, row: dict, motion_detection: bool) -> d
 
 def run(data: RunData, settings: Settings) -> pd.DataFrame:
     """Estimates of every row, without (Table I) and with (Table II) motion detection, scored."""
-    frames = []
-    for row in settings.rows:
-        for table, motion_detection in (("Table I", False), ("Table II", True)):
-            track = registry.run("ekf", data, estimator_params(settings, row, motion_detection),
-                                 where="experiments.paper_a")
-            frames.append(track.assign(row=row_label(row), table=table))
+    cells = [(row, table, motion_detection) for row in settings.rows
+             for table, motion_detection in (("Table I", False), ("Table II", True))]
+    tracks = batched.run_rows("ekf", data, [estimator_params(settings, row, md) for row, _, md in cells],
+                              where="experiments.paper_a")
+    frames = [track.assign(row=row_label(row), table=table) for track, (row, table, _) in zip(tracks, cells)]
     return score(pd.concat(frames, ignore_index=True), data.table("truth"))
 
 

@@ -20,7 +20,7 @@ from wsnloc import results
 from wsnloc.analysis import setup_facts
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
-from wsnloc.estimators import registry
+from wsnloc.estimators import batched
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import claims as claims_of
 from wsnloc.experiments.sensitivity import BASELINE
@@ -85,8 +85,10 @@ DETAIL_METRICS = {"median": "median_m", "p95": "p95_m", "max": "max_m", "sqrt_pc
 
 def run(data: RunData, settings: Settings, subsets: list[str], models=MODELS) -> pd.DataFrame:
     """Estimates of the (given) motion models for each beacon subset, scored against truth."""
-    frames = [registry.run("ekf", data, estimator_params(settings, model, subset), where="experiments.paper_c")
-              .assign(model=model, subset=subset) for subset in subsets for model in models]
+    cells = [(model, subset) for subset in subsets for model in models]
+    tracks = batched.run_rows("ekf", data, [estimator_params(settings, model, subset) for model, subset in cells],
+                              where="experiments.paper_c")
+    frames = [track.assign(model=model, subset=subset) for track, (model, subset) in zip(tracks, cells)]
     return score(pd.concat(frames, ignore_index=True), data.table("truth"))
 
 

@@ -22,7 +22,6 @@ NIS of an update: y^T S^-1 y with y = z - sum w_i h(X_i), S = weighted covarianc
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import logsumexp
 
 from wsnloc.filters.measurement_models import RangeModel
 
@@ -130,6 +129,8 @@ class ParticleFilter:
         log_p = element_log_likelihoods(residuals, variances, heavy_tailed,
                                         self.outlier_probability, self.outlier_span_m)
         joint = self.log_weights + log_p.sum(axis=1)
+        from scipy.special import logsumexp     # here: a job without particle filters loads no scipy
+
         self.log_likelihood = float(logsumexp(joint))
         self.log_weights = joint - self.log_likelihood
         self.resampled = self.ess < self.resample_threshold * len(self.particles)

@@ -24,7 +24,6 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from wsnloc.filters.measurement_models import MIN_DISTANCE
 from wsnloc.filters.motion_models import constant_velocity
@@ -151,6 +150,8 @@ class SlidingWindowEstimator:
             out = _linear(z)
             out[:, n_gaussian:] = self.rho(z[n_gaussian:])
             return out
+
+        from scipy.optimize import least_squares    # here: a job without this estimator loads no scipy
 
         solution = least_squares(self._residuals, start.ravel(), jac=self._jacobian, args=(prior, ranges),
                                  loss=loss, f_scale=self.f_scale, method="trf",

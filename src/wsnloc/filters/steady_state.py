@@ -11,11 +11,12 @@ Q is the process noise accumulated between two updates (per step Q times steps p
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import solve_discrete_are
 
 
 def steady_state_gain(Q, R) -> np.ndarray:
     """Constant gain K = P (P + R)^-1 with P the DARE solution for A = H = I."""
+    from scipy.linalg import solve_discrete_are   # here: every estimator job imports this module
+
     Q = np.atleast_2d(np.asarray(Q, dtype=float))
     R = np.atleast_2d(np.asarray(R, dtype=float))
     eye = np.eye(len(Q))

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import least_squares
 
 from wsnloc.campaign import Campaign
 
@@ -104,6 +103,8 @@ def fit_range_bias(range_m, true_distance_m, anchor_id) -> dict:
     design[np.arange(len(r)), 1 + column] = 1.0
     start, *_ = np.linalg.lstsq(design, r, rcond=None)
     f_scale = max(1.4826 * np.median(np.abs(r - design @ start)), 1e-3)
+    from scipy.optimize import least_squares    # here: ingest and estimator jobs load no scipy
+
     fit = least_squares(lambda q: design @ q - r, start, loss="soft_l1", f_scale=f_scale)
     residual = r - design @ fit.x
     return {"scale": float(fit.x[0]), "offsets_m": {str(a): float(b) for a, b in zip(anchors, fit.x[1:])},

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import stdtrit
 
 
 def mean_ci95(values) -> tuple[float, float, float]:
@@ -11,8 +10,11 @@ def mean_ci95(values) -> tuple[float, float, float]:
 
     NaN values are ignored. With a single value the interval is (nan, nan).
     t_{q, dof} = stdtrit(dof, q), the Student-t quantile (what scipy.stats.t.ppf evaluates;
-    scipy.special alone imports in a fraction of scipy.stats' time, paid by every job).
+    scipy.special alone imports in a fraction of scipy.stats' time). Imported here, not at
+    module level: most jobs import this module through wsnloc.results without needing it.
     """
+    from scipy.special import stdtrit
+
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
     if len(v) == 0:

@@ -38,9 +38,8 @@ def imu_lines(campaign: Campaign, traj: Trajectory, rng, noise_model: str, clock
     header = [f"# {campaign.format}-imu v1",
               f"# accel_lsb_per_g={spec['accel_lsb_per_g']:g} gyro_lsb_per_dps={spec['gyro_lsb_per_dps']:g}",
               "# t_ms ax ay az gz"]
-    body = [f"{t + clock_ms:.3f} {a[0]} {a[1]} {a[2]} {w}"
-            for t, a, w in zip(t_ms.tolist(), acc_counts.tolist(), gyro_counts.tolist())]
-    return header + body
+    columns = [(t_ms + clock_ms).tolist(), *np.asarray(acc_counts).T.tolist(), np.asarray(gyro_counts).tolist()]
+    return header + list(map("%.3f %d %d %d %d".__mod__, zip(*columns)))
 
 
 def truth_lines(campaign: Campaign, traj: Trajectory, clock_ms: int, column: str) -> list[str]:

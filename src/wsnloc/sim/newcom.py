@@ -34,39 +34,47 @@ def uwb_settings(campaign: Campaign, overrides: dict) -> dict:
 
 def _uwb_lines(campaign: Campaign, spec: dict, traj, rng_time, rng_channel, rng_fault, detector: str,
                clock_ms: int) -> list[str]:
+    """`uwb.log`: one two-way time of flight per linked (round, anchor), in time order.
+
+    tw_toa_ps = round(2 (d + n_walls * excess_path_per_wall + c * (delay_detected + noise)) / c * 1e12);
+    the detected excess delays of all links of one channel model (CM3 LOS, CM4 NLOS) are
+    drawn together (uwb_channel.detected_delays_ns); a `fault_rate` share of the links
+    carries a non-zero status and a random value instead.
+    """
     c = campaign.spec["speed_of_light_mps"]
     anchors = campaign.anchors_of("uwb")
     period, jitter = spec["ranging_period_ms"], spec["period_jitter_ms"]
     rounds = np.arange(period, traj.duration * 1000 - len(anchors) * spec["anchor_spacing_ms"], period)
     round_ms = rounds + rng_time.uniform(-jitter, jitter, len(rounds))
     times_ms = np.round(round_ms[:, None] + np.arange(len(anchors))[None, :] * spec["anchor_spacing_ms"])
-    lines = ["# newcom-uwb v1", "# t_ms anchor tw_toa_ps status"]
     pos = _positions(campaign, traj, times_ms.ravel() / 1000.0)["xy"].reshape(len(rounds), len(anchors), 2)
     walls = np.column_stack([campaign.walls_between(pos[:, j], a) for j, a in
                              enumerate(anchors[["x", "y"]].to_numpy(float))])
     dist = np.hypot(pos[..., 0] - anchors["x"].to_numpy()[None, :], pos[..., 1] - anchors["y"].to_numpy()[None, :])
-    for k in range(len(rounds)):
-        for j, anchor_id in enumerate(anchors["anchor_id"]):
-            n_walls, d = int(walls[k, j]), float(dist[k, j])
-            linked = (n_walls == 0 and d <= spec["los_max_range_m"]) or \
-                     (0 < n_walls <= spec["nlos_max_walls"] and d <= spec["nlos_max_range_m"])
-            if not linked:
-                continue
-            t_ms = int(times_ms[k, j]) + clock_ms
-            if rng_fault.random() < spec["fault_rate"]:
-                status = int(rng_fault.choice(spec["fault_status_codes"]))
-                lines.append(f"{t_ms} {anchor_id} {int(rng_fault.integers(0, 200_000))} {status}")
-                continue
-            model = spec["channel_models"]["CM3" if n_walls == 0 else "CM4"]
-            delays, amps = uwb_channel.impulse_response(model, rng_channel)
-            taps = uwb_channel.tap_powers(delays, amps, spec["cir_tap_ns"])
-            delay_ns = uwb_channel.detect_delay_ns(taps, spec["cir_tap_ns"], detector,
-                                                   spec["leading_edge_threshold_db"])
-            delay_ns += rng_channel.normal(0.0, spec["timing_noise_ns"])
-            rng_m = d + n_walls * spec["excess_path_per_wall_m"] + c * delay_ns * 1e-9
-            tw_toa_ps = int(round(2.0 * rng_m / c * 1e12))
-            lines.append(f"{t_ms} {anchor_id} {tw_toa_ps} 0")
-    return lines
+    linked = ((walls == 0) & (dist <= spec["los_max_range_m"])) | \
+        ((walls > 0) & (walls <= spec["nlos_max_walls"]) & (dist <= spec["nlos_max_range_m"]))
+    k, j = np.nonzero(linked)                        # row-major: time order within the run
+    t_ms = times_ms[k, j].astype(np.int64) + clock_ms
+    n_walls, d = walls[k, j], dist[k, j]
+
+    faulty = rng_fault.random(len(k)) < spec["fault_rate"]
+    status = np.zeros(len(k), dtype=np.int64)
+    status[faulty] = rng_fault.choice(spec["fault_status_codes"], faulty.sum())
+    value = np.zeros(len(k), dtype=np.int64)
+    value[faulty] = rng_fault.integers(0, 200_000, faulty.sum())
+
+    delay_ns = np.zeros(len(k))
+    for name, of_model in (("CM3", ~faulty & (n_walls == 0)), ("CM4", ~faulty & (n_walls > 0))):
+        delay_ns[of_model] = uwb_channel.detected_delays_ns(
+            spec["channel_models"][name], rng_channel, int(of_model.sum()), spec["cir_tap_ns"], detector,
+            spec["leading_edge_threshold_db"])
+    delay_ns += rng_channel.normal(0.0, spec["timing_noise_ns"], len(k))
+    range_m = d + n_walls * spec["excess_path_per_wall_m"] + c * delay_ns * 1e-9
+    value[~faulty] = np.round(2.0 * range_m[~faulty] / c * 1e12).astype(np.int64)
+
+    ids = anchors["anchor_id"].to_numpy()[j]
+    return ["# newcom-uwb v1", "# t_ms anchor tw_toa_ps status"] + [
+        f"{t} {a} {v} {s}" for t, a, v, s in zip(t_ms.tolist(), ids.tolist(), value.tolist(), status.tolist())]
 
 
 def _zigbee_lines(campaign: Campaign, traj, rng, clock_ms: int) -> list[str]:
@@ -85,14 +93,14 @@ def _zigbee_lines(campaign: Campaign, traj, rng, clock_ms: int) -> list[str]:
         + shadow + rng.normal(0.0, spec["fast_fading_sigma_db"], dist.shape)
     rssi = np.round(power).astype(int)
     heard = (rssi >= spec["sensitivity_dbm"]) & (rng.random(dist.shape) >= spec["reply_loss"])
-    ids = anchors["anchor_id"].tolist()
+    k, j = np.nonzero(heard)                                  # row-major: per broadcast, anchor order
+    pairs = list(map("%s:%d".__mod__, zip(anchors["anchor_id"].to_numpy(object)[j].tolist(), rssi[k, j].tolist())))
+    counts = heard.sum(axis=1)
+    ends = np.cumsum(counts)
     lines = ["# newcom-zigbee v1", "# t_ms seq n anchor:rssi_dbm ..."]
-    for k, t in enumerate(times_ms):
-        cols = np.flatnonzero(heard[k])
-        if len(cols) == 0:
-            continue          # nothing reached the gateway: a gap in seq
-        pairs = " ".join(f"{ids[j]}:{rssi[k, j]}" for j in cols)
-        lines.append(f"{int(t) + clock_ms} {(k + 1) % 256} {len(cols)} {pairs}")
+    for b in np.flatnonzero(counts).tolist():                 # none heard: a gap in seq
+        lines.append(f"{int(times_ms[b]) + clock_ms} {(b + 1) % 256} {counts[b]} "
+                     + " ".join(pairs[ends[b] - counts[b]:ends[b]]))
     return lines
 
 

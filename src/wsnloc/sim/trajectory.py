@@ -76,40 +76,47 @@ def variable_speed(length: float, rng: np.random.Generator, static_start_s: floa
     low, high = speed_range_mps
     stops = [length / 2.0, length]
     dt, a_max = STEP_S, max_accel_mps2
+    half_dt2 = 0.5 * dt**2                  # 0.5 a dt^2 == a (0.5 dt^2) exactly (0.5 is a power of 2)
+    two_a_max = 2.0 * a_max
     arrived_speed = a_max * dt              # slower than one step of braking: at rest
     rest_start = int(round(static_start_s / dt))
     s_list, v_list, a_list = [0.0] * rest_start, [0.0] * rest_start, [0.0] * rest_start
-    s, v, t_move, stop_index, hold = 0.0, 0.0, 0.0, 0, 0
+    record_s, record_v, record_a = s_list.append, v_list.append, a_list.append
+    s, v, t_move, stop_index = 0.0, 0.0, 0.0, 0
     target = rng.uniform(low, high)
     # Plain float arithmetic and conditional expressions instead of numpy / min / max: this
-    # loop runs ~10^5 times per run (the simulator's hot spot) and is 2x faster this way.
-    for _ in range(int(10 * length / low / dt)):
-        a = 0.0
-        if hold > 0:
-            hold -= 1
-        else:
-            remaining = stops[stop_index] - s
-            if remaining <= 1e-6 and v <= arrived_speed:
-                # Arrived: stop exactly, then hold or finish.
-                s, v = stops[stop_index], 0.0
-                if stop_index == len(stops) - 1:
-                    break
-                stop_index += 1
-                hold = int(round(stop_s / dt))
-            else:
-                if t_move >= ramp_interval_s:
-                    target, t_move = rng.uniform(low, high), 0.0
-                braking = math.sqrt(2.0 * a_max * (0.0 if remaining < 0.0 else remaining))
-                v_des = target if target <= braking else braking
-                a = (v_des - v) / dt                                  # clipped to [-a_max, a_max]
-                a = -a_max if a < -a_max else (a_max if a > a_max else a)
-                if remaining > 0 and v > 0 and v * v / (2 * remaining) > a_max:
-                    a = -v * v / (2 * remaining)   # never overshoot a stop point
-                t_move += dt
-        s_list.append(s)
-        v_list.append(v)
-        a_list.append(a)
-        s = s + v * dt + 0.5 * a * dt**2
+    # loop runs ~10^5 times per run (the simulator's hot spot) and is 2x faster this way
+    # (three lists of floats, not a list of tuples: floats are not tracked by the garbage
+    # collector). A stop (s constant, v = a = 0) is recorded in one go.
+    steps, budget = 0, int(10 * length / low / dt)
+    while steps < budget:
+        steps += 1
+        remaining = stops[stop_index] - s
+        if remaining <= 1e-6 and v <= arrived_speed:
+            # Arrived: stop exactly, then hold or finish.
+            s, v = stops[stop_index], 0.0
+            if stop_index == len(stops) - 1:
+                break
+            stop_index += 1
+            hold = min(int(round(stop_s / dt)), budget - steps)
+            s_list += [s] * (hold + 1)
+            v_list += [0.0] * (hold + 1)
+            a_list += [0.0] * (hold + 1)
+            steps += hold
+            continue
+        if t_move >= ramp_interval_s:
+            target, t_move = rng.uniform(low, high), 0.0
+        braking = math.sqrt(two_a_max * (0.0 if remaining < 0.0 else remaining))
+        v_des = target if target <= braking else braking
+        a = (v_des - v) / dt                                  # clipped to [-a_max, a_max]
+        a = -a_max if a < -a_max else (a_max if a > a_max else a)
+        if remaining > 0 and v > 0 and v * v / (2 * remaining) > a_max:
+            a = -v * v / (2 * remaining)   # never overshoot a stop point
+        t_move += dt
+        record_s(s)
+        record_v(v)
+        record_a(a)
+        s = s + v * dt + a * half_dt2
         s = length if s > length else s
         v = v + a * dt
         v = 0.0 if v < 0.0 else v

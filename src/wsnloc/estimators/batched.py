@@ -1,0 +1,298 @@
+"""The epoch-mode EKF (registry `ekf` and its presets with `update: epoch`) and the KF over
+fixes (`kf_tracker`) stepped on many runs at once: every array carries a leading run axis,
+so one predict and one update per epoch cost a few array operations for all Monte Carlo
+runs of a cell. Entry points: `run_many` (registry.run over the runs of a cell) and
+`run_rows` (registry.run over several parameter sets on one run, e.g. a paper's rows).
+
+Same filter as `bayes.run_filter` in epoch mode (same initiator, coasting limit, motion
+detection and PVA input; estimates equal to round-off), for runs whose epoch grids and
+measurement sets differ:
+- run r's k-th epoch is processed at step k; runs with fewer epochs are masked after
+  their end;
+- the measurements of epoch k of all runs are padded to the largest count M_k: a padded
+  row has H = 0, y = 0 and R = 1, so S = blockdiag(S_real, I), its Kalman gain column is
+  0 and it changes neither x, P nor NIS = y^T S^-1 y;
+- per run, measurement i of an epoch is a range (h = sqrt(d^2 + dz^2),
+  H = [(p - a) / h, 0...]) or an RSS value (h = P0 - 10 n log10(d / d0),
+  H = [-10 n / ln10 (p - a) / d^2, 0...]) with d = max(||p - a||, 1 mm), as in
+  filters.measurement_models; R is diagonal (range sigma^2, RSS sigma_dB^2).
+Predict x <- F x + B u, P <- F P F^T + Q; Joseph-form update (filters.kalman).
+Only the initiator's multilateration runs per run (once per track start).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from wsnloc.estimators import bayes, filter_options, fixes, range_calibration, registry, trackers
+from wsnloc.estimators.inertial import epoch_inputs, floor_input
+from wsnloc.estimators.measurements import MeasurementSource, rss_params
+from wsnloc.estimators.run_data import RunData
+from wsnloc.filters.measurement_models import MIN_DISTANCE
+from wsnloc.inertial.motion_detection import static_epochs
+
+RANGE, RSS = 0, 1
+
+
+@dataclass
+class Measurements:
+    """Padded per-epoch measurements of several runs: arrays (runs, epochs, M), M the
+    largest count of any epoch; `count` (runs, epochs) the real ones (first in each row)."""
+
+    count: np.ndarray          # int, measurements per (run, epoch)
+    kind: np.ndarray           # RANGE or RSS
+    anchors: np.ndarray        # (runs, epochs, M, 2) anchor x, y (m)
+    dz: np.ndarray             # anchor height - tag height (m), 0 for RSS and 2-D ranges
+    p0: np.ndarray             # RSS: P0 (dBm) at d0
+    exponent: np.ndarray       # RSS: path-loss exponent n
+    d0: np.ndarray             # RSS: reference distance (m)
+    variance: np.ndarray       # R diagonal (m^2 or dB^2); 1 where padded
+    z: np.ndarray              # measured values (m or dBm); 0 where padded
+
+    @classmethod
+    def empty(cls, runs: int, epochs: int, width: int) -> "Measurements":
+        shape = (runs, epochs, width)
+        return cls(np.zeros(shape[:2], dtype=int), np.zeros(shape, dtype=np.int8), np.zeros(shape + (2,)),
+                   np.zeros(shape), np.zeros(shape), np.zeros(shape), np.ones(shape), np.ones(shape), np.zeros(shape))
+
+    def at(self, k: int, runs: np.ndarray) -> "Measurements":
+        """Epoch k of the given runs, trimmed to their largest count."""
+        width = max(int(self.count[runs, k].max()), 1)
+        take = lambda a: a[runs, k, :width]     # noqa: E731
+        return Measurements(self.count[runs, k], take(self.kind), take(self.anchors), take(self.dz), take(self.p0),
+                            take(self.exponent), take(self.d0), take(self.variance), take(self.z))
+
+
+def predict(x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray, Bu: np.ndarray | None = None):
+    """x <- F x (+ B u), P <- F P F^T + Q for x (runs, n), P (runs, n, n); Bu (runs, n)."""
+    x = x @ F.T
+    if Bu is not None:
+        x = x + Bu
+    return x, F @ P @ F.T + Q
+
+
+def update(x: np.ndarray, P: np.ndarray, m: Measurements):
+    """Joseph-form EKF update of every run with its (padded) measurements; returns (x, P, NIS)."""
+    runs, width = m.z.shape
+    diff = x[:, None, :2] - m.anchors
+    d = np.maximum(np.hypot(diff[..., 0], diff[..., 1]), MIN_DISTANCE)
+    is_range = m.kind == RANGE
+    slant = np.sqrt(d**2 + m.dz**2)
+    h = np.where(is_range, slant, m.p0 - 10.0 * m.exponent * np.log10(d / m.d0))
+    gain = np.where(is_range, 1.0 / np.maximum(slant, MIN_DISTANCE), -10.0 * m.exponent / np.log(10.0) / d**2)
+    real = np.arange(width)[None, :] < m.count[:, None]
+    H = np.zeros((runs, width, x.shape[1]))
+    H[..., :2] = np.where(real[..., None], diff * gain[..., None], 0.0)
+    y = np.where(real, m.z - h, 0.0)
+    return joseph_update(x, P, y, H, m.variance[:, :, None] * np.eye(width))
+
+
+def joseph_update(x: np.ndarray, P: np.ndarray, y: np.ndarray, H: np.ndarray, R: np.ndarray):
+    """Kalman update of every run with innovation y (runs, m), H (runs or 1, m, n), R (runs or 1, m, m):
+    S = H P H^T + R, K = P H^T S^-1, x <- x + K y, P <- (I - K H) P (I - K H)^T + K R K^T;
+    returns (x, P, NIS = y^T S^-1 y)."""
+    PHt = P @ np.swapaxes(H, -1, -2)
+    S_inv = np.linalg.inv(H @ PHt + R)
+    K = PHt @ S_inv
+    x = x + (K @ y[..., None])[..., 0]
+    joseph = np.eye(x.shape[1]) - K @ H
+    P = joseph @ P @ np.swapaxes(joseph, 1, 2) + K @ R @ np.swapaxes(K, 1, 2)
+    nis = (y[:, None, :] @ S_inv @ y[..., None])[:, 0, 0]
+    return x, P, nis
+
+
+@dataclass
+class _Run:
+    """What the epoch loop of one run reads: its grid, measurement source, static epochs and
+    PVA inputs (built as bayes.run_filter builds them)."""
+
+    times: np.ndarray
+    source: MeasurementSource
+    static: np.ndarray
+    inputs: np.ndarray | None
+
+    @classmethod
+    def of(cls, data: RunData, p: dict, motion) -> "_Run":
+        source = MeasurementSource(data, p["measurements"], p["anchors"], p["range_sigma_m"], p["preliminary_filter"],
+                                   p["max_range_m"], rss_params(data, p) if p["measurements"] != "toa" else None)
+        times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
+        static = (data.cached(("static_epochs", p["epoch_s"], p["motion_threshold_mps2"], p["static_start_s"],
+                               len(times)),       # one run's rows with motion detection share it
+                              lambda: static_epochs(data.require("imu", "motion detection"), times, p["epoch_s"],
+                                                    p["motion_threshold_mps2"], p["static_start_s"]))
+                  if p["motion_detection"] else np.zeros(len(times), dtype=bool))
+        inputs = epoch_inputs(floor_input(data, p["static_start_s"]), times) if motion.kind == "pva" else None
+        return cls(times, source, static, inputs)
+
+
+def pack(runs: list[_Run], period: float) -> Measurements:
+    """The epochs of every run (MeasurementSource.epochs: per-anchor means; ranges first,
+    then RSS, as in MeasurementSource.model) in one padded Measurements."""
+    epochs = [r.source.epochs(r.times, period) for r in runs]
+    width = max([len(e.ranges) + len(e.rss) for es in epochs for e in es] + [1])
+    out = Measurements.empty(len(runs), max([len(r.times) for r in runs] + [0]), width)
+    for i, (run, run_epochs) in enumerate(zip(runs, epochs)):
+        if not run_epochs:
+            continue
+        data, rss = run.source.data, run.source.rss_params
+        n_ranges = np.array([len(e.ranges) for e in run_epochs])
+        counts = n_ranges + np.array([len(e.rss) for e in run_epochs])
+        ids = np.concatenate([np.concatenate([e.range_ids, e.rss_ids]) for e in run_epochs])
+        values = np.concatenate([np.concatenate([e.ranges, e.rss]) for e in run_epochs])
+        epoch = np.repeat(np.arange(len(counts)), counts)
+        slot = np.arange(len(ids)) - np.repeat(np.cumsum(counts) - counts, counts)   # index within the epoch
+        is_rss = slot >= n_ranges[epoch]
+        out.count[i, :len(counts)] = counts
+        out.kind[i, epoch, slot] = np.where(is_rss, RSS, RANGE)
+        out.anchors[i, epoch, slot] = data.positions(ids)
+        out.z[i, epoch, slot] = values
+        out.variance[i, epoch, slot] = run.source.range_sigma_m**2
+        if data.three_d:
+            out.dz[i, epoch[~is_rss], slot[~is_rss]] = data.height_offsets(ids[~is_rss])
+        if is_rss.any():
+            at = (i, epoch[is_rss], slot[is_rss])
+            out.p0[at], out.exponent[at], out.d0[at] = rss.p0_dbm, rss.path_loss_exponent, rss.d0_m
+            out.variance[at] = rss.sigma_db**2
+    return out
+
+
+def supports(p: dict) -> bool:
+    """Whether the resolved parameters `p` are the epoch-mode EKF this module steps: the bare
+    filter (no gate, robust loss, self-calibration, per-wall noise) on uncorrected ranges."""
+    bare = all(p.get(k, off) == off for k, off in filter_options.OFF.items())
+    return p.get("filter") == "ekf" and p.get("update") == "epoch" and bare \
+        and p.get("range_calibration", "none") == "none"
+
+
+def _shared(p: dict) -> tuple:
+    """What cells stepped together must share: motion model, period, coasting limit, window."""
+    return bayes.motion_model(p), p["epoch_s"], p["max_coast_s"], p["init_window_s"] or p["epoch_s"]
+
+
+def run_epoch_ekf(cells: list[tuple[RunData, dict]]) -> list[pd.DataFrame]:
+    """bayes.run_filter(data, p) for every (run, resolved parameters) cell with filter ekf and
+    update epoch; the cells that share _shared(p) are stepped together (different runs, or
+    one run's measurement kinds, anchor subsets, RSS models and motion detection). One frame
+    (bayes.COLUMNS; attrs as bayes.run_filter's: resets, the gate counters, all zero for the
+    bare filter, and the identity range correction) per cell, in order."""
+    if not all(supports(p) for _, p in cells):
+        raise ValueError("run_epoch_ekf steps the epoch-mode EKF only (filter: ekf, update: epoch)")
+    groups: dict[tuple, list[int]] = {}
+    for i, (_, p) in enumerate(cells):
+        groups.setdefault(_shared(p), []).append(i)
+    frames: list[pd.DataFrame] = [pd.DataFrame()] * len(cells)
+    for shared, members in groups.items():
+        for i, frame in zip(members, _step_together([cells[i] for i in members], *shared)):
+            frame.attrs.update(filter_options.UpdateCounts().attrs())
+            frame.attrs.update(range_calibration.correction(*cells[i]).describe())
+            frames[i] = frame
+    return frames
+
+
+def _step_together(cells: list[tuple[RunData, dict]], motion, period: float, max_coast_s: float,
+                   window: float) -> list[pd.DataFrame]:
+    runs = [_Run.of(data, p, motion) for data, p in cells]
+    meas = pack(runs, period)
+    F, Q, B = motion.matrices(period)
+    n_runs, n_epochs = meas.count.shape
+    x, P = np.zeros((n_runs, motion.dim)), np.zeros((n_runs, motion.dim, motion.dim))
+    started, last_update, resets = np.zeros(n_runs, bool), np.full(n_runs, -np.inf), np.zeros(n_runs, int)
+    out = np.full((n_runs, n_epochs, len(bayes.COLUMNS)), np.nan)
+    emitted = np.zeros((n_runs, n_epochs), bool)
+    lengths = np.array([len(r.times) for r in runs])
+    times, static = np.full((n_runs, n_epochs), np.nan), np.ones((n_runs, n_epochs), bool)
+    inputs = np.full((n_runs, n_epochs, 2), np.nan)
+    for i, r in enumerate(runs):
+        times[i, :len(r.times)], static[i, :len(r.times)] = r.times, r.static
+        if r.inputs is not None:
+            inputs[i, :len(r.times)] = r.inputs
+    for k in range(n_epochs):
+        live = k < lengths
+        t = times[:, k]
+        for i in np.flatnonzero(live & ~started):        # the initiator, per run
+            fix = bayes._window_fix(runs[i].source, runs[i].source.records(), t[i], window)
+            if fix is not None:
+                x[i], P[i] = 0.0, motion.initial_covariance()
+                x[i, :2] = fix
+                started[i], last_update[i], emitted[i, k] = True, t[i], True
+                out[i, k, :7] = (t[i], fix[0], fix[1], P[i, 0, 0], P[i, 0, 1], P[i, 1, 1], 0)
+        tracking = live & started & ~emitted[:, k]
+        moving = np.flatnonzero(tracking & ~static[:, k])
+        if len(moving):
+            u = inputs[moving, k]           # a non-finite input: predict without it, as bayes does
+            Bu = None if B is None else np.where(np.isfinite(u).all(axis=1)[:, None], np.nan_to_num(u) @ B.T, 0.0)
+            x[moving], P[moving] = predict(x[moving], P[moving], F, Q, Bu)
+        measured = tracking & (meas.count[:, k] > 0)
+        nis = np.full(n_runs, np.nan)
+        if measured.any():
+            rows = np.flatnonzero(measured)
+            x[rows], P[rows], nis[rows] = update(x[rows], P[rows], meas.at(k, rows))
+            last_update[rows] = t[rows]
+        lost = tracking & ~measured & (t - last_update > max_coast_s)
+        started[lost] = False
+        resets[lost] += 1
+        kept = tracking & ~lost
+        emitted[kept, k] = True
+        out[kept, k] = np.column_stack([t[kept], x[kept, 0], x[kept, 1], P[kept, 0, 0], P[kept, 0, 1], P[kept, 1, 1],
+                                        np.where(measured[kept], meas.count[kept, k], 0), nis[kept]])
+    frames = []
+    for i in range(n_runs):
+        frame = pd.DataFrame(out[i, emitted[i]], columns=bayes.COLUMNS).astype({"n_meas": int})
+        frame.attrs["resets"] = int(resets[i])
+        frames.append(frame)
+    return frames
+
+
+def kalman_tracks(fix_tables: list[pd.DataFrame], matrices: tuple) -> list[pd.DataFrame]:
+    """trackers.kalman_track(fixes, matrices) for every table of per-epoch fixes (t, x, y;
+    NaN without a fix), stepped together: a run starts at its first fix, predicts at every
+    later epoch of its grid and is updated with each fix (z = H x + v); output at its fixes."""
+    F, Q, H, R, P0 = matrices
+    n_runs, n_epochs = len(fix_tables), max([len(f) for f in fix_tables] + [0])
+    t, z = np.full((n_runs, n_epochs), np.nan), np.full((n_runs, n_epochs, 2), np.nan)
+    for i, f in enumerate(fix_tables):
+        t[i, :len(f)], z[i, :len(f)] = f["t"].to_numpy(float), f[["x", "y"]].to_numpy(float)
+    live, has_fix = np.arange(n_epochs)[None, :] < np.array([len(f) for f in fix_tables])[:, None], \
+        np.isfinite(z).all(axis=2)
+    x, P, started = np.zeros((n_runs, 4)), np.zeros((n_runs, 4, 4)), np.zeros(n_runs, bool)
+    out = np.full((n_runs, n_epochs, 6), np.nan)
+    for k in range(n_epochs):
+        rolling = np.flatnonzero(started & live[:, k])
+        x[rolling], P[rolling] = predict(x[rolling], P[rolling], F, Q)
+        first = has_fix[:, k] & ~started
+        x[first], P[first], started[first] = np.column_stack([z[first, k], np.zeros((first.sum(), 2))]), P0, True
+        rows = np.flatnonzero(has_fix[:, k] & ~first)
+        if len(rows):
+            x[rows], P[rows], _ = joseph_update(x[rows], P[rows], z[rows, k] - x[rows] @ H.T, H[None], R[None])
+        out[:, k] = np.column_stack([t[:, k], x[:, 0], x[:, 1], P[:, 0, 0], P[:, 0, 1], P[:, 1, 1]])
+    return [pd.DataFrame(out[i, has_fix[i]], columns=["t", "x", "y", "p_xx", "p_xy", "p_yy"]) for i in range(n_runs)]
+
+
+def run_many(name: str, datas: list[RunData], overrides: dict | None = None, where: str = "") -> list[pd.DataFrame]:
+    """registry.run(name, data, overrides, where) for every run of `datas`: the epoch-mode
+    EKF estimators and the KF over fixes (kf_tracker) are stepped on all runs together, the
+    others run one run at a time."""
+    estimator = registry.get(name)
+    p = estimator.resolve(overrides or {}, where)
+    if estimator.function is bayes.run_filter and supports(p):
+        frames = run_epoch_ekf([(data, p) for data in datas])
+    elif name == "kf_tracker":
+        matrices = trackers.kalman_matrices(p["epoch_s"], p["accel_sigma_mps2"], p["position_sigma_m"],
+                                            p["initial_speed_sigma_mps"])
+        frames = kalman_tracks([fixes.epoch_fixes(data, p, p["fixes"]) for data in datas], matrices)
+    else:
+        return [registry.run(name, data, overrides, where) for data in datas]
+    return [registry.finish(frame) for frame in frames]
+
+
+def run_rows(name: str, data: RunData, rows: list[dict], where: str = "") -> list[pd.DataFrame]:
+    """[registry.run(name, data, row, where) for row in rows] (one run, several parameter
+    sets, e.g. the rows of a paper's table): the epoch-mode EKF rows are stepped together."""
+    estimator = registry.get(name)
+    params = [estimator.resolve(row, where) for row in rows]
+    if estimator.function is not bayes.run_filter or not all(supports(p) for p in params):
+        return [registry.run(name, data, row, where) for row in rows]
+    return [registry.finish(frame) for frame in run_epoch_ekf([(data, p) for p in params])]

@@ -1,0 +1,175 @@
+"""Batched epoch-mode EKF: all runs stepped together give registry.run's estimates, run by run."""
+
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from synthetic import SQUARE, bursts, run_data, tables_for, walk
+from conftest import ROOT
+from wsnloc.campaign import Campaign
+from wsnloc.estimators import batched, registry
+from wsnloc.estimators.run_data import RunData
+from wsnloc.experiments import paper_a, paper_c
+from wsnloc.io.cricket import ingest_run as ingest_cricket
+from wsnloc.io.newcom import ingest_run
+from wsnloc.sim.cricket import simulate_run as simulate_cricket
+from wsnloc.signal.resample import resample_imu
+from wsnloc.sim.newcom import simulate_run
+from wsnloc.sim.seeding import run_seed_sequence
+
+RSS_MODEL = {"p0_dbm": -50.0, "path_loss_exponent": 3.0, "sigma_db": 5.0, "d0_m": 1.0}
+SETTINGS_A = dict(epoch_s=0.5, rows=[{"measurements": "toa", "uwb": "UWB=12"}, {"measurements": "toa", "uwb": "UWB=9"},
+                                     {"measurements": "rss", "zigbee": "ZigBee=21"},
+                                     {"measurements": "hybrid", "uwb": "UWB=9", "zigbee": "ZigBee=17"}],
+                  uwb_preliminary_filter=True, max_range_m=50.0, range_sigma_m=0.3, rss_calibration="configured",
+                  rss_model=RSS_MODEL, accel_sigma_mps2=0.3, initial_sigma_m=1.0, initial_speed_sigma_mps=0.3,
+                  motion_threshold_mps2=0.05, static_reference_s=4.0)
+SETTINGS_C = dict(epoch_s=0.5, table_1_subset="6: B1..B6",
+                  table_2_subsets=["3: B1,B3,B4", "4: B1,B3,B4,B6", "6: B1..B6"],
+                  table_2_scenario="cricket/speed_40", range_sigma_m=0.05, max_range_m=12.0, p_sigma_m=0.15,
+                  pv_accel_sigma_mps2=0.3, pva_accel_sigma_mps2=0.1, pva_bias_walk_sigma=0.01, initial_sigma_m=0.5,
+                  initial_speed_sigma_mps=0.3, initial_bias_sigma_mps2=0.05, static_bias_s=4.0)
+
+
+@pytest.fixture(scope="module")
+def simulated_runs(campaign, tmp_path_factory):
+    """Three simulated Newcom++ runs (two scenarios, so the epoch grids differ in length),
+    ingested, with the 5 Hz IMU the PVA model reads."""
+    out = []
+    for k, scenario in enumerate(["constant", "variable", "constant"]):
+        raw = simulate_run(campaign, scenario, run_seed_sequence(3, "newcom", scenario, k),
+                           tmp_path_factory.mktemp("batched") / f"run-{k}")
+        tables, _ = ingest_run(raw, campaign)
+        tables["imu_5hz"] = resample_imu(tables["imu"], 5.0, 500.0, 0.1, 8.0)
+        model = dict(RSS_MODEL, p0_dbm=RSS_MODEL["p0_dbm"] + k)       # per-run calibrated RSS models differ
+        out.append((tables, model, f"run-{k}"))
+    return out
+
+
+def _datas(runs, campaign):
+    return [RunData(tables, campaign, model, name) for tables, model, name in runs]
+
+
+def _assert_same(batch, single):
+    assert len(batch) == len(single)
+    for b, s in zip(batch, single):
+        assert b.attrs == s.attrs
+        pd.testing.assert_frame_equal(b, s, check_exact=False, rtol=0, atol=1e-9)
+
+
+CASES = {
+    "toa pv": {"measurements": "toa", "anchors": "UWB=12", "motion": "pv"},
+    "rss p": {"measurements": "rss", "anchors": "ZigBee=21", "motion": "p", "rss_calibration": "other_run"},
+    "hybrid pv, motion detection": {"measurements": "hybrid", "anchors": "UWB=9+ZigBee=17", "motion": "pv",
+                                    "motion_detection": True, "rss_calibration": "other_run"},
+    "toa pva": {"measurements": "toa", "anchors": "UWB=12", "motion": "pva"},
+    "toa pv, short coasting, window initiator": {"measurements": "toa", "anchors": "UWB=9", "motion": "pv",
+                                                 "max_coast_s": 0.4, "init_window_s": 1.5},
+}
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_batched_equals_registry_run_one_run_at_a_time(campaign, simulated_runs, case):
+    params = dict(CASES[case], update="epoch", preliminary_filter=True, max_range_m=50.0)
+    single = [registry.run("ekf", data, params) for data in _datas(simulated_runs, campaign)]
+    batch = batched.run_many("ekf", _datas(simulated_runs, campaign), params)
+    _assert_same(batch, single)
+    assert all(len(s) > 100 for s in single)
+
+
+def test_coasting_resets_are_counted_per_run():
+    """A gap longer than the coasting limit in one run only: that run resets, the other does not."""
+    t, ids = bursts(60.0)
+    gap = (t > 20.0) & (t < 35.0)
+    with_gap = run_data(tables_for(t[~gap], ids[~gap], walk))
+    without = run_data(tables_for(t, ids, walk))
+    params = {"anchors": "all", "max_coast_s": 5.0}
+    batch = batched.run_many("ekf", [with_gap, without], params)
+    single = [registry.run("ekf", d, params) for d in (with_gap, without)]
+    _assert_same(batch, single)
+    assert [b.attrs["resets"] for b in batch] == [1, 0]
+
+
+def test_noise_free_ranges_are_tracked():
+    """The epoch mode outputs at t_k what was measured at t_k - T (the ranges of the bursts)."""
+    t, ids = bursts(60.0)
+    (est,) = batched.run_many("ekf", [run_data(tables_for(t, ids, walk))], {"anchors": "all"})
+    error = np.hypot(*(est[["x", "y"]].to_numpy() - walk(est["t"].to_numpy() - 0.5)).T)
+    assert np.median(error[20:]) < 0.02
+
+
+def test_other_estimators_fall_back_to_one_run_at_a_time():
+    t, ids = bursts(20.0)
+    datas = [run_data(tables_for(t, ids, walk))]
+    for name, params in (("tracker", {}), ("minmax", {}), ("velocity_tracker", {}),
+                         ("ekf", {"update": "sequential"})):
+        params = dict(params, anchors="all")
+        _assert_same(batched.run_many(name, datas, params), [registry.run(name, datas[0], params)])
+    with pytest.raises(ValueError, match="epoch-mode EKF"):
+        batched.run_epoch_ekf([(datas[0], registry.get("tracker").resolve({}))])
+
+
+def test_padded_measurements_change_nothing():
+    """One update with 3 real ranges equals the same update padded to 8 rows."""
+    rng = np.random.default_rng(2)
+    x, P = rng.normal(5, 1, (1, 4)), np.eye(4)[None] * 2.0
+    anchors = np.array(list(SQUARE.values())[:3])
+
+    def measurements(width):
+        m = batched.Measurements.empty(1, 1, width)
+        m.count[0, 0] = 3
+        m.anchors[0, 0, :3], m.variance[0, 0, :3], m.z[0, 0, :3] = anchors, 0.09, [7.0, 12.0, 15.0]
+        return m.at(0, np.array([0]))
+
+    narrow, wide = batched.update(x, P, measurements(3)), batched.update(x, P, measurements(8))
+    for a, b in zip(narrow, wide):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("params", [{"anchors": "UWB=12"}, {"anchors": "UWB=9", "solver": "minmax", "k_smallest": 6}])
+def test_batched_kf_over_fixes_equals_registry_run(campaign, simulated_runs, params):
+    single = [registry.run("kf_tracker", data, params) for data in _datas(simulated_runs, campaign)]
+    batch = batched.run_many("kf_tracker", _datas(simulated_runs, campaign), params)
+    _assert_same(batch, single)
+    assert all(len(s) > 100 for s in single)
+
+
+def test_batched_kf_over_fixes_with_a_gap_in_one_run():
+    t, ids = bursts(40.0)
+    gap = (t > 10.0) & (t < 20.0)
+    datas = [run_data(tables_for(t[~gap], ids[~gap], walk)), run_data(tables_for(t[5:], ids[5:], walk))]
+    single = [registry.run("kf_tracker", d, {"anchors": "all"}) for d in datas]
+    _assert_same(batched.run_many("kf_tracker", datas, {"anchors": "all"}), single)
+
+
+def test_paper_a_rows_of_one_run_stepped_together_equal_registry_run(campaign, simulated_runs):
+    """paper_a.run steps its 12 cells (6 rows x with / without motion detection) together."""
+    settings = paper_a.Settings.from_config(SETTINGS_A)
+    data = _datas(simulated_runs[1:2], campaign)[0]
+    params = [paper_a.estimator_params(settings, row, md) for row in settings.rows for md in (False, True)]
+    single = [registry.run("ekf", data, q, where="experiments.paper_a") for q in params]
+    _assert_same(batched.run_rows("ekf", data, params, where="experiments.paper_a"), single)
+
+
+def test_paper_c_models_and_subsets_of_one_run_equal_registry_run(tmp_path):
+    """P, PV, PVA on three beacon subsets of a simulated Cricket run: three groups (one per
+    motion model) of three subsets each."""
+    cricket = Campaign.load(ROOT / "config" / "campaigns" / "cricket.yaml")
+    raw = simulate_cricket(cricket, "speed_40", run_seed_sequence(4, "cricket", "speed_40", 1), tmp_path / "run")
+    tables, _ = ingest_cricket(raw, cricket)
+    tables["imu_5hz"] = resample_imu(tables["imu"], 5.0, 500.0, 0.1, 8.0)
+    data = RunData(tables, cricket, None, "run-1")
+    settings = paper_c.Settings.from_config(SETTINGS_C)
+    params = [paper_c.estimator_params(settings, model, subset) for subset in SETTINGS_C["table_2_subsets"]
+              for model in paper_c.MODELS]
+    single = [registry.run("ekf", data, q, where="experiments.paper_c") for q in params]
+    _assert_same(batched.run_rows("ekf", data, params, where="experiments.paper_c"), single)
+    assert all(len(s) > 50 for s in single)
+
+
+def test_run_rows_falls_back_for_sequential_rows():
+    t, ids = bursts(20.0)
+    data = run_data(tables_for(t, ids, walk))
+    rows = [{"anchors": "all"}, {"anchors": "all", "update": "sequential"}]
+    _assert_same(batched.run_rows("ekf", data, rows), [registry.run("ekf", data, row) for row in rows])
