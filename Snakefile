@@ -18,7 +18,6 @@ validate_config(config, "config/schema.yaml")
 include: "workflow/rules/common.smk"
 include: "workflow/rules/simulate.smk"
 include: "workflow/rules/ingest.smk"
-include: "workflow/rules/resample.smk"
 include: "workflow/rules/evaluate.smk"
 include: "workflow/rules/paper_d.smk"
 include: "workflow/rules/paper_b.smk"

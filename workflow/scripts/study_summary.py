@@ -27,7 +27,9 @@ results.write(rows, sm.output.results)
 none = "no Bayesian filter cell in this study"
 Path(sm.output.bounds).write_bytes(bound_figures.pcrb_panels(bound_panels) if bound_panels
                                    else figures.placeholder(none))
-Path(sm.output.consistency).write_bytes(bound_figures.consistency_panels(consistency_panels) if consistency_panels
+# Over time, the position ANEES of each cell (its ANIS, with its band and verdict, is in the table and results.csv).
+anees_panels = [panel for panel in consistency_panels if panel[2] == "ANEES"]
+Path(sm.output.consistency).write_bytes(bound_figures.consistency_panels(anees_panels) if anees_panels
                                         else figures.placeholder(none))
 cdf, errors, tracks = study_panels(estimates)
 Path(sm.output.cdf).write_bytes(figures.error_cdf(cdf, xmax=None))

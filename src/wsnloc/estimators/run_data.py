@@ -98,13 +98,18 @@ class RunData:
     # ---- measurements --------------------------------------------------------------------
     def usable_ranges(self, apply_filter: bool, max_range_m: float) -> pd.DataFrame:
         """Ranges to known anchors; with `apply_filter` the preliminary filter, else finite ones."""
-        ranges = self.table("ranges")
-        ranges = ranges[ranges["anchor_id"].isin(self._xy)]
-        return preliminary_filter(ranges, max_range_m) if apply_filter else ranges[np.isfinite(ranges["range_m"])]
+        def build():
+            ranges = self.table("ranges")
+            ranges = ranges[ranges["anchor_id"].isin(self._xy)]
+            return preliminary_filter(ranges, max_range_m) if apply_filter else ranges[np.isfinite(ranges["range_m"])]
+        return self.cached(("usable_ranges", apply_filter, max_range_m), build)
 
     def usable_rss(self) -> pd.DataFrame:
-        rss = self.table("rss")
-        return rss[rss["anchor_id"].isin(self._xy) & np.isfinite(rss["rss_dbm"])]
+        """RSS samples of known anchors with a finite value."""
+        def build():
+            rss = self.table("rss")
+            return rss[rss["anchor_id"].isin(self._xy) & np.isfinite(rss["rss_dbm"])]
+        return self.cached(("usable_rss",), build)
 
     def grid(self, period: float, apply_filter: bool, max_range_m: float) -> np.ndarray:
         """Epoch end times (s) of the run: every `period` s from its first usable measurement
