@@ -34,14 +34,27 @@ def epoch_fixes(data: RunData, p: dict, technique: str) -> pd.DataFrame:
     p: solver, anchors, epoch_s, k_smallest, preliminary_filter, max_range_m, the RSS model
     (measurements.rss_params) and pmix_toa_weight (w; the rss fix gets 1 - w).
     """
+    if technique == "pmix":
+        return _pmix(epoch_fixes(data, p, "toa"), epoch_fixes(data, p, "rss"), p["pmix_toa_weight"])
     rss = rss_params(data, p) if technique != "toa" else None
-    weight = p["pmix_toa_weight"] if technique == "pmix" else None
     key = ("fixes", technique, p["solver"], p["anchors"], p["epoch_s"], p["k_smallest"], p["preliminary_filter"],
-           p["max_range_m"], rss, weight)
-    return data.cached(key, lambda: _epoch_fixes(data, p, technique, rss, weight))
+           p["max_range_m"], rss)
+    return data.cached(key, lambda: _epoch_fixes(data, p, technique, rss))
 
 
-def _epoch_fixes(data: RunData, p: dict, technique: str, rss, w) -> pd.DataFrame:
+def _pmix(toa: pd.DataFrame, rss: pd.DataFrame, w: float) -> pd.DataFrame:
+    """P-mix: (w p_toa + (1 - w) p_rss) / (w + (1 - w)) per epoch over the fixes that exist
+    (one alone when the other technique has no fix; NaN when neither has)."""
+    fixes = np.stack([rss[["x", "y"]].to_numpy(), toa[["x", "y"]].to_numpy()])        # (2, epochs, 2)
+    weights = np.where(np.isfinite(fixes[..., 0]), np.array([[1.0 - w], [w]]), 0.0)   # (2, epochs)
+    total = weights.sum(axis=0)
+    with np.errstate(invalid="ignore"):
+        mixed = np.nansum(fixes * weights[..., None], axis=0) / total[:, None]
+    mixed[total == 0] = np.nan
+    return pd.DataFrame({"t": toa["t"].to_numpy(), "x": mixed[:, 0], "y": mixed[:, 1]})
+
+
+def _epoch_fixes(data: RunData, p: dict, technique: str, rss) -> pd.DataFrame:
     kinds = {"toa": "toa", "rss": "rss"}.get(technique, "hybrid")
     source = MeasurementSource(data, kinds, p["anchors"], 1.0, p["preliminary_filter"], p["max_range_m"], rss)
     times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
@@ -49,18 +62,14 @@ def _epoch_fixes(data: RunData, p: dict, technique: str, rss, w) -> pd.DataFrame
     empty = np.array([], dtype=object)
     out = np.full((len(times), 2), np.nan)
     for i, e in enumerate(source.epochs(times, p["epoch_s"])):
-        toa = source.horizontal_distances(e.range_ids, e.ranges, empty, np.array([]))
+        toa = source.horizontal_distances(e.range_ids, e.ranges, empty, np.array([])) if technique != "rss" else None
         nb = source.horizontal_distances(empty, np.array([]), e.rss_ids, e.rss) if rss is not None else None
         if technique == "toa":
             fix = _solve(solver, *toa, k)
         elif technique == "rss":
             fix = _solve(solver, *nb, k)
-        elif technique == "fmix":
+        else:                                                     # fmix
             fix = _solve(solver, np.vstack([nb[0], toa[0]]), np.concatenate([nb[1], toa[1]]), k)
-        else:                                                     # pmix
-            parts = [(f, wt) for f, wt in ((_solve(solver, *nb, k), 1.0 - w), (_solve(solver, *toa, k), w))
-                     if f is not None]
-            fix = sum(wt * f for f, wt in parts) / sum(wt for _, wt in parts) if parts else None
         if fix is not None:
             out[i] = fix
     return pd.DataFrame({"t": times, "x": out[:, 0], "y": out[:, 1]})

@@ -279,9 +279,15 @@ def run(name: str, data: RunData, overrides: dict | None = None, where: str = ""
 
 
 def finish(estimates: pd.DataFrame) -> pd.DataFrame:
-    """Standard columns (NaN covariance, n_meas and nis where the estimator has none), sorted by time."""
-    out = estimates.copy()
+    """Standard columns (NaN covariance, n_meas and nis where the estimator has none), sorted by
+    time. A shallow copy: estimators may return frames they cache for other estimators."""
+    out = estimates.copy(deep=False)
     for column in OUTPUT_COLUMNS:
-        out[column] = out[column].astype(float) if column in out else np.nan
+        if column not in out:
+            out[column] = np.nan
+        elif out[column].dtype != float:
+            out[column] = out[column].astype(float)
     out.attrs = dict(estimates.attrs)
-    return out.sort_values("t", kind="stable").reset_index(drop=True)
+    if not out["t"].is_monotonic_increasing:
+        out = out.sort_values("t", kind="stable")
+    return out.reset_index(drop=True)
