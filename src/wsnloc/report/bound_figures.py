@@ -65,7 +65,6 @@ def bound_maps(campaign: Campaign, anchors: pd.DataFrame | dict[str, pd.DataFram
         ax.set_ylabel("y [m]")
         ax.set_title(f"{campaign.name}: {title}", fontsize=10, pad=14)   # clear of labels of anchors on the edge
         ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.12), ncol=3, fontsize=7, frameon=False)
-    fig.tight_layout()
     return to_png(fig)
 
 
@@ -89,10 +88,10 @@ def _draw_consistency(ax, t, test: ConsistencyTest, statistic: str, title: str) 
 
 def _stacked(draw, panels: list[tuple], height: float) -> bytes:
     """One axes per panel (the arguments of draw after the axes), stacked vertically."""
-    fig, axes = plt.subplots(len(panels), 1, figsize=(8, height * len(panels)), squeeze=False)
+    # constrained layout: a fraction of tight_layout's cost on many stacked panels (a summary job's main cost)
+    fig, axes = plt.subplots(len(panels), 1, figsize=(8, height * len(panels)), squeeze=False, layout="constrained")
     for ax, args in zip(axes[:, 0], panels):
         draw(ax, *args)
-    fig.tight_layout()
     return to_png(fig)
 
 

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import io
+import struct
+import zlib
 import json
 
 import matplotlib
@@ -41,14 +43,16 @@ def _drawn_texts(fig) -> list:
             if t.get_visible() and t.get_text().strip() and id(t) not in undrawn]
 
 
-def text_overlaps(fig, dpi: float = PNG_DPI) -> list[tuple[str, str]]:
+def text_overlaps(fig, dpi: float = PNG_DPI, drawn: bool = False) -> list[tuple[str, str]]:
     """Pairs of texts whose rendered bounding boxes (pixels at `dpi`) overlap.
 
-    Boxes come from Text.get_window_extent with the figure's renderer after a layout pass;
+    Boxes come from Text.get_window_extent with the figure's renderer after a layout pass
+    (drawn: the figure was just drawn at `dpi`, e.g. by savefig, so no second pass is needed);
     two boxes overlap when their intersection is wider and taller than OVERLAP_TOLERANCE_PX.
     """
     fig.set_dpi(dpi)
-    fig.draw_without_rendering()
+    if not drawn:
+        fig.draw_without_rendering()
     renderer = fig.canvas.get_renderer()
     boxes = [(t.get_text(), t.get_window_extent(renderer)) for t in _drawn_texts(fig)]
     pairs = []
@@ -62,13 +66,30 @@ def text_overlaps(fig, dpi: float = PNG_DPI) -> list[tuple[str, str]]:
 
 
 def to_png(fig) -> bytes:
-    """PNG bytes of the figure (closed afterwards), with its overlapping texts in OVERLAPS_KEY."""
-    overlaps = json.dumps(text_overlaps(fig), ensure_ascii=True)
+    """PNG bytes of the figure (closed afterwards), with its overlapping texts in OVERLAPS_KEY.
+
+    A figure with a layout engine (constrained layout) already fits its canvas: it is saved
+    as laid out and its texts are measured on that same pass (one draw). Other figures are
+    measured on a draw of their own and saved with a tight bounding box. The overlaps are
+    recorded in a tEXt chunk inserted after the PNG header."""
+    fig.set_dpi(PNG_DPI)
     buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=PNG_DPI, bbox_inches="tight",
-                metadata={"Software": None, OVERLAPS_KEY: overlaps})
+    if fig.get_layout_engine() is not None:
+        fig.savefig(buffer, format="png", dpi=PNG_DPI, metadata={"Software": None})
+        overlaps = text_overlaps(fig, drawn=True)
+    else:
+        overlaps = text_overlaps(fig)
+        fig.savefig(buffer, format="png", dpi=PNG_DPI, bbox_inches="tight", metadata={"Software": None})
     plt.close(fig)
-    return buffer.getvalue()
+    return _with_text_chunk(buffer.getvalue(), OVERLAPS_KEY, json.dumps(overlaps, ensure_ascii=True))
+
+
+def _with_text_chunk(png: bytes, key: str, text: str) -> bytes:
+    """The PNG with a tEXt chunk (keyword, NUL, Latin-1 text) after its IHDR chunk (PNG spec 11.3.4.3)."""
+    data = key.encode("latin-1") + b"\0" + text.encode("latin-1")
+    chunk = struct.pack(">I", len(data)) + b"tEXt" + data + struct.pack(">I", zlib.crc32(b"tEXt" + data))
+    ihdr_end = 8 + 4 + 4 + 13 + 4          # signature, IHDR length, type, 13 data bytes, CRC
+    return png[:ihdr_end] + chunk + png[ihdr_end:]
 
 
 def placeholder(message: str) -> bytes:
