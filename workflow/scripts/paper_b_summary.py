@@ -29,14 +29,12 @@ if sm.params.snr_curve["runs"] and sm.params.snr_scenario:
                                       paper_b.scenario_config(sm.params.settings, True)["static_bias_s"], dataset)
     rows += paper_b.snr_rows(curve, sm.params.snr_scenario, paper)
 grids = {label: pd.read_csv(path) for label, path in zip(labels, sm.input.sensitivity)}
-nlos = sm.params.settings.get("nlos_sweep") or {"runs": 0}
-if nlos["runs"]:      # claims against NLOS ranging severity, on extra simulated runs of one scenario
-    dataset, scenario = nlos["scenario"].split("/", 1)
-    settings = paper_b.Settings.from_config(paper_b.scenario_config(sm.params.settings, nlos["scenario"] in simulated))
-    severity = nlos_severity.sweep(
-        Campaign.load(sm.input.nlos_campaign[0]), scenario, nlos["excess_per_wall_m"], nlos["runs"], sm.params.seed,
-        lambda campaign, tables: paper_b.evaluate_runs(tables, campaign, settings, sm.params.resample), dataset)
-    rows += sensitivity.results_rows(paper_b.EXPERIMENT, {nlos["scenario"]: severity}, paper_b.claims)
+nlos = sm.params.settings.get("nlos_sweep") or {"runs": 0}   # claims against NLOS ranging severity (opt-in)
+nlos_settings = paper_b.Settings.from_config(
+    paper_b.scenario_config(sm.params.settings, nlos.get("scenario") in simulated))
+rows += nlos_severity.claim_rows(
+    paper_b.EXPERIMENT, nlos, (sm.input.nlos_campaign or [""])[0], sm.params.seed,
+    lambda campaign, tables: paper_b.evaluate_runs(tables, campaign, nlos_settings, sm.params.resample), paper_b.claims)
 rows += sensitivity.results_rows(paper_b.EXPERIMENT, grids, paper_b.claims)
 estimates = {label: tables.read(p) for label, p in zip(labels, sm.input.estimates)}
 rows += paper_b.setup_rows(estimates)

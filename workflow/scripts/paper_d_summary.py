@@ -8,7 +8,6 @@ import pandas as pd
 from wsnloc import results
 from wsnloc.config import read_yaml
 from wsnloc.analysis import nlos_severity
-from wsnloc.campaign import Campaign
 from wsnloc.experiments import claims as claims_of, paper_d, sensitivity
 from wsnloc.io import tables
 from wsnloc.report import figures
@@ -27,13 +26,9 @@ decided = paper_d.claims(per_run) + [paper_d.cost_claim(counts, paper_cost_ms)]
 cost = paper_d.measure_cost(settings)
 rows += paper_d.cost_rows(cost, paper_cost_ms) + paper_d.operation_rows(counts, paper_cost_ms)
 grids = {label: pd.read_csv(path) for label, path in zip(labels, sm.input.sensitivity)}
-nlos = sm.params.settings.get("nlos_sweep") or {"runs": 0}
-if nlos["runs"]:      # claims against NLOS ranging severity, on extra simulated runs of one scenario
-    dataset, scenario = nlos["scenario"].split("/", 1)
-    severity = nlos_severity.sweep(
-        Campaign.load(sm.input.nlos_campaign[0]), scenario, nlos["excess_per_wall_m"], nlos["runs"], sm.params.seed,
-        lambda campaign, tables: paper_d.evaluate_runs(tables, campaign, settings), dataset)
-    rows += sensitivity.results_rows(paper_d.EXPERIMENT, {nlos["scenario"]: severity}, paper_d.claims)
+rows += nlos_severity.claim_rows(   # claims against NLOS ranging severity (opt-in)
+    paper_d.EXPERIMENT, sm.params.settings.get("nlos_sweep"), (sm.input.nlos_campaign or [""])[0], sm.params.seed,
+    lambda campaign, tables: paper_d.evaluate_runs(tables, campaign, settings), paper_d.claims)
 rows += sensitivity.results_rows(paper_d.EXPERIMENT, grids, paper_d.claims)
 estimates = {label: tables.read(p) for label, p in zip(labels, sm.input.estimates)}
 rows += paper_d.setup_rows(estimates)

@@ -37,3 +37,19 @@ def sweep(campaign: Campaign, scenario: str, excess_m, runs: int, seed: int,
         tables = simulate_tables(severe, scenario, runs, seed, dataset)
         frames.append(evaluate(severe, tables).assign(setting=setting_label(value, runs)))
     return pd.concat(frames, ignore_index=True)
+
+
+def claim_rows(experiment: str, spec: dict | None, campaign_file: str, seed: int,
+               evaluate: Callable[[Campaign, dict], pd.DataFrame], claims) -> list[dict]:
+    """results.csv rows of a paper's claims against NLOS ranging severity (config `nlos_sweep`:
+    scenario, excess_per_wall_m, runs; none when runs is 0): `evaluate(campaign, tables)` gives
+    the per-run metrics of extra simulated runs at each severity, `claims` decides on them."""
+    from wsnloc.experiments import sensitivity
+
+    spec = spec or {"runs": 0}
+    if not spec["runs"]:
+        return []
+    dataset, scenario = spec["scenario"].split("/", 1)
+    severity = sweep(Campaign.load(campaign_file), scenario, spec["excess_per_wall_m"], spec["runs"], seed, evaluate,
+                     dataset)
+    return sensitivity.results_rows(experiment, {spec["scenario"]: severity}, claims)

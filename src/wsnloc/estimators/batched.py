@@ -28,11 +28,9 @@ import numpy as np
 import pandas as pd
 
 from wsnloc.estimators import bayes, filter_options, fixes, range_calibration, registry, trackers
-from wsnloc.estimators.inertial import epoch_inputs, floor_input
-from wsnloc.estimators.measurements import MeasurementSource, rss_params
+from wsnloc.estimators.measurements import MeasurementSource
 from wsnloc.estimators.run_data import RunData
 from wsnloc.filters.measurement_models import MIN_DISTANCE
-from wsnloc.inertial.motion_detection import static_epochs
 
 RANGE, RSS = 0, 1
 
@@ -116,15 +114,7 @@ class _Run:
 
     @classmethod
     def of(cls, data: RunData, p: dict, motion) -> "_Run":
-        source = MeasurementSource(data, p["measurements"], p["anchors"], p["range_sigma_m"], p["preliminary_filter"],
-                                   p["max_range_m"], rss_params(data, p) if p["measurements"] != "toa" else None)
-        times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
-        static = (data.cached(("static_epochs", p["epoch_s"], p["motion_threshold_mps2"], p["static_start_s"],
-                               len(times)),       # one run's rows with motion detection share it
-                              lambda: static_epochs(data.require("imu", "motion detection"), times, p["epoch_s"],
-                                                    p["motion_threshold_mps2"], p["static_start_s"]))
-                  if p["motion_detection"] else np.zeros(len(times), dtype=bool))
-        inputs = epoch_inputs(floor_input(data, p["static_start_s"]), times) if motion.kind == "pva" else None
+        source, times, static, inputs = bayes.filter_inputs(data, p, motion)
         return cls(times, source, static, inputs)
 
 
@@ -213,7 +203,7 @@ def _step_together(cells: list[tuple[RunData, dict]], motion, period: float, max
         live = k < lengths
         t = times[:, k]
         for i in np.flatnonzero(live & ~started):        # the initiator, per run
-            fix = bayes._window_fix(runs[i].source, runs[i].source.records(), t[i], window)
+            fix = bayes.window_fix(runs[i].source, runs[i].source.records(), t[i], window)
             if fix is not None:
                 x[i], P[i] = 0.0, motion.initial_covariance()
                 x[i, :2] = fix

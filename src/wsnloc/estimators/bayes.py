@@ -113,11 +113,22 @@ def measurement_source(data: RunData, p: dict) -> MeasurementSource:
 
 
 def static_flags(data: RunData, p: dict, times: np.ndarray) -> np.ndarray:
-    """Per epoch ending at times: True where motion detection (if enabled) skips the predict step."""
+    """Per epoch ending at times: True where motion detection (if enabled) skips the predict
+    step; computed once per run and setting (the rows of a paper share it)."""
     if not p["motion_detection"]:
         return np.zeros(len(times), dtype=bool)
-    return static_epochs(data.require("imu", "motion detection"), times, p["epoch_s"],
-                         p["motion_threshold_mps2"], p["static_start_s"])
+    return data.cached(("static_epochs", p["epoch_s"], p["motion_threshold_mps2"], p["static_start_s"], len(times)),
+                       lambda: static_epochs(data.require("imu", "motion detection"), times, p["epoch_s"],
+                                             p["motion_threshold_mps2"], p["static_start_s"]))
+
+
+def filter_inputs(data: RunData, p: dict, motion: MotionModel) -> tuple:
+    """(measurement source, epoch end times, static flags, PVA inputs or None) that a filter
+    with parameters p reads from the run (shared with the batched EKF, estimators.batched)."""
+    source = measurement_source(data, p)
+    times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
+    inputs = epoch_inputs(floor_input(data, p["static_start_s"]), times) if motion.kind == "pva" else None
+    return source, times, static_flags(data, p, times), inputs
 
 
 def run_filter(data: RunData, p: dict) -> pd.DataFrame:
@@ -146,11 +157,8 @@ def run_smoother(data: RunData, p: dict) -> pd.DataFrame:
 
 
 def _run(data: RunData, p: dict, forward: ForwardPass | None) -> pd.DataFrame:
-    source = measurement_source(data, p)
-    times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
     motion = motion_model(p)
-    static = static_flags(data, p, times)
-    inputs = epoch_inputs(floor_input(data, p["static_start_s"]), times) if motion.kind == "pva" else None
+    source, times, static, inputs = filter_inputs(data, p, motion)
     counts = UpdateCounts()
     make = configured_factory(FILTERS[p["filter"]](p, data), p, counts, data.campaign)
     loop = _epoch_loop if p["update"] == "epoch" else _sequential_loop
@@ -198,7 +206,7 @@ def _epoch_loop(source, times, p, motion, static, inputs, make, forward) -> pd.D
     track, filt, last_update = Track(), None, -np.inf
     for k, (t, model) in enumerate(zip(times, models)):
         if filt is None:
-            fix = _window_fix(source, records, t, window)
+            fix = window_fix(source, records, t, window)
             if fix is None:
                 continue
             filt, last_update = _start(fix, motion, make, forward), t
@@ -221,7 +229,7 @@ def _epoch_loop(source, times, p, motion, static, inputs, make, forward) -> pd.D
     return track.frame()
 
 
-def _window_fix(source: MeasurementSource, records, t: float, window: float) -> np.ndarray | None:
+def window_fix(source: MeasurementSource, records, t: float, window: float) -> np.ndarray | None:
     """Multilateration on the per-anchor means of the measurements in (t - window, t]."""
     a, b = np.searchsorted(records.t, [t - window, t], side="right")
     if b - a < 3:
@@ -246,7 +254,7 @@ def _sequential_loop(source, times, p, motion, static, inputs, make, forward) ->
                 filt = None
                 track.resets += 1
             if filt is None:
-                fix = _window_fix(source, records, t, window)
+                fix = window_fix(source, records, t, window)
                 if fix is not None:
                     filt, t_filter, last_update = _start(fix, motion, make, forward), t, t
                 continue
