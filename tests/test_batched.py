@@ -143,13 +143,18 @@ def test_batched_kf_over_fixes_with_a_gap_in_one_run():
     _assert_same(batched.run_many("kf_tracker", datas, {"anchors": "all"}), single)
 
 
-def test_paper_a_rows_of_one_run_stepped_together_equal_registry_run(campaign, simulated_runs):
-    """paper_a.run steps its 12 cells (6 rows x with / without motion detection) together."""
+def test_paper_a_runs_and_rows_stepped_together_equal_registry_run(campaign, simulated_runs):
+    """paper_a.run_all steps its cells (rows x with / without motion detection) of every run
+    together, and splits them back per run."""
     settings = paper_a.Settings.from_config(SETTINGS_A)
-    data = _datas(simulated_runs[1:2], campaign)[0]
+    datas = _datas(simulated_runs[:2], campaign)
     params = [paper_a.estimator_params(settings, row, md) for row in settings.rows for md in (False, True)]
-    single = [registry.run("ekf", data, q, where="experiments.paper_a") for q in params]
-    _assert_same(batched.run_rows("ekf", data, params, where="experiments.paper_a"), single)
+    cells = [(data, q) for data in datas for q in params]
+    single = [registry.run("ekf", data, q, where="experiments.paper_a") for data, q in cells]
+    _assert_same(batched.run_cells("ekf", cells, where="experiments.paper_a"), single)
+    scored = paper_a.run_all(datas, settings)
+    n = len(params)
+    assert [len(s) for s in scored] == [sum(len(f) for f in single[:n]), sum(len(f) for f in single[n:])]
 
 
 def test_paper_c_models_and_subsets_of_one_run_equal_registry_run(tmp_path):
@@ -164,12 +169,12 @@ def test_paper_c_models_and_subsets_of_one_run_equal_registry_run(tmp_path):
     params = [paper_c.estimator_params(settings, model, subset) for subset in SETTINGS_C["table_2_subsets"]
               for model in paper_c.MODELS]
     single = [registry.run("ekf", data, q, where="experiments.paper_c") for q in params]
-    _assert_same(batched.run_rows("ekf", data, params, where="experiments.paper_c"), single)
+    _assert_same(batched.run_cells("ekf", [(data, q) for q in params], where="experiments.paper_c"), single)
     assert all(len(s) > 50 for s in single)
 
 
-def test_run_rows_falls_back_for_sequential_rows():
+def test_run_cells_falls_back_for_sequential_rows():
     t, ids = bursts(20.0)
     data = run_data(tables_for(t, ids, walk))
     rows = [{"anchors": "all"}, {"anchors": "all", "update": "sequential"}]
-    _assert_same(batched.run_rows("ekf", data, rows), [registry.run("ekf", data, row) for row in rows])
+    _assert_same(batched.run_cells("ekf", [(data, row) for row in rows]), [registry.run("ekf", data, row) for row in rows])

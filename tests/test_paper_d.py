@@ -219,6 +219,23 @@ def test_epochs_group_measurements():
     assert epochs[0].rss.tolist() == [-61.0] and epochs[1].rss.tolist() == [-70.0]
 
 
+def test_epochs_equal_a_pandas_groupby_mean_per_epoch_and_anchor():
+    """Unsorted times and ids, several samples per anchor and epoch, samples outside the grid."""
+    rng = np.random.default_rng(3)
+    n = 400
+    ranges = pd.DataFrame({"t": rng.uniform(-1.0, 21.0, n), "anchor_id": rng.choice(["U10", "U02", "U01", "B7"], n),
+                           "range_m": rng.uniform(0.5, 20.0, n), "status": 0, "line": 1})
+    times = 0.5 * np.arange(1, 41)
+    epochs = build_epochs(ranges, ranges.iloc[:0].rename(columns={"range_m": "rss_dbm"}), 0.5, times=times)
+    inside = (ranges["t"] > 0.0) & (ranges["t"] <= 20.0)
+    expected = ranges[inside].assign(epoch=np.ceil(ranges["t"][inside] / 0.5 - 1e-12).astype(int) - 1) \
+        .groupby(["epoch", "anchor_id"])["range_m"].mean()
+    got = pd.Series([v for e in epochs for v in e.ranges],
+                    index=pd.MultiIndex.from_tuples([(k, a) for k, e in enumerate(epochs) for a in e.range_ids]))
+    assert got.index.tolist() == expected.index.tolist()
+    np.testing.assert_allclose(got.to_numpy(), expected.to_numpy(), rtol=1e-13)
+
+
 def test_paper_d_on_a_simulated_run(campaign, simulated_run):
     from wsnloc.io.newcom import ingest_run
 

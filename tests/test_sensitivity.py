@@ -62,7 +62,7 @@ def test_grid_reruns_only_the_sampled_runs_and_decides_each_setting():
         return sensitivity.replace_cells(metrics, run, rerun, ["method"])
 
     spec = {"fix_sigma_m": 1.0, "sensitivity": {"runs": 3, "factors": [0.5, 2.0], "sigmas": ["fix_sigma_m"]}}
-    grid = sensitivity.grid_metrics(spec, "experiments.paper_b", metrics, evaluate)
+    grid = sensitivity.grid_metrics(spec, "experiments.paper_b", metrics, sensitivity.each_run(evaluate))
     assert sorted(set(run for _, run in calls)) == runs[:3] and len(calls) == 6
     assert set(grid["setting"]) == {"x1", "fix_sigma_m x0.5", "fix_sigma_m x2"}
     assert len(grid[grid["setting"] == "fix_sigma_m x2"]) == 3 * 4     # 3 runs x 4 methods, no duplicates

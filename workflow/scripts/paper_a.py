@@ -21,10 +21,10 @@ settings.check_against(campaign)
 runs = load_runs(sm.input.tables, paper_a.INPUT_TABLES)
 zigbee = list(campaign.anchors_of("zigbee")["anchor_id"])
 models = calibration.rss_models_for_runs(runs, campaign, zigbee, settings.rss_calibration, settings.rss_model)
-estimates, metrics, qualities, data = [], [], [], {}
-for name, run_tables in runs.items():
-    data[name] = RunData(run_tables, campaign, models[name], name)
-    est = paper_a.run(data[name], settings).assign(run=name)
+data = {name: RunData(run_tables, campaign, models[name], name) for name, run_tables in runs.items()}
+estimates, metrics, qualities = [], [], []
+for (name, run_tables), est in zip(runs.items(), paper_a.run_all(list(data.values()), settings)):
+    est = est.assign(run=name)
     quality, efficiency = grouped_quality(data[name], est, PAPER_A_KEYS, paper_a_params(settings))
     estimates.append(est)
     qualities.append(quality.assign(run=name))
@@ -34,7 +34,14 @@ tables.write("estimates_paper_a", pd.concat(estimates, ignore_index=True), sm.ou
 metrics = pd.concat(metrics, ignore_index=True)
 metrics.to_csv(sm.output.metrics, index=False, float_format="%.6g")
 pd.concat(qualities, ignore_index=True).to_parquet(sm.output.quality, index=False, compression="zstd")
-grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_a", metrics, lambda spec, _, run:
-                                paper_a.run_metrics(paper_a.run(data[run], paper_a.Settings.from_config(spec)),
-                                                    runs[run]["truth"]))
+
+
+def variant_metrics(spec: dict, _, names: list[str]) -> pd.DataFrame:
+    """Every row of the sampled runs under a scaled a-priori setting, stepped together."""
+    estimates = paper_a.run_all([data[name] for name in names], paper_a.Settings.from_config(spec))
+    return pd.concat([paper_a.run_metrics(est, runs[name]["truth"]).assign(run=name)
+                      for name, est in zip(names, estimates)], ignore_index=True)
+
+
+grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_a", metrics, variant_metrics)
 grid.to_csv(sm.output.sensitivity, index=False, float_format="%.6g")

@@ -35,5 +35,5 @@ def fusion_variant(spec: dict, sigma: str, run: str) -> pd.DataFrame:
     return sensitivity.replace_cells(metrics, run, paper_b.run_metrics(fused, runs[run]["truth"]), ["method"])
 
 
-grid = sensitivity.grid_metrics(spec, "experiments.paper_b", metrics, fusion_variant)
+grid = sensitivity.grid_metrics(spec, "experiments.paper_b", metrics, sensitivity.each_run(fusion_variant))
 grid.to_csv(sm.output.sensitivity, index=False, float_format="%.6g")

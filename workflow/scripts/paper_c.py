@@ -17,11 +17,11 @@ campaign = Campaign.load(sm.input.campaign)
 settings = paper_c.Settings.from_config(sm.params.settings)
 settings.check_against(campaign)
 subsets = paper_c.subsets_of(settings, sm.params.label)
-estimates, metrics, qualities, data = [], [], [], {}
 runs = load_runs(sm.input.tables, paper_c.INPUT_TABLES, sm.input.imu_5hz)
-for name, run_tables in runs.items():
-    data[name] = RunData(run_tables, campaign, None, name)
-    est = paper_c.run(data[name], settings, subsets).assign(run=name)
+data = {name: RunData(run_tables, campaign, None, name) for name, run_tables in runs.items()}
+estimates, metrics, qualities = [], [], []
+for (name, run_tables), est in zip(runs.items(), paper_c.run_all(list(data.values()), settings, subsets)):
+    est = est.assign(run=name)
     quality, efficiency = grouped_quality(data[name], est, PAPER_C_KEYS, paper_c_params(settings))
     estimates.append(est)
     qualities.append(quality.assign(run=name))
@@ -34,11 +34,14 @@ metrics.to_csv(sm.output.metrics, index=False, float_format="%.6g")
 pd.concat(qualities, ignore_index=True).to_parquet(sm.output.quality, index=False, compression="zstd")
 
 
-def model_variant(spec: dict, sigma: str, run: str) -> pd.DataFrame:
-    """Re-run only the motion models the scaled sigma acts on (paper_c.SIGMA_MODELS)."""
+def model_variant(spec: dict, sigma: str, names: list[str]) -> pd.DataFrame:
+    """Re-run only the motion models the scaled sigma acts on (paper_c.SIGMA_MODELS), on all
+    sampled runs together; each run keeps its other cells."""
     models = paper_c.SIGMA_MODELS[sigma]
-    rerun = paper_c.run(data[run], paper_c.Settings.from_config(spec), subsets, models)
-    return sensitivity.replace_cells(metrics, run, paper_c.run_metrics(rerun, runs[run]["truth"]), ["subset", "model"])
+    reruns = paper_c.run_all([data[name] for name in names], paper_c.Settings.from_config(spec), subsets, models)
+    return pd.concat([sensitivity.replace_cells(metrics, name, paper_c.run_metrics(rerun, runs[name]["truth"]),
+                                                ["subset", "model"]).assign(run=name)
+                      for name, rerun in zip(names, reruns)], ignore_index=True)
 
 
 grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_c", metrics, model_variant,

@@ -39,6 +39,6 @@ def kalman_variant(spec: dict, sigma: str, run: str) -> pd.DataFrame:
                                      ["localizer", "technique", "stage"])
 
 
-grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_d", metrics, kalman_variant,
+grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_d", metrics, sensitivity.each_run(kalman_variant),
                                 paper_d.SENSITIVITY_SIGMAS)
 grid.to_csv(sm.output.sensitivity, index=False, float_format="%.6g")

@@ -2,7 +2,7 @@
 fixes (`kf_tracker`) stepped on many runs at once: every array carries a leading run axis,
 so one predict and one update per epoch cost a few array operations for all Monte Carlo
 runs of a cell. Entry points: `run_many` (registry.run over the runs of a cell) and
-`run_rows` (registry.run over several parameter sets on one run, e.g. a paper's rows).
+`run_cells` (registry.run over (run, parameter set) cells, e.g. every run x row of a paper's table).
 
 Same filter as `bayes.run_filter` in epoch mode (same initiator, coasting limit, motion
 detection and PVA input; estimates equal to round-off), for runs whose epoch grids and
@@ -162,19 +162,25 @@ def _shared(p: dict) -> tuple:
     return bayes.motion_model(p), p["epoch_s"], p["max_coast_s"], p["init_window_s"] or p["epoch_s"]
 
 
+def _group(p: dict) -> tuple:
+    """_shared(p), and the measurement kinds and anchor subset: cells of one group pad their
+    epochs to similar measurement counts (no 33-wide update for a 12-anchor TOA row)."""
+    return _shared(p), p["measurements"], p["anchors"]
+
+
 def run_epoch_ekf(cells: list[tuple[RunData, dict]]) -> list[pd.DataFrame]:
     """bayes.run_filter(data, p) for every (run, resolved parameters) cell with filter ekf and
-    update epoch; the cells that share _shared(p) are stepped together (different runs, or
-    one run's measurement kinds, anchor subsets, RSS models and motion detection). One frame
+    update epoch; the cells that share _group(p) are stepped together (different runs, RSS
+    models and motion detection). One frame
     (bayes.COLUMNS; attrs as bayes.run_filter's: resets, the gate counters, all zero for the
     bare filter, and the identity range correction) per cell, in order."""
     if not all(supports(p) for _, p in cells):
         raise ValueError("run_epoch_ekf steps the epoch-mode EKF only (filter: ekf, update: epoch)")
     groups: dict[tuple, list[int]] = {}
     for i, (_, p) in enumerate(cells):
-        groups.setdefault(_shared(p), []).append(i)
+        groups.setdefault(_group(p), []).append(i)
     frames: list[pd.DataFrame] = [pd.DataFrame()] * len(cells)
-    for shared, members in groups.items():
+    for (shared, *_), members in groups.items():
         for i, frame in zip(members, _step_together([cells[i] for i in members], *shared)):
             frame.attrs.update(filter_options.UpdateCounts().attrs())
             frame.attrs.update(range_calibration.correction(*cells[i]).describe())
@@ -278,11 +284,12 @@ def run_many(name: str, datas: list[RunData], overrides: dict | None = None, whe
     return [registry.finish(frame) for frame in frames]
 
 
-def run_rows(name: str, data: RunData, rows: list[dict], where: str = "") -> list[pd.DataFrame]:
-    """[registry.run(name, data, row, where) for row in rows] (one run, several parameter
-    sets, e.g. the rows of a paper's table): the epoch-mode EKF rows are stepped together."""
+def run_cells(name: str, cells: list[tuple[RunData, dict]], where: str = "") -> list[pd.DataFrame]:
+    """[registry.run(name, data, overrides, where) for data, overrides in cells] (e.g. every run
+    x row of a paper's table): the epoch-mode EKF cells are stepped together, so the Python
+    loop over epochs runs once for all of them (per group of cells sharing a motion model)."""
     estimator = registry.get(name)
-    params = [estimator.resolve(row, where) for row in rows]
+    params = [estimator.resolve(overrides, where) for _, overrides in cells]
     if estimator.function is not bayes.run_filter or not all(supports(p) for p in params):
-        return [registry.run(name, data, row, where) for row in rows]
-    return [registry.finish(frame) for frame in run_epoch_ekf([(data, p) for p in params])]
+        return [registry.run(name, data, overrides, where) for data, overrides in cells]
+    return [registry.finish(frame) for frame in run_epoch_ekf([(data, p) for (data, _), p in zip(cells, params)])]

@@ -107,9 +107,9 @@ def motion_model(p: dict) -> MotionModel:
 def measurement_source(data: RunData, p: dict) -> MeasurementSource:
     """The measurements (and their models) a filter with parameters p reads from the run, the
     ranges corrected by the configured range calibration (range_calibration.correction)."""
-    return MeasurementSource(data, p["measurements"], p["anchors"], p["range_sigma_m"], p["preliminary_filter"],
-                             p["max_range_m"], rss_params(data, p) if p["measurements"] != "toa" else None,
-                             range_calibration.correction(data, p))
+    args = (p["measurements"], p["anchors"], p["range_sigma_m"], p["preliminary_filter"], p["max_range_m"],
+            rss_params(data, p) if p["measurements"] != "toa" else None, range_calibration.correction(data, p))
+    return data.cached(("measurement_source",) + args, lambda: MeasurementSource(data, *args))
 
 
 def static_flags(data: RunData, p: dict, times: np.ndarray) -> np.ndarray:

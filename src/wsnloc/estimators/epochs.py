@@ -39,20 +39,22 @@ def _assign(t: np.ndarray, times: np.ndarray, period: float) -> np.ndarray:
 
 
 def _per_anchor_mean(frame: pd.DataFrame, value: str, times, period) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per epoch ending at `times`: (anchor ids in sorted order, mean of `value` per anchor)."""
     out = [(np.array([], dtype=object), np.array([])) for _ in times]
-    if len(frame) == 0:
+    epoch = _assign(frame["t"].to_numpy(float), times, period)
+    inside = epoch >= 0
+    if not inside.any():
         return out
-    frame = frame.assign(epoch=_assign(frame["t"].to_numpy(), times, period))
-    frame = frame[frame["epoch"] >= 0]
-    if len(frame) == 0:
-        return out
-    means = frame.groupby(["epoch", "anchor_id"], sort=True)[value].mean()
-    epochs = means.index.get_level_values(0).to_numpy()
-    ids = means.index.get_level_values(1).to_numpy(dtype=object)
-    values = means.to_numpy(dtype=float)
-    starts = np.flatnonzero(np.r_[True, epochs[1:] != epochs[:-1]])      # first row of each epoch
-    for k, a, b in zip(epochs[starts], starts, np.r_[starts[1:], len(epochs)]):
-        out[k] = (ids[a:b], values[a:b])
+    epoch, values = epoch[inside], frame[value].to_numpy(float)[inside]
+    ids, code = np.unique(frame["anchor_id"].to_numpy(object)[inside].astype(str), return_inverse=True)
+    order = np.lexsort((code, epoch))                   # by epoch, then anchor id
+    epoch, code, values = epoch[order], code[order], values[order]
+    first = np.flatnonzero(np.r_[True, (epoch[1:] != epoch[:-1]) | (code[1:] != code[:-1])])   # one per (epoch, anchor)
+    means = np.add.reduceat(values, first) / np.diff(np.r_[first, len(values)])
+    group_epoch, group_ids = epoch[first], ids[code[first]].astype(object)
+    starts = np.flatnonzero(np.r_[True, group_epoch[1:] != group_epoch[:-1]])      # first group of each epoch
+    for k, a, b in zip(group_epoch[starts], starts, np.r_[starts[1:], len(group_epoch)]):
+        out[k] = (group_ids[a:b], means[a:b])
     return out
 
 

@@ -86,14 +86,24 @@ def estimator_params(settings: Settings, row: dict, motion_detection: bool) -> d
     }
 
 
-def run(data: RunData, settings: Settings) -> pd.DataFrame:
-    """Estimates of every row, without (Table I) and with (Table II) motion detection, scored."""
+def run_all(datas: list[RunData], settings: Settings) -> list[pd.DataFrame]:
+    """Estimates of every row, without (Table I) and with (Table II) motion detection, scored,
+    per run of `datas`; all runs x rows are stepped together (batched.run_cells)."""
     cells = [(row, table, motion_detection) for row in settings.rows
              for table, motion_detection in (("Table I", False), ("Table II", True))]
-    tracks = batched.run_rows("ekf", data, [estimator_params(settings, row, md) for row, _, md in cells],
-                              where="experiments.paper_a")
-    frames = [track.assign(row=row_label(row), table=table) for track, (row, table, _) in zip(tracks, cells)]
-    return score(pd.concat(frames, ignore_index=True), data.table("truth"))
+    params = [estimator_params(settings, row, md) for row, _, md in cells]
+    tracks = batched.run_cells("ekf", [(data, p) for data in datas for p in params], where="experiments.paper_a")
+    out = []
+    for i, data in enumerate(datas):
+        frames = [track.assign(row=row_label(row), table=table)
+                  for track, (row, table, _) in zip(tracks[i * len(cells):(i + 1) * len(cells)], cells)]
+        out.append(score(pd.concat(frames, ignore_index=True), data.table("truth")))
+    return out
+
+
+def run(data: RunData, settings: Settings) -> pd.DataFrame:
+    """run_all of one run."""
+    return run_all([data], settings)[0]
 
 
 def run_metrics(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:

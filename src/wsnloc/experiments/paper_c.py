@@ -83,13 +83,23 @@ DETAIL_METRICS = {"median": "median_m", "p95": "p95_m", "max": "max_m", "sqrt_pc
                   "efficiency": "efficiency_ratio"}
 
 
-def run(data: RunData, settings: Settings, subsets: list[str], models=MODELS) -> pd.DataFrame:
-    """Estimates of the (given) motion models for each beacon subset, scored against truth."""
+def run_all(datas: list[RunData], settings: Settings, subsets: list[str], models=MODELS) -> list[pd.DataFrame]:
+    """Estimates of the (given) motion models for each beacon subset, scored against truth, per
+    run of `datas`; all runs x cells are stepped together (batched.run_cells)."""
     cells = [(model, subset) for subset in subsets for model in models]
-    tracks = batched.run_rows("ekf", data, [estimator_params(settings, model, subset) for model, subset in cells],
-                              where="experiments.paper_c")
-    frames = [track.assign(model=model, subset=subset) for track, (model, subset) in zip(tracks, cells)]
-    return score(pd.concat(frames, ignore_index=True), data.table("truth"))
+    params = [estimator_params(settings, model, subset) for model, subset in cells]
+    tracks = batched.run_cells("ekf", [(data, p) for data in datas for p in params], where="experiments.paper_c")
+    out = []
+    for i, data in enumerate(datas):
+        frames = [track.assign(model=model, subset=subset)
+                  for track, (model, subset) in zip(tracks[i * len(cells):(i + 1) * len(cells)], cells)]
+        out.append(score(pd.concat(frames, ignore_index=True), data.table("truth")))
+    return out
+
+
+def run(data: RunData, settings: Settings, subsets: list[str], models=MODELS) -> pd.DataFrame:
+    """run_all of one run."""
+    return run_all([data], settings, subsets, models)[0]
 
 
 def run_metrics(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:

@@ -67,23 +67,30 @@ def sample_runs(spec: dict, run_names) -> list[str]:
     return sorted(run_names)[: int(grid.get("runs") or 0)]
 
 
-def grid_metrics(spec: dict, where: str, metrics: pd.DataFrame, evaluate: Callable[[dict, str, str], pd.DataFrame],
-                 allowed=None) -> pd.DataFrame:
+def grid_metrics(spec: dict, where: str, metrics: pd.DataFrame,
+                 evaluate: Callable[[dict, str, list[str]], pd.DataFrame], allowed=None) -> pd.DataFrame:
     """Per-run metrics of every setting on the sampled runs, with columns `setting`, `sigma`
     (the scaled key, "" for the baseline) and `factor` (1 for the baseline).
 
-    metrics: the main per-run metrics (baseline); evaluate(variant_spec, sigma, run) -> that
-    run's metrics under the variant (the caller's estimators on the already loaded run;
-    `sigma` lets it re-run only the cells the scaled sigma acts on, see `replace_cells`).
+    metrics: the main per-run metrics (baseline); evaluate(variant_spec, sigma, runs) -> those
+    runs' metrics (column `run`) under the variant (the caller's estimators on the already
+    loaded runs, all runs at once where it batches them, else `each_run`; `sigma` lets it
+    re-run only the cells the scaled sigma acts on, see `replace_cells`).
     """
     grid = variants(spec, where, allowed)
     runs = sample_runs(spec, metrics["run"].unique())
     frames = [metrics[metrics["run"].isin(runs)].assign(setting=BASELINE, sigma="", factor=1.0)]
     factors = [f for _ in (spec.get("sensitivity") or {}).get("sigmas", []) for f in spec["sensitivity"]["factors"]]
     for (label, sigma, variant), factor in zip(grid, factors):
-        frames += [evaluate(variant, sigma, run).assign(run=run, setting=label, sigma=sigma, factor=float(factor))
-                   for run in runs]
+        if runs:
+            frames.append(evaluate(variant, sigma, runs).assign(setting=label, sigma=sigma, factor=float(factor)))
     return pd.concat(frames, ignore_index=True)
+
+
+def each_run(evaluate_one: Callable[[dict, str, str], pd.DataFrame]) -> Callable[[dict, str, list[str]], pd.DataFrame]:
+    """grid_metrics' evaluate from a per-run evaluate_one(variant_spec, sigma, run) -> that run's metrics."""
+    return lambda variant, sigma, runs: pd.concat([evaluate_one(variant, sigma, run).assign(run=run) for run in runs],
+                                                  ignore_index=True)
 
 
 def replace_cells(metrics: pd.DataFrame, run: str, rerun: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
