@@ -122,7 +122,13 @@ def test_grouped_quality_keeps_each_rows_values_and_index():
               "tight": registry.get("ekf_p").resolve({"range_sigma_m": 0.1})}
     frames = [registry.run("ekf_p", data, p).assign(row=name) for name, p in params.items()]
     scored = score(pd.concat(frames).sort_values("t", kind="stable").reset_index(drop=True), data.table("truth"))
-    quality, efficiency = grouped_quality(data, scored, ["row"], lambda row: params[row])
+    short = run_data(tables_for(times[times < 6.0], ids[times < 6.0], np.array([20.0, 25.0]), FIELD))
+    short_scored = score(registry.run("ekf_p", short, params["tight"]).assign(row="tight"), short.table("truth"))
+    (quality, efficiency), (short_quality, _) = grouped_quality([(data, scored), (short, short_scored)], ["row"],
+                                                               lambda row: params[row])
+    alone = epoch_quality(short_scored, filter_pcrb(short, params["tight"]))    # batched with longer cells
+    np.testing.assert_allclose(short_quality["pcrb_m2"], alone["pcrb_m2"], rtol=1e-12)
+    assert len(short_quality) < len(quality) / 2
     for name, p in params.items():
         rows = quality[quality["row"] == name]
         np.testing.assert_array_equal(rows["t"], scored.loc[scored["row"] == name, "t"])

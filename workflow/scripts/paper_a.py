@@ -22,11 +22,11 @@ runs = load_runs(sm.input.tables, paper_a.INPUT_TABLES)
 zigbee = list(campaign.anchors_of("zigbee")["anchor_id"])
 models = calibration.rss_models_for_runs(runs, campaign, zigbee, settings.rss_calibration, settings.rss_model)
 data = {name: RunData(run_tables, campaign, models[name], name) for name, run_tables in runs.items()}
-estimates, metrics, qualities = [], [], []
-for (name, run_tables), est in zip(runs.items(), paper_a.run_all(list(data.values()), settings)):
-    est = est.assign(run=name)
-    quality, efficiency = grouped_quality(data[name], est, PAPER_A_KEYS, paper_a_params(settings))
-    estimates.append(est)
+estimates = [est.assign(run=name) for name, est in zip(runs, paper_a.run_all(list(data.values()), settings))]
+bounded = grouped_quality([(data[name], est) for name, est in zip(runs, estimates)], PAPER_A_KEYS,
+                          paper_a_params(settings))
+metrics, qualities = [], []
+for (name, run_tables), est, (quality, efficiency) in zip(runs.items(), estimates, bounded):
     qualities.append(quality.assign(run=name))
     metrics.append(paper_a.run_metrics(est, run_tables["truth"]).merge(efficiency, on=PAPER_A_KEYS).assign(run=name))
     log.info("%s: RSS model %s", name, json.dumps(models[name]))

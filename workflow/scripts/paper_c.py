@@ -19,11 +19,11 @@ settings.check_against(campaign)
 subsets = paper_c.subsets_of(settings, sm.params.label)
 runs = load_runs(sm.input.tables, paper_c.INPUT_TABLES, sm.input.imu_5hz)
 data = {name: RunData(run_tables, campaign, None, name) for name, run_tables in runs.items()}
-estimates, metrics, qualities = [], [], []
-for (name, run_tables), est in zip(runs.items(), paper_c.run_all(list(data.values()), settings, subsets)):
-    est = est.assign(run=name)
-    quality, efficiency = grouped_quality(data[name], est, PAPER_C_KEYS, paper_c_params(settings))
-    estimates.append(est)
+estimates = [est.assign(run=name) for name, est in zip(runs, paper_c.run_all(list(data.values()), settings, subsets))]
+bounded = grouped_quality([(data[name], est) for name, est in zip(runs, estimates)], PAPER_C_KEYS,
+                          paper_c_params(settings))
+metrics, qualities = [], []
+for (name, run_tables), est, (quality, efficiency) in zip(runs.items(), estimates, bounded):
     qualities.append(quality.assign(run=name))
     metrics.append(paper_c.run_metrics(est, run_tables["truth"]).merge(efficiency, on=PAPER_C_KEYS)
                    .assign(run=name))

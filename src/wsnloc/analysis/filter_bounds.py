@@ -80,13 +80,13 @@ def _transitions(motion: MotionModel, steps: np.ndarray, static_of_step: np.ndar
     return F, Q
 
 
-def filter_pcrb(data: RunData, p: dict) -> pd.DataFrame:
-    """PCRB position block (m^2) of a Bayesian filter with resolved registry parameters p
-    (bayes.run_filter's) at every epoch end of the run's grid: columns BOUND_COLUMNS."""
+def _pcrb_inputs(data: RunData, p: dict):
+    """(epoch end times, output step index of each, P0, F, Q, information (steps, n, n)) of the
+    bound of a filter with resolved parameters p on one run; None without epochs."""
     source = bayes.measurement_source(data, p)
     times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
     if len(times) == 0:
-        return pd.DataFrame(columns=BOUND_COLUMNS, dtype=float)
+        return None
     steps, range_step, range_ids, rss_step, rss_ids, outputs = _measurement_steps(source, times, p)
     position = truth_at(data.require("truth", "the PCRB"), steps)
     information = np.zeros((len(steps), 3))
@@ -103,9 +103,42 @@ def filter_pcrb(data: RunData, p: dict) -> pd.DataFrame:
     motion = bayes.motion_model(p)
     static = bayes.static_flags(data, p, times)[np.minimum(np.searchsorted(times, steps), len(times) - 1)]
     F, Q = _transitions(motion, steps, static)
-    bound = pcrb(motion.initial_covariance(), F, Q, to_matrices(information, motion.dim))[outputs]
-    return pd.DataFrame({"t": times, "pcrb_xx": bound[:, 0, 0], "pcrb_xy": bound[:, 0, 1],
-                         "pcrb_yy": bound[:, 1, 1]})
+    return times, outputs, motion.initial_covariance(), F, Q, to_matrices(information, motion.dim)
+
+
+def filter_pcrbs(cells: list[tuple[RunData, dict]]) -> list[pd.DataFrame]:
+    """filter_pcrb of every (run, resolved parameters) cell; cells with the same state
+    dimension run through one batched recursion (metrics.bounds.pcrb over a leading cell
+    axis), their step sequences padded at the end with F = I, Q = 0 and no information
+    (padded steps come after a cell's last output and do not change it)."""
+    inputs = [_pcrb_inputs(data, p) for data, p in cells]
+    out = [pd.DataFrame(columns=BOUND_COLUMNS, dtype=float)] * len(cells)
+    by_dim: dict[int, list[int]] = {}
+    for i, item in enumerate(inputs):
+        if item is not None:
+            by_dim.setdefault(item[2].shape[0], []).append(i)
+    for n, members in by_dim.items():
+        K = max(len(inputs[i][5]) for i in members)
+        F = np.broadcast_to(np.eye(n), (len(members), max(K - 1, 0), n, n)).copy()
+        Q = np.zeros_like(F)
+        information = np.zeros((len(members), K, n, n))
+        P0 = np.empty((len(members), n, n))
+        for j, i in enumerate(members):
+            _, _, P0[j], F_i, Q_i, info_i = inputs[i]
+            F[j, :len(F_i)], Q[j, :len(Q_i)], information[j, :len(info_i)] = F_i, Q_i, info_i
+        bounds = pcrb(P0, F, Q, information)
+        for j, i in enumerate(members):
+            times, outputs = inputs[i][:2]
+            bound = bounds[j, outputs]
+            out[i] = pd.DataFrame({"t": times, "pcrb_xx": bound[:, 0, 0], "pcrb_xy": bound[:, 0, 1],
+                                   "pcrb_yy": bound[:, 1, 1]})
+    return out
+
+
+def filter_pcrb(data: RunData, p: dict) -> pd.DataFrame:
+    """PCRB position block (m^2) of a Bayesian filter with resolved registry parameters p
+    (bayes.run_filter's) at every epoch end of the run's grid: columns BOUND_COLUMNS."""
+    return filter_pcrbs([(data, p)])[0]
 
 
 def bound_model(p: dict) -> str:

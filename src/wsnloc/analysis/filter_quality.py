@@ -22,7 +22,7 @@ import numpy as np
 import pandas as pd
 
 from wsnloc import results
-from wsnloc.analysis.filter_bounds import bound_model, filter_pcrb
+from wsnloc.analysis.filter_bounds import bound_model, filter_pcrb, filter_pcrbs
 from wsnloc.estimators.run_data import RunData
 from wsnloc.metrics.consistency import consistency_test, normalized_squared
 
@@ -114,16 +114,24 @@ def consistency(quality: pd.DataFrame, period: float, epoch_updates: bool) -> di
     return out
 
 
-def grouped_quality(data: RunData, scored: pd.DataFrame, keys: list[str], params_of) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """run_quality of every Bayesian filter in one run's scored estimates, grouped by keys
-    (e.g. a paper's table and row); params_of(*key values) gives that filter's resolved
-    registry parameters. Returns (quality rows with the keys, per group sqrt_pcrb and efficiency)."""
-    qualities, efficiencies = [], []
-    for key, group in scored.groupby(keys, sort=False):
-        quality, efficiency = run_quality(data, params_of(*key), group)
-        qualities.append(quality.assign(**dict(zip(keys, key))))
-        efficiencies.append({**dict(zip(keys, key)), **efficiency})
-    return pd.concat(qualities, ignore_index=True), pd.DataFrame(efficiencies)
+def grouped_quality(runs: list[tuple[RunData, pd.DataFrame]], keys: list[str],
+                    params_of) -> list[tuple[pd.DataFrame, pd.DataFrame]]:
+    """run_quality of every Bayesian filter in each run's scored estimates ((run data, scored)
+    pairs), grouped by keys (e.g. a paper's table and row); params_of(*key values) gives that
+    filter's resolved registry parameters. The bounds of all runs and groups are computed in
+    one batch (filter_pcrbs). Per run: (quality rows with the keys, per group sqrt_pcrb and
+    efficiency)."""
+    groups = [(data, key, group) for data, scored in runs for key, group in scored.groupby(keys, sort=False)]
+    bounds = iter(filter_pcrbs([(data, params_of(*key)) for data, key, _ in groups]))
+    out = []
+    for data, scored in runs:
+        qualities, efficiencies = [], []
+        for key, group in scored.groupby(keys, sort=False):
+            quality = epoch_quality(group, next(bounds))
+            qualities.append(quality.assign(**dict(zip(keys, key))))
+            efficiencies.append({**dict(zip(keys, key)), **run_efficiency(quality)})
+        out.append((pd.concat(qualities, ignore_index=True), pd.DataFrame(efficiencies)))
+    return out
 
 
 def cell_outputs(quality: pd.DataFrame, p: dict, label: str, title: str, **keys) -> tuple[list, tuple, list]:

@@ -143,8 +143,8 @@ def pcrb(P0, F, Q, information) -> np.ndarray:
     """Posterior CRB covariances (..., K, n, n) along a true trajectory.
 
     P0: prior covariance of x_0 (n, n), i.e. J_0^- = P0^-1 before the first measurement.
-    F, Q: transition and process noise, (n, n) for every step or (K - 1, n, n), entry k - 1
-      taking step k - 1 to step k.
+    F, Q: transition and process noise, (n, n) for every step or (..., K - 1, n, n), entry
+      k - 1 taking step k - 1 to step k (leading axes: one sequence per batch entry).
     information: (..., K, n, n) measurement information I_k = H_k^T R_k^-1 H_k at the true
       state (H_k the Jacobian of the measurements available at step k; zero when none);
       leading axes (e.g. Monte Carlo runs, each with its own measurement availability) are
@@ -160,13 +160,15 @@ def pcrb(P0, F, Q, information) -> np.ndarray:
     """
     information = np.asarray(information, dtype=float)
     K, n = information.shape[-3], information.shape[-1]
-    F = np.broadcast_to(np.asarray(F, dtype=float), (max(K - 1, 0), n, n))
-    Q = np.broadcast_to(np.asarray(Q, dtype=float), (max(K - 1, 0), n, n))
+    steps = information.shape[:-3] + (max(K - 1, 0), n, n)
+    F = np.broadcast_to(np.asarray(F, dtype=float), steps)
+    Q = np.broadcast_to(np.asarray(Q, dtype=float), steps)
     bounds = np.empty(information.shape)
     predicted = np.broadcast_to(np.asarray(P0, dtype=float), information.shape[:-3] + (n, n))
     for k in range(K):
         if k:
-            predicted = F[k - 1] @ bounds[..., k - 1, :, :] @ F[k - 1].T + Q[k - 1]
+            Fk = F[..., k - 1, :, :]
+            predicted = Fk @ bounds[..., k - 1, :, :] @ np.swapaxes(Fk, -1, -2) + Q[..., k - 1, :, :]
         J = np.linalg.inv(predicted) + information[..., k, :, :]
         inverse = np.linalg.inv(J)
         bounds[..., k, :, :] = 0.5 * (inverse + np.swapaxes(inverse, -1, -2))   # symmetric to rounding
