@@ -184,3 +184,19 @@ def test_nlos_levels_apply_the_hardware_class_then_the_level_values(campaign):
         == f"{era_class['hardware_label']}, timing noise 2 ns (2 simulated runs)"
     with pytest.raises(ConfigError, match=r"config key 'x\.era\.hardware_class': no hardware class 'dw3000'"):
         nlos_severity.level_campaign(campaign, {"hardware_class": "dw3000"}, "x.era")
+
+
+def test_ranging_severity_rows_and_sentence_carry_the_computed_rmse():
+    from wsnloc.analysis import nlos_severity
+    from wsnloc.report import explanations
+
+    severity = pd.DataFrame({"method": ["uwb", "imu"] * 4, "rmse": [0.8, 2.0, 1.0, 2.0, 3.0, 2.0, 3.4, 2.0],
+                             "run": ["r1", "r1", "r2", "r2"] * 2, "setting": ["spec"] * 4 + ["era"] * 4})
+    rows = nlos_severity.rmse_rows("B", "newcom/constant", severity)
+    frame = results.frame(rows).set_index(["row", "column"])
+    assert frame.loc[("uwb", "spec"), "value"] == pytest.approx(0.9) and frame.loc[("uwb", "era"), "runs"] == 2
+    assert frame.loc[("uwb", "era"), "value"] == pytest.approx(3.2)
+    numbers = explanations.Numbers(results.frame(rows), {})
+    [line] = explanations.ranging_severity(numbers, "B", {"Min-Max on UWB": "uwb"}, "; paper: 3.25 m")
+    assert "newcom/constant" in line and "spec: Min-Max on UWB 0.90 m; era: Min-Max on UWB 3.20 m; paper: 3.25 m" in line
+    assert explanations.ranging_severity(numbers, "D", {"Min-Max UWB": "minmax/uwb/raw"}, "") == []

@@ -242,7 +242,9 @@ def test_b_simulation_ranging_is_impaired_by_the_channel_only(campaign, tmp_path
 def _without_twr_keys(campaign):
     """The campaign as before the two-way-ranging clock parameters existed."""
     import copy
+
     from wsnloc.campaign import Campaign
+
     spec = copy.deepcopy(campaign.spec)
     for key in ("twr_clock_ppm", "twr_reply_time_us"):
         del spec["radio"]["uwb"][key]

@@ -17,9 +17,12 @@ from typing import Callable
 
 import pandas as pd
 
+from wsnloc import results
 from wsnloc.analysis.simulated_runs import simulate_tables, with_value
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
+
+TABLE = "UWB ranging severity"   # results.csv: mean RMSE of every cell at every level
 
 # radio.uwb values a level may set (config/schema.yaml $defs.nlos_level), with their label text
 LEVEL_TEXT = {
@@ -74,12 +77,28 @@ def sweep(campaign: Campaign, scenario: str, levels: dict[str, dict], runs: int,
     return pd.concat(frames, ignore_index=True)
 
 
+def cell_of(metrics: pd.DataFrame) -> pd.Series:
+    """Name of each per-run metrics row's cell: its non-numeric columns besides `run` and
+    `setting`, joined by "/" (paper B: "uwb"; paper D: "minmax/uwb/raw")."""
+    keys = [c for c in metrics.select_dtypes(exclude="number").columns if c not in ("run", "setting")]
+    return metrics[keys].astype(str).agg("/".join, axis=1)
+
+
+def rmse_rows(experiment: str, scenario: str, severity: pd.DataFrame) -> list[dict]:
+    """results.csv rows (table TABLE, row = cell_of, column = level label, metric rmse_m):
+    mean over the simulated runs of each cell's per-run RMSE (m), with its 95% interval."""
+    cells = severity.assign(cell=cell_of(severity))
+    return [results.row_over_runs(group["rmse"], experiment=experiment, table=TABLE, row=cell, column=setting,
+                                  scenario=scenario, metric="rmse_m")
+            for (setting, cell), group in cells.groupby(["setting", "cell"], sort=False)]
+
+
 def claim_rows(experiment: str, spec: dict | None, campaign_file: str, seed: int,
                evaluate: Callable[[Campaign, dict], pd.DataFrame], claims) -> list[dict]:
     """results.csv rows of a paper's claims against UWB ranging severity (config
-    `experiments.paper_<experiment>.nlos_sweep`: scenario, levels, runs; none when runs is 0):
-    `evaluate(campaign, tables)` gives the per-run metrics of extra simulated runs at each
-    level, `claims` decides on them."""
+    `experiments.paper_<experiment>.nlos_sweep`: scenario, levels, runs; none when runs is 0),
+    and of every cell's RMSE per level (rmse_rows): `evaluate(campaign, tables)` gives the
+    per-run metrics of extra simulated runs at each level, `claims` decides on them."""
     from wsnloc.experiments import sensitivity
 
     spec = spec or {"runs": 0}
@@ -88,4 +107,5 @@ def claim_rows(experiment: str, spec: dict | None, campaign_file: str, seed: int
     dataset, scenario = spec["scenario"].split("/", 1)
     severity = sweep(Campaign.load(campaign_file), scenario, spec["levels"], spec["runs"], seed, evaluate, dataset,
                      f"experiments.paper_{experiment.lower()}.nlos_sweep.levels")
-    return sensitivity.results_rows(experiment, {spec["scenario"]: severity}, claims)
+    return sensitivity.results_rows(experiment, {spec["scenario"]: severity}, claims) \
+        + rmse_rows(experiment, spec["scenario"], severity)
