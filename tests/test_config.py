@@ -183,3 +183,24 @@ def test_quarantine_limit_defaults_are_those_of_the_command_line(config):
     validate_config(config, SCHEMA)
     assert config["ingest"] == {"max_quarantine_share": DEFAULT_PER_RUN,
                                 "max_quarantine_share_per_file": DEFAULT_PER_FILE}
+
+
+@pytest.mark.parametrize("paper", ["paper_b", "paper_d"])
+def test_nlos_sweep_levels_parse_and_a_bad_level_key_is_named(config, paper):
+    validate_config(copy.deepcopy(config), SCHEMA)
+    levels = config["experiments"][paper]["nlos_sweep"]["levels"]
+    assert levels["spec"] == {} and levels["era_2009"] == {"hardware_class": "ieee802154a_2009"}
+    levels["era_2009"]["tap_ns"] = 2.0
+    with pytest.raises(ConfigError, match=rf"'experiments\.{paper}\.nlos_sweep\.levels\.era_2009\.tap_ns': unknown key"):
+        validate_config(config, SCHEMA)
+
+
+def test_nlos_sweep_default_is_on_and_its_levels_are_campaign_classes(config):
+    from wsnloc.analysis.nlos_severity import level_campaign
+
+    campaign = Campaign.load(NEWCOM)
+    for paper in ("paper_b", "paper_d"):
+        sweep = config["experiments"][paper]["nlos_sweep"]
+        assert sweep["runs"] >= 2          # paper D's other_run RSS calibration needs a donor run
+        for name, level in sweep["levels"].items():
+            level_campaign(campaign, level, f"experiments.{paper}.nlos_sweep.levels.{name}")

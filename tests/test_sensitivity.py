@@ -144,6 +144,7 @@ def test_static_share_sweep_lengthens_the_rest_and_pairs_the_runs(campaign):
 
 
 def test_nlos_severity_sweep_adds_the_configured_excess_per_wall(campaign):
+    """A level's radio.uwb value reaches the simulated ranges; its label says what it is."""
     from wsnloc.analysis import nlos_severity
     from wsnloc.analysis.simulated_runs import with_value
     from wsnloc.metrics.ranging import range_errors
@@ -159,9 +160,43 @@ def test_nlos_severity_sweep_adds_the_configured_excess_per_wall(campaign):
             rows.append({"run": name, "per_wall_m": float(np.median(nlos["error_m"] / nlos["walls"]))})
         return pd.DataFrame(rows)
 
-    sweep = nlos_severity.sweep(campaign, "constant", [0.3, 2.3], 1, 5, nlos_excess)
+    levels = {"spec": {}, "severe": {"excess_path_per_wall_m": 2.3}}
+    sweep = nlos_severity.sweep(campaign, "constant", levels, 1, 5, nlos_excess)
     by_setting = sweep.set_index("setting")["per_wall_m"]
-    low, high = (by_setting[nlos_severity.setting_label(v, 1)] for v in (0.3, 2.3))
+    assert list(by_setting.index) == ["DW1000-class (spec) (1 simulated run)",
+                                      "DW1000-class (spec), NLOS excess 2.3 m/wall (1 simulated run)"]
+    low, high = by_setting.iloc[0], by_setting.iloc[1]
     # same seeds: the channel part of each NLOS range is shared, the wall part grows by 2 m per wall
     assert high - low == pytest.approx(2.0, abs=0.05)
     assert campaign.section("radio", "uwb")["excess_path_per_wall_m"] == 0.3
+
+
+def test_nlos_levels_apply_the_hardware_class_then_the_level_values(campaign):
+    from wsnloc.analysis import nlos_severity
+    from wsnloc.errors import ConfigError
+
+    era = nlos_severity.level_campaign(campaign, {"hardware_class": "ieee802154a_2009", "timing_noise_ns": 2.0}, "x.era")
+    uwb, spec_class = era.section("radio", "uwb"), campaign.section("radio", "uwb")
+    era_class = spec_class["hardware_classes"]["ieee802154a_2009"]
+    assert uwb["cir_tap_ns"] == era_class["cir_tap_ns"] and uwb["timing_noise_ns"] == 2.0
+    assert uwb["excess_path_per_wall_m"] == spec_class["excess_path_per_wall_m"]     # not in the class: kept
+    assert nlos_severity.setting_label(era, {"hardware_class": "ieee802154a_2009", "timing_noise_ns": 2.0}, 2) \
+        == f"{era_class['hardware_label']}, timing noise 2 ns (2 simulated runs)"
+    with pytest.raises(ConfigError, match=r"config key 'x\.era\.hardware_class': no hardware class 'dw3000'"):
+        nlos_severity.level_campaign(campaign, {"hardware_class": "dw3000"}, "x.era")
+
+
+def test_ranging_severity_rows_and_sentence_carry_the_computed_rmse():
+    from wsnloc.analysis import nlos_severity
+    from wsnloc.report import explanations
+
+    severity = pd.DataFrame({"method": ["uwb", "imu"] * 4, "rmse": [0.8, 2.0, 1.0, 2.0, 3.0, 2.0, 3.4, 2.0],
+                             "run": ["r1", "r1", "r2", "r2"] * 2, "setting": ["spec"] * 4 + ["era"] * 4})
+    rows = nlos_severity.rmse_rows("B", "newcom/constant", severity)
+    frame = results.frame(rows).set_index(["row", "column"])
+    assert frame.loc[("uwb", "spec"), "value"] == pytest.approx(0.9) and frame.loc[("uwb", "era"), "runs"] == 2
+    assert frame.loc[("uwb", "era"), "value"] == pytest.approx(3.2)
+    numbers = explanations.Numbers(results.frame(rows), {})
+    [line] = explanations.ranging_severity(numbers, "B", {"Min-Max on UWB": "uwb"}, "; paper: 3.25 m")
+    assert "newcom/constant" in line and "spec: Min-Max on UWB 0.90 m; era: Min-Max on UWB 3.20 m; paper: 3.25 m" in line
+    assert explanations.ranging_severity(numbers, "D", {"Min-Max UWB": "minmax/uwb/raw"}, "") == []

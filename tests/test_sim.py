@@ -237,3 +237,62 @@ def test_b_simulation_ranging_is_impaired_by_the_channel_only(campaign, tmp_path
                         y - anchors.loc[ranges["anchor_id"], "y"].to_numpy())
     assert (ranges["range_m"] - distance).min() > -0.02
     assert yaml.safe_load((run / "meta.yaml").read_text())["imu_noise_model"] == "snr"
+
+
+def _without_twr_keys(campaign):
+    """The campaign as before the two-way-ranging clock parameters existed."""
+    import copy
+
+    from wsnloc.campaign import Campaign
+
+    spec = copy.deepcopy(campaign.spec)
+    for key in ("twr_clock_ppm", "twr_reply_time_us"):
+        del spec["radio"]["uwb"][key]
+    return Campaign(campaign.name, campaign.format, spec, campaign.source)
+
+
+def test_zero_twr_reply_time_leaves_the_raw_logs_identical(campaign, simulated_run, tmp_path):
+    assert campaign.section("radio", "uwb")["twr_reply_time_us"] == 0.0
+    before = simulate_run(_without_twr_keys(campaign), "constant", run_seed_sequence(7, "newcom", "constant", 1),
+                          tmp_path / "before")
+    assert _digests(before) == _digests(simulated_run)
+
+
+def test_twr_clock_bias_is_one_constant_per_anchor(campaign, simulated_run, tmp_path):
+    from wsnloc.analysis.simulated_runs import with_value
+    from wsnloc.sim.newcom import twr_clock_bias_m
+
+    c = campaign.spec["speed_of_light_mps"]
+    spec = {"twr_clock_ppm": 20.0, "twr_reply_time_us": 300.0}
+    bias = twr_clock_bias_m(spec, np.random.default_rng(3), 12, c)
+    offsets = np.random.default_rng(3).uniform(-20e-6, 20e-6, 13)
+    assert bias == pytest.approx(c * 300e-6 * (offsets[0] - offsets[1:]) / 2)
+    assert np.abs(bias).max() <= c * 300e-6 * 40e-6 / 2 and np.abs(bias).max() > 0.1
+    assert not twr_clock_bias_m({"twr_clock_ppm": 20.0, "twr_reply_time_us": 0.0}, np.random.default_rng(3), 12, c).any()
+
+    biased = with_value(campaign, ("radio", "uwb", "twr_reply_time_us"), 300.0)
+    run = simulate_run(biased, "constant", run_seed_sequence(7, "newcom", "constant", 1), tmp_path / "biased")
+    base, shifted = (ingest_run(r, campaign)[0]["ranges"] for r in (simulated_run, run))
+    valid = (base["status"] == 0).to_numpy()
+    step = (shifted["range_m"] - base["range_m"])[valid].groupby(base["anchor_id"][valid])
+    assert (step.max() - step.min()).max() < 1e-3          # constant per anchor (ps rounding only)
+    assert step.mean().abs().max() > 0.1 and step.mean().nunique() == len(step.mean())
+
+
+def test_2009_hardware_class_ranges_worse_than_the_spec_class(campaign, simulated_run, tmp_path):
+    from wsnloc.analysis.nlos_severity import level_campaign
+    from wsnloc.metrics.ranging import range_errors
+
+    era = level_campaign(campaign, {"hardware_class": "ieee802154a_2009"}, "levels.era")
+    assert era.section("radio", "uwb")["cir_tap_ns"] > campaign.section("radio", "uwb")["cir_tap_ns"]
+    run = simulate_run(era, "constant", run_seed_sequence(7, "newcom", "constant", 1), tmp_path / "era")
+    errors = {}
+    for name, c, r in (("spec", campaign, simulated_run), ("era", era, run)):
+        t = ingest_run(r, c)[0]
+        e = range_errors(t["ranges"], t["truth"], c)
+        errors[name] = {"los": np.median(np.abs(e["error_m"][e["walls"] == 0])),
+                        "nlos": np.median(np.abs(e["error_m"][e["walls"] > 0])),
+                        "spread": np.std(e["error_m"][e["walls"] == 0])}
+    assert errors["era"]["los"] > errors["spec"]["los"] + 0.1
+    assert errors["era"]["nlos"] > errors["spec"]["nlos"]
+    assert errors["era"]["spread"] > errors["spec"]["spread"]

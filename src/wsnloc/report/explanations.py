@@ -60,6 +60,22 @@ def _finite(*values) -> bool:
     return all(not math.isnan(v) for v in values)
 
 
+def ranging_severity(n: Numbers, experiment: str, cells: dict[str, str], reference: str) -> list[str]:
+    """One sentence: mean RMSE of `cells` (text -> results row of table nlos_severity.TABLE)
+    at every level of the UWB ranging severity sweep, then `reference` (a computed clause or "")."""
+    from wsnloc.analysis.nlos_severity import TABLE
+
+    sel = n.results[(n.results["experiment"] == experiment) & (n.results["table"] == TABLE)]
+    levels = list(dict.fromkeys(sel["column"]))
+    values = {(text, level): n.value(experiment, TABLE, row, level) for text, row in cells.items() for level in levels}
+    if not levels or not _finite(*values.values()):
+        return []
+    per_level = "; ".join(f"{level}: " + ", ".join(f"{text} {values[text, level]:.2f} m" for text in cells)
+                          for level in levels)
+    return [(f"Against UWB ranging severity (extra simulated runs of {sel['scenario'].iloc[0]}, RMSE per level): "
+             f"{per_level}{reference}.")]
+
+
 def paper_a(n: Numbers, scenarios: list[str], motions: dict[str, str], hybrid: str | None, epoch_s: float) -> list[str]:
     """Paper A: static share, anchors heard, UWB NLOS ranging, RSS model, the static-share
     sweep. `hybrid`: the label of the first hybrid row (its Table II gain is compared with
@@ -126,6 +142,9 @@ def paper_b(n: Numbers, scenarios: list[str], simulated: list[str]) -> list[str]
         if _finite(static):
             out.append(f"{sc}: the cart stands still {static:.0%} of the time; the paper's cart "
                        f"moves continuously, so its dead reckoning never benefits from a standstill.")
+    real = [v for v in (n.value(B, "RMSE", uwb, sc, "paper_value") for sc in scenarios) if _finite(v)]
+    out += ranging_severity(n, B, {"Min-Max on UWB": "uwb"},
+                            f"; the paper's real data: {real[0]:.2f} m" if real else "")
     return out
 
 
@@ -164,6 +183,7 @@ def paper_d(n: Numbers, scenarios: list[str]) -> list[str]:
                        f"add error (see the fusion claims)"
                        + (f"; paper B reports Min-Max on UWB of the same database at {paper_b_uwb:.2f} m."
                           if _finite(paper_b_uwb) else "."))
+    out += ranging_severity(n, D, {"Min-Max UWB": "minmax/uwb/raw", "narrowband": "minmax/narrowband/raw"}, "")
     ratio = n.value(D, "Cost", "Kalman / velocity", "total per step")
     paper = n.value(D, "Cost", "Kalman / velocity", "total per step", "paper_value")
     if _finite(ratio, paper):

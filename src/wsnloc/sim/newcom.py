@@ -20,23 +20,40 @@ from wsnloc.sim.seeding import model_rng
 
 # Paper B's simulation: "an ideal time of arrival (TOA)-based ranging where the only noisy
 # impairment is due to the channel model randomness". These impairments are switched off.
-IMPAIRMENTS_BESIDES_CHANNEL = {"timing_noise_ns": 0.0, "excess_path_per_wall_m": 0.0, "fault_rate": 0.0}
+IMPAIRMENTS_BESIDES_CHANNEL = {"timing_noise_ns": 0.0, "excess_path_per_wall_m": 0.0, "fault_rate": 0.0,
+                               "twr_reply_time_us": 0.0}
 
 
 def uwb_settings(campaign: Campaign, overrides: dict) -> dict:
-    """radio.uwb of the campaign, with timing noise, wall excess path and faults set to 0
-    when the scenario's `overrides` say `uwb_channel_only: true`."""
+    """radio.uwb of the campaign, with timing noise, wall excess path, faults and the
+    two-way-ranging clock-offset bias set to 0 when the scenario's `overrides` say
+    `uwb_channel_only: true`."""
     spec = dict(campaign.section("radio", "uwb"))
     if overrides.get("uwb_channel_only", False):
         spec.update(IMPAIRMENTS_BESIDES_CHANNEL)
     return spec
 
 
-def _uwb_lines(campaign: Campaign, spec: dict, traj, rng_time, rng_channel, rng_fault, detector: str,
+def twr_clock_bias_m(spec: dict, rng: np.random.Generator, n_anchors: int, c: float) -> np.ndarray:
+    """Constant range bias (m) of single-sided two-way ranging with each anchor, from the
+    crystal offsets of tag and anchor: the tag's estimate (T_round - T_reply) / 2 with the
+    reply timed by the anchor's clock gives
+
+        bias_j = c * T_reply * (e_tag - e_j) / 2,   e ~ U(-twr_clock_ppm, +twr_clock_ppm) * 1e-6,
+
+    one offset per device and run (T_reply = twr_reply_time_us; 0, the default, gives no bias).
+    """
+    ppm = spec.get("twr_clock_ppm", 0.0) * 1e-6
+    offsets = rng.uniform(-ppm, ppm, n_anchors + 1)          # [tag, anchor 1, ..., anchor n]
+    return c * spec.get("twr_reply_time_us", 0.0) * 1e-6 * (offsets[0] - offsets[1:]) / 2
+
+
+def _uwb_lines(campaign: Campaign, spec: dict, traj, rng_time, rng_channel, rng_fault, rng_clock, detector: str,
                clock_ms: int) -> list[str]:
     """`uwb.log`: one two-way time of flight per linked (round, anchor), in time order.
 
-    tw_toa_ps = round(2 (d + n_walls * excess_path_per_wall + c * (delay_detected + noise)) / c * 1e12);
+    tw_toa_ps = round(2 (d + n_walls * excess_path_per_wall + c * (delay_detected + noise) + bias_anchor) / c
+    * 1e12), bias_anchor the anchor's two-way-ranging clock-offset bias (twr_clock_bias_m);
     the detected excess delays of all links of one channel model (CM3 LOS, CM4 NLOS) are
     drawn together (uwb_channel.detected_delays_ns); a `fault_rate` share of the links
     carries a non-zero status and a random value instead.
@@ -69,7 +86,8 @@ def _uwb_lines(campaign: Campaign, spec: dict, traj, rng_time, rng_channel, rng_
             spec["channel_models"][name], rng_channel, int(of_model.sum()), spec["cir_tap_ns"], detector,
             spec["leading_edge_threshold_db"])
     delay_ns += rng_channel.normal(0.0, spec["timing_noise_ns"], len(k))
-    range_m = d + n_walls * spec["excess_path_per_wall_m"] + c * delay_ns * 1e-9
+    range_m = d + n_walls * spec["excess_path_per_wall_m"] + c * delay_ns * 1e-9 \
+        + twr_clock_bias_m(spec, rng_clock, len(anchors), c)[j]
     value[~faulty] = np.round(2.0 * range_m[~faulty] / c * 1e12).astype(np.int64)
 
     ids = anchors["anchor_id"].to_numpy()[j]
@@ -121,7 +139,8 @@ def simulate_run(campaign: Campaign, scenario: str, seeds: np.random.SeedSequenc
     traj = motion.for_scenario(scenario_spec, campaign.path.length, model_rng(seeds, "motion"))
     files = {
         "uwb.log": _uwb_lines(campaign, uwb_settings(campaign, overrides), traj, model_rng(seeds, "uwb-timing"),
-                              model_rng(seeds, "uwb-channel"), model_rng(seeds, "uwb-faults"), detector, clock_ms),
+                              model_rng(seeds, "uwb-channel"), model_rng(seeds, "uwb-faults"), model_rng(seeds, "uwb-clock"),
+                              detector, clock_ms),
         "zigbee.log": _zigbee_lines(campaign, traj, model_rng(seeds, "zigbee"), clock_ms),
         "imu.log": imu_lines(campaign, traj, model_rng(seeds, "imu"), imu_noise, clock_ms),
         "truth.log": truth_lines(campaign, traj, clock_ms, "rail_m"),
