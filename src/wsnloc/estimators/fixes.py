@@ -16,16 +16,20 @@ import pandas as pd
 from wsnloc.estimators.measurements import MeasurementSource, rss_params
 from wsnloc.estimators.run_data import RunData
 from wsnloc.geometry.lateration import LOCALIZERS
-from wsnloc.geometry.selection import k_smallest
 
 SOLVERS = tuple(LOCALIZERS)                    # minmax, multilateration
 TECHNIQUES = ("toa", "rss", "pmix", "fmix")
 
 
-def _solve(solver, xy: np.ndarray, distances: np.ndarray, k: int) -> np.ndarray | None:
-    keep = k_smallest(distances, k or len(distances))
-    fix = solver(xy[keep], distances[keep])
-    return fix if fix is not None and np.all(np.isfinite(fix)) else None
+def smallest_per_epoch(xy: np.ndarray, distances: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The k smallest finite distances of each epoch (all when k = 0 or the epoch has fewer), in increasing
+    order with ties in their given order (geometry.selection.k_smallest), with their anchors.
+
+    xy (epochs, m, 2), distances (epochs, m) [m], NaN-padded -> (epochs, k', 2), (epochs, k');
+    k' = min(k or m, m); an epoch with fewer finite distances is padded with non-finite ones.
+    """
+    order = np.argsort(np.where(np.isfinite(distances), distances, np.inf), axis=1, kind="stable")[:, :k or None]
+    return np.take_along_axis(xy, order[..., None], axis=1), np.take_along_axis(distances, order, axis=1)
 
 
 def epoch_fixes(data: RunData, p: dict, technique: str) -> pd.DataFrame:
@@ -54,22 +58,44 @@ def _pmix(toa: pd.DataFrame, rss: pd.DataFrame, w: float) -> pd.DataFrame:
     return pd.DataFrame({"t": toa["t"].to_numpy(), "x": mixed[:, 0], "y": mixed[:, 1]})
 
 
+def _padded(epoch: np.ndarray, xy: np.ndarray, distances: np.ndarray, epochs: int):
+    """Measurements (n,) tagged with their epoch index (ascending) as (epochs, m, 2) anchors
+    and (epochs, m) distances [m], NaN-padded; each epoch keeps its measurements' order."""
+    counts = np.bincount(epoch, minlength=epochs)
+    slot = np.arange(len(epoch)) - np.repeat(np.cumsum(counts) - counts, counts)
+    width = int(counts.max(initial=0))
+    padded_xy, padded = np.full((epochs, width, 2), np.nan), np.full((epochs, width), np.nan)
+    padded_xy[epoch, slot], padded[epoch, slot] = xy, distances
+    return padded_xy, padded
+
+
+def _flat(epochs: list, ids: str, values: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(epoch index, anchor ids, values) of one measurement kind over all epochs, in order."""
+    lengths = [len(getattr(e, values)) for e in epochs]
+    empty = [np.array([], dtype=object)]
+    return (np.repeat(np.arange(len(epochs)), lengths),
+            np.concatenate([getattr(e, ids) for e in epochs] + empty).astype(object),
+            np.concatenate([getattr(e, values) for e in epochs] + [np.array([])]).astype(float))
+
+
 def _epoch_fixes(data: RunData, p: dict, technique: str, rss) -> pd.DataFrame:
+    """All epochs solved at once: per epoch the toa and/or rss distances (fmix: rss first,
+    then toa), their k smallest, the batched solver (geometry.lateration)."""
     kinds = {"toa": "toa", "rss": "rss"}.get(technique, "hybrid")
     source = MeasurementSource(data, kinds, p["anchors"], 1.0, p["preliminary_filter"], p["max_range_m"], rss)
     times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
-    solver, k = LOCALIZERS[p["solver"]], p["k_smallest"]
+    epochs = source.epochs(times, p["epoch_s"])
     empty = np.array([], dtype=object)
-    out = np.full((len(times), 2), np.nan)
-    for i, e in enumerate(source.epochs(times, p["epoch_s"])):
-        toa = source.horizontal_distances(e.range_ids, e.ranges, empty, np.array([])) if technique != "rss" else None
-        nb = source.horizontal_distances(empty, np.array([]), e.rss_ids, e.rss) if rss is not None else None
-        if technique == "toa":
-            fix = _solve(solver, *toa, k)
-        elif technique == "rss":
-            fix = _solve(solver, *nb, k)
-        else:                                                     # fmix
-            fix = _solve(solver, np.vstack([nb[0], toa[0]]), np.concatenate([nb[1], toa[1]]), k)
-        if fix is not None:
-            out[i] = fix
+    parts = []
+    if technique != "toa":
+        index, ids, values = _flat(epochs, "rss_ids", "rss")
+        parts.append((index, *source.horizontal_distances(empty, np.array([]), ids, values)))
+    if technique != "rss":
+        index, ids, values = _flat(epochs, "range_ids", "ranges")
+        parts.append((index, *source.horizontal_distances(ids, values, empty, np.array([]))))
+    index, xy, distances = (np.concatenate(column) for column in zip(*parts))
+    order = np.argsort(index, kind="stable")
+    padded = _padded(index[order], xy[order], distances[order], len(epochs))
+    out = LOCALIZERS[p["solver"]](*smallest_per_epoch(*padded, p["k_smallest"]))
+    out[~np.all(np.isfinite(out), axis=1)] = np.nan
     return pd.DataFrame({"t": times, "x": out[:, 0], "y": out[:, 1]})

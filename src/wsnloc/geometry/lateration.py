@@ -1,7 +1,10 @@
 """Position from ranges to known anchors: Min-Max and multilateration (paper D).
 
-Both return None ("no fix") with fewer than 3 usable ranges or a degenerate geometry,
-never raise on such input. Non-finite or negative ranges are dropped first.
+Each solver exists in a batched form (`*_batch`: many epochs at once, one fix per epoch,
+NaN rows for "no fix") and a per-epoch form (one epoch; None for "no fix") that is a
+thin call of the batched one. An epoch has no fix with fewer than 3 usable ranges or a
+degenerate geometry; neither form raises on such input. Usable ranges are finite, >= 0
+and to anchors with finite coordinates; the others (NaN padding included) are ignored.
 """
 
 from __future__ import annotations
@@ -11,83 +14,160 @@ import numpy as np
 MIN_RANGES = 3
 MAX_CONDITION = 1e8          # linear system worse than this: anchors (nearly) collinear
 GAUSS_NEWTON_STEPS = 10
+MIN_STEP_M = 1e-9            # Gauss-Newton stops after a step shorter than this (m)
+MIN_DISTANCE_M = 1e-9        # distances below this (m) are clipped in the Jacobian
 
 
-def _usable(anchors, ranges) -> tuple[np.ndarray, np.ndarray]:
-    anchors = np.asarray(anchors, dtype=float).reshape(-1, 2)
-    ranges = np.asarray(ranges, dtype=float).reshape(-1)
-    keep = np.isfinite(ranges) & (ranges >= 0) & np.all(np.isfinite(anchors), axis=1)
-    return anchors[keep], ranges[keep]
+def _usable(anchors: np.ndarray, ranges: np.ndarray) -> np.ndarray:
+    """(epochs, m) mask of the usable ranges: finite, >= 0, to an anchor with finite x, y."""
+    return np.isfinite(ranges) & (ranges >= 0) & np.all(np.isfinite(anchors), axis=-1)
+
+
+def _as_batch(anchors, ranges) -> tuple[np.ndarray, np.ndarray]:
+    """anchors (epochs, m, 2) [m] and ranges (epochs, m) [m] as float arrays."""
+    ranges = np.asarray(ranges, dtype=float)
+    anchors = np.asarray(anchors, dtype=float).reshape(*ranges.shape, 2)
+    return anchors, ranges
+
+
+def _one_epoch(batch_solver, anchors, ranges, **options) -> np.ndarray | None:
+    """A batched solver on one epoch: its fix (2,) [m], None where the batch has a NaN row."""
+    ranges = np.asarray(ranges, dtype=float).reshape(1, -1)
+    fix = batch_solver(np.asarray(anchors, dtype=float).reshape(1, -1, 2), ranges, **options)[0]
+    return fix if np.all(np.isfinite(fix)) else None
+
+
+def min_max_batch(anchors, ranges) -> np.ndarray:
+    """Per epoch, the centre of the intersection of the boxes [x_i - d_i, x_i + d_i] x [y_i - d_i, y_i + d_i].
+
+    anchors (epochs, m, 2) [m], ranges (epochs, m) [m] -> fixes (epochs, 2) [m].
+    Lower corner = max over the usable i of (x_i - d_i, y_i - d_i); upper corner = min over
+    them of (x_i + d_i, y_i + d_i); estimate = (lower + upper) / 2. With inconsistent ranges
+    the "intersection" may be empty (lower > upper); its centre is still returned, as in the
+    paper. Anchors all on one vertical or horizontal line are still solvable by Min-Max.
+    NaN row: fewer than 3 usable ranges.
+    """
+    a, d = _as_batch(anchors, ranges)
+    usable = _usable(a, d)
+    keep = usable[..., None]
+    with np.errstate(invalid="ignore"):            # inf - inf of unusable entries, masked below
+        lower = np.max(np.where(keep, a - d[..., None], -np.inf), axis=1, initial=-np.inf)
+        upper = np.min(np.where(keep, a + d[..., None], np.inf), axis=1, initial=np.inf)
+        fixes = (lower + upper) / 2.0
+    fixes[usable.sum(axis=1) < MIN_RANGES] = np.nan
+    return fixes
 
 
 def min_max(anchors, ranges) -> np.ndarray | None:
-    """Centre of the intersection of the boxes [x_i - d_i, x_i + d_i] x [y_i - d_i, y_i + d_i].
+    """Min-Max (min_max_batch) on one epoch: anchors (m, 2), ranges (m,) [m] -> (2,) or None."""
+    return _one_epoch(min_max_batch, anchors, ranges)
 
-    Lower corner = max over i of (x_i - d_i, y_i - d_i); upper corner = min over i of
-    (x_i + d_i, y_i + d_i); estimate = (lower + upper) / 2. With inconsistent ranges the
-    "intersection" may be empty (lower > upper); its centre is still returned, as in the
-    paper. Anchors all on one vertical or horizontal line are still solvable by Min-Max.
+
+def _linear_solution(a: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Least squares on the circles linearised by subtracting the last equation, per epoch.
+
+    a (epochs, n, 2), d (epochs, n) [m], all usable -> (epochs, 2) [m], NaN rows where the
+    system's condition number s_max / s_min exceeds MAX_CONDITION (anchors (nearly) collinear).
+    (x - x_i)^2 + (y - y_i)^2 = d_i^2 minus the same for anchor L = n gives
+    2 (x_L - x_i) x + 2 (y_L - y_i) y = d_i^2 - d_L^2 - |a_i|^2 + |a_L|^2, i < L, solved as
+    A p = b by the SVD A = U S V^T: p = V S^-1 U^T b.
     """
-    a, d = _usable(anchors, ranges)
-    if len(d) < MIN_RANGES:
-        return None
-    lower = np.max(a - d[:, None], axis=0)
-    upper = np.min(a + d[:, None], axis=0)
-    return (lower + upper) / 2.0
-
-
-def _linear_solution(a: np.ndarray, d: np.ndarray) -> np.ndarray | None:
-    """Least squares on the circles linearised by subtracting the last equation.
-
-    (x - x_i)^2 + (y - y_i)^2 = d_i^2 minus the same for anchor L gives
-    2 (x_L - x_i) x + 2 (y_L - y_i) y = d_i^2 - d_L^2 - |a_i|^2 + |a_L|^2.
-    """
-    ref, d_ref = a[-1], d[-1]
-    matrix = 2.0 * (ref[None, :] - a[:-1])
-    rhs = d[:-1] ** 2 - d_ref**2 - np.sum(a[:-1] ** 2, axis=1) + np.sum(ref**2)
-    if np.linalg.cond(matrix) > MAX_CONDITION:
-        return None
-    solution, *_ = np.linalg.lstsq(matrix, rhs, rcond=None)
+    ref, d_ref = a[:, -1], d[:, -1:]
+    matrix = 2.0 * (ref[:, None, :] - a[:, :-1])
+    rhs = d[:, :-1] ** 2 - d_ref**2 - np.sum(a[:, :-1] ** 2, axis=2) + np.sum(ref**2, axis=1)[:, None]
+    u, s, vt = np.linalg.svd(matrix, full_matrices=False)
+    ok = (s[:, -1] > 0) & (s[:, -1] * MAX_CONDITION >= s[:, 0])        # s_max / s_min <= MAX_CONDITION
+    projected = np.einsum("eij,ei->ej", u[ok], rhs[ok]) / s[ok]
+    solution = np.full((len(a), 2), np.nan)
+    solution[ok] = np.einsum("eji,ej->ei", vt[ok], projected)
     return solution
 
 
-def multilateration(anchors, ranges, refine: bool = True) -> np.ndarray | None:
-    """Linearised least squares, then Gauss-Newton on sum_i (||p - a_i|| - d_i)^2.
+def _gauss_newton_step(diff: np.ndarray, dist: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Gauss-Newton step (epochs, 2) [m] on r_i = ||p - a_i|| - d_i; NaN rows where J^T J is singular.
 
-    Gauss-Newton: J_i = (p - a_i)^T / ||p - a_i||, p <- p - (J^T J)^-1 J^T r with
-    r_i = ||p - a_i|| - d_i; the 2 x 2 normal equations are solved by Cramer's rule (a
-    singular J^T J ends the iterations); a step that does not lower the cost is not taken.
-    Returns None for fewer than 3 ranges or (nearly) collinear anchors.
+    diff = p - a_i (epochs, n, 2), dist = ||p - a_i|| (epochs, n), d (epochs, n) [m].
+    J_i = (p - a_i)^T / max(||p - a_i||, MIN_DISTANCE_M); step = (J^T J)^-1 J^T r by
+    Cramer's rule on the 2 x 2 normal equations.
     """
-    a, d = _usable(anchors, ranges)
-    if len(d) < MIN_RANGES:
-        return None
-    p = _linear_solution(a, d)
-    if p is None or not refine:
-        return p
+    safe = np.maximum(dist, MIN_DISTANCE_M)
+    jac_t = np.swapaxes(diff / safe[..., None], 1, 2)                      # J^T (epochs, 2, n)
+    normal = np.matmul(jac_t, np.swapaxes(jac_t, 1, 2))                     # J^T J (epochs, 2, 2)
+    jxx, jxy, jyy = normal[:, 0, 0], normal[:, 0, 1], normal[:, 1, 1]
+    gx, gy = np.matmul(jac_t, (safe - d)[..., None])[..., 0].T             # J^T r
+    det = jxx * jyy - jxy * jxy
+    step = np.empty((len(d), 2))
+    step[:, 0], step[:, 1] = jyy * gx - jxy * gy, jxx * gy - jxy * gx
+    regular = (np.isfinite(det) & (det != 0.0))[:, None]
+    return np.divide(step, det[:, None], out=np.full_like(step, np.nan), where=regular)
 
-    diff = p - a
-    dist = np.hypot(diff[:, 0], diff[:, 1])
-    current = float(np.sum((dist - d) ** 2))
+
+def _distances(p: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """p - a_i (epochs, n, 2) and ||p - a_i|| (epochs, n) [m] for p (epochs, 2)."""
+    diff = p[:, None, :] - a
+    return diff, np.hypot(diff[..., 0], diff[..., 1])
+
+
+def _gauss_newton(a: np.ndarray, d: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Gauss-Newton from p (epochs, 2) on the cost sum_i (||p - a_i|| - d_i)^2, per epoch.
+
+    At most GAUSS_NEWTON_STEPS steps p <- p - step (_gauss_newton_step). An epoch stops at
+    a step that does not lower its cost (not taken; a singular J^T J gives a NaN step,
+    never taken) or after a taken step shorter than MIN_STEP_M; the working arrays keep the
+    epochs still iterating (per-epoch convergence mask).
+    """
+    p = p.copy()
+    rows = np.arange(len(p))
+    diff, dist = _distances(p, a)
+    cost = np.sum((dist - d) ** 2, axis=1)
     for _ in range(GAUSS_NEWTON_STEPS):
-        safe = np.maximum(dist, 1e-9)
-        jac = diff / safe[:, None]
-        (jxx, jxy), (_, jyy) = jac.T @ jac
-        gx, gy = jac.T @ (safe - d)
-        det = jxx * jyy - jxy * jxy
-        if not (np.isfinite(det) and det != 0.0):
-            break
-        step = np.array([(jyy * gx - jxy * gy) / det, (jxx * gy - jxy * gx) / det])
-        candidate = p - step
-        candidate_diff = candidate - a
-        candidate_dist = np.hypot(candidate_diff[:, 0], candidate_diff[:, 1])
-        new = float(np.sum((candidate_dist - d) ** 2))
-        if not new < current:
-            break
-        p, current, diff, dist = candidate, new, candidate_diff, candidate_dist
-        if np.hypot(step[0], step[1]) < 1e-9:
+        step = _gauss_newton_step(diff, dist, d)
+        candidate = p[rows] - step
+        candidate_diff, candidate_dist = _distances(candidate, a)
+        new = np.sum((candidate_dist - d) ** 2, axis=1)
+        taken = new < cost
+        p[rows[taken]] = candidate[taken]
+        go_on = taken & (np.hypot(step[:, 0], step[:, 1]) >= MIN_STEP_M)
+        rows, a, d, cost = rows[go_on], a[go_on], d[go_on], new[go_on]
+        diff, dist = candidate_diff[go_on], candidate_dist[go_on]
+        if rows.size == 0:
             break
     return p
 
 
-LOCALIZERS = {"minmax": min_max, "multilateration": multilateration}
+def _compact(a: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The usable ranges of each epoch moved to its front in their order: (a, d, counts)."""
+    keep = _usable(a, d)
+    order = np.argsort(~keep, axis=1, kind="stable")
+    return (np.take_along_axis(a, order[..., None], axis=1), np.take_along_axis(d, order, axis=1),
+            keep.sum(axis=1))
+
+
+def multilateration_batch(anchors, ranges, refine: bool = True) -> np.ndarray:
+    """Per epoch, linearised least squares (_linear_solution), then Gauss-Newton (_gauss_newton)
+    on sum_i (||p - a_i|| - d_i)^2 over its usable ranges, in their given order.
+
+    anchors (epochs, m, 2) [m], ranges (epochs, m) [m] -> fixes (epochs, 2) [m]. Epochs with
+    the same number n of usable ranges are solved together. NaN row: fewer than 3 usable
+    ranges or (nearly) collinear anchors.
+    """
+    a, d, counts = _compact(*_as_batch(anchors, ranges))
+    fixes = np.full((len(d), 2), np.nan)
+    for n in np.unique(counts[counts >= MIN_RANGES]):
+        rows = np.flatnonzero(counts == n)
+        a_n, d_n = a[rows, :n], d[rows, :n]
+        p = _linear_solution(a_n, d_n)
+        solved = np.flatnonzero(np.all(np.isfinite(p), axis=1))
+        if refine:
+            p[solved] = _gauss_newton(a_n[solved], d_n[solved], p[solved])
+        fixes[rows] = p
+    return fixes
+
+
+def multilateration(anchors, ranges, refine: bool = True) -> np.ndarray | None:
+    """Multilateration (multilateration_batch) on one epoch: anchors (m, 2), ranges (m,) [m]
+    -> (2,) [m], None for fewer than 3 usable ranges or (nearly) collinear anchors."""
+    return _one_epoch(multilateration_batch, anchors, ranges, refine=refine)
+
+
+LOCALIZERS = {"minmax": min_max_batch, "multilateration": multilateration_batch}
