@@ -70,3 +70,9 @@ def one_at_a_time(duration_s: float, rate_hz: float, rng, anchors: dict = SQUARE
 
 def run_data(tables: dict, rss_model: dict | None = None, name: str = "synthetic") -> RunData:
     return RunData(tables, None, rss_model, name)
+
+
+def k_smallest(ranges, k: int) -> np.ndarray:
+    """Reference: indices of the k smallest finite ranges of one epoch, increasing, ties in order."""
+    finite = np.flatnonzero(np.isfinite(ranges))
+    return finite[np.argsort(ranges[finite], kind="stable")][:k]

@@ -8,7 +8,6 @@ import pytest
 from synthetic import RSS_MODEL, one_at_a_time, run_data, tables_for, walk
 
 from wsnloc.estimators import registry
-from wsnloc.estimators.fixes import smallest_per_epoch
 from wsnloc.estimators.measurements import MeasurementSource, RssParams
 from wsnloc.geometry import lateration
 from wsnloc.geometry.lateration import (
@@ -17,7 +16,8 @@ from wsnloc.geometry.lateration import (
     multilateration,
     multilateration_batch,
 )
-from wsnloc.geometry.selection import k_smallest
+from wsnloc.geometry.selection import smallest_per_epoch
+from synthetic import k_smallest
 
 
 # ---- the per-epoch algorithm before vectorisation (the oracle) ------------------------------
@@ -184,7 +184,7 @@ def test_empty_batches():
 
 
 # ---- batched epoch fixes -------------------------------------------------------------------
-def test_smallest_per_epoch_keeps_what_k_smallest_keeps():
+def test_smallest_per_epoch_keeps_the_k_smallest_of_each_epoch():
     anchors, ranges = random_epochs(3, width=9)
     ranges[::7, 4] = ranges[::7, 2]                                           # ties
     for k in (0, 3, 6, 20):

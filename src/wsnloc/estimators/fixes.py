@@ -16,20 +16,10 @@ import pandas as pd
 from wsnloc.estimators.measurements import MeasurementSource, rss_params
 from wsnloc.estimators.run_data import RunData
 from wsnloc.geometry.lateration import LOCALIZERS
+from wsnloc.geometry.selection import smallest_per_epoch
 
 SOLVERS = tuple(LOCALIZERS)                    # minmax, multilateration
 TECHNIQUES = ("toa", "rss", "pmix", "fmix")
-
-
-def smallest_per_epoch(xy: np.ndarray, distances: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """The k smallest finite distances of each epoch (all when k = 0 or the epoch has fewer), in increasing
-    order with ties in their given order (geometry.selection.k_smallest), with their anchors.
-
-    xy (epochs, m, 2), distances (epochs, m) [m], NaN-padded -> (epochs, k', 2), (epochs, k');
-    k' = min(k or m, m); an epoch with fewer finite distances is padded with non-finite ones.
-    """
-    order = np.argsort(np.where(np.isfinite(distances), distances, np.inf), axis=1, kind="stable")[:, :k or None]
-    return np.take_along_axis(xy, order[..., None], axis=1), np.take_along_axis(distances, order, axis=1)
 
 
 def epoch_fixes(data: RunData, p: dict, technique: str) -> pd.DataFrame:
