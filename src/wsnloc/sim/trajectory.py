@@ -71,7 +71,7 @@ def _steps_per_target(ramp_interval_s: float, budget: int) -> int:
     count c* = #{c >= 0 : T_c < ramp_interval_s}, T_0 = 0, T_c = T_{c-1} + dt (np.cumsum
     adds sequentially, so T_c is the loop's float sum), at most `budget`.
     """
-    n = min(int(math.ceil(ramp_interval_s / STEP_S)) + 2, budget)
+    n = min(math.ceil(ramp_interval_s / STEP_S) + 2, budget)
     clock = np.concatenate([[0.0], np.cumsum(np.full(max(n, 0), STEP_S))])
     return int(np.searchsorted(clock, ramp_interval_s, side="left"))
 
@@ -82,7 +82,7 @@ def _acceleration(s: float, v: float, target: float, stop: float, a_max: float) 
     v_des = min(target, sqrt(2 a_max d)), d = stop - s (m, >= 0);
     a = clip((v_des - v) / dt, -a_max, a_max), replaced by a = -v^2 / (2 d) when braking
     harder than a_max is needed not to overshoot the stop point. Plain float arithmetic
-    and conditional expressions: this runs once per non-steady step (~10^3 per run).
+    and conditional expressions: this runs once per step outside the steady runs.
     """
     remaining = stop - s
     braking = math.sqrt(2.0 * a_max * (0.0 if remaining < 0.0 else remaining))
@@ -92,6 +92,12 @@ def _acceleration(s: float, v: float, target: float, stop: float, a_max: float) 
     if remaining > 0 and v > 0 and v * v / (2 * remaining) > a_max:
         a = -v * v / (2 * remaining)
     return a
+
+
+def _arrived(s, v, stop: float, a_max: float):
+    """At the stop point and slower than one step of braking (a_max dt): at rest.
+    s in m, v in m/s, floats or arrays (`&` serves both)."""
+    return (stop - s <= 1e-6) & (v <= a_max * STEP_S)
 
 
 def _accelerations(s: np.ndarray, v: np.ndarray, target: float, stop: float, a_max: float) -> np.ndarray:
@@ -128,7 +134,7 @@ def _steady_steps(s0: float, v0: float, a: float, n: int, target: float, stop: f
     s_k, v_k for k = 0..m (state m unclipped) and m.
     """
     s, v = _constant_acceleration(s0, v0, a, n)
-    steady = (s[1:n] <= length) & (v[1:n] >= 0.0) & ~((stop - s[1:n] <= 1e-6) & (v[1:n] <= a_max * STEP_S)) \
+    steady = (s[1:n] <= length) & (v[1:n] >= 0.0) & ~_arrived(s[1:n], v[1:n], stop, a_max) \
         & (_accelerations(s[1:n], v[1:n], target, stop, a_max) == a)
     m = 1 + int(np.argmin(steady)) if not steady.all() else n
     return s[:m + 1], v[:m + 1], m
@@ -177,17 +183,16 @@ def variable_speed(length: float, rng: np.random.Generator, static_start_s: floa
     sqrt(2 a_max d)), d being the distance to the next stop point. The state is recorded
     as integrated, so the cart is exactly at rest (v = 0, s constant) during the stops.
 
-    Most steps (~97%) accelerate at +-a_max or cruise at a = 0: from such a step on, a run
-    of steps at that acceleration is integrated at once (`_steady_steps`) up to the first
-    step where the controller's output changes; the other steps are integrated one by one.
-    Both give the same floats as a step-by-step loop, so logs stay byte-identical.
+    Most steps accelerate at +-a_max or cruise at a = 0 (the controller saturates or sits on
+    its target): from such a step on, a run of steps at that acceleration is integrated at
+    once (`_steady_steps`) up to the first step where the controller's output changes; the
+    other steps are integrated one by one. Both give the same floats as a step-by-step
+    loop, so logs stay byte-identical.
     """
     low, high = speed_range_mps
     stops = [length / 2.0, length]
     dt, a_max = STEP_S, max_accel_mps2
-    arrived_speed = a_max * dt              # slower than one step of braking: at rest
     record = _Recorder()
-    record_step = record.step
     record.rest(0.0, int(round(static_start_s / dt)))
     s, v, stop_index = 0.0, 0.0, 0
     steps, budget = 0, int(10 * length / low / dt)
@@ -196,7 +201,7 @@ def variable_speed(length: float, rng: np.random.Generator, static_start_s: floa
     while steps < budget:
         steps += 1
         stop = stops[stop_index]
-        if stop - s <= 1e-6 and v <= arrived_speed:
+        if _arrived(s, v, stop, a_max):
             # Arrived: stop exactly, then hold or finish.
             s, v = stop, 0.0
             if stop_index == len(stops) - 1:
@@ -209,14 +214,14 @@ def variable_speed(length: float, rng: np.random.Generator, static_start_s: floa
         if since_draw >= per_target:
             target, since_draw = rng.uniform(low, high), 0
         a = _acceleration(s, v, target, stop, a_max)
-        if (a == 0.0 or a == a_max or a == -a_max) and since_draw + 1 < per_target and steps < budget:
-            n = min(per_target - since_draw, budget - steps + 1)
+        n = min(per_target - since_draw, budget - steps + 1)      # steps left at this target
+        if n > 1 and (a == 0.0 or a == a_max or a == -a_max):
             s_run, v_run, m = _steady_steps(s, v, a, n, target, stop, length, a_max)
             record.run(s_run[:m], v_run[:m], a)
             s, v = float(s_run[m]), float(v_run[m])
             steps, since_draw = steps + m - 1, since_draw + m
         else:
-            record_step(s, v, a)
+            record.step(s, v, a)
             s, v = s + v * dt + a * (0.5 * dt**2), v + a * dt
             since_draw += 1
         s = length if s > length else s
