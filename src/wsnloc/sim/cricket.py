@@ -71,15 +71,14 @@ def _listener_lines(campaign: Campaign, traj, rng_beacons, rng_timing, rng_range
     reflected = rng_range.random(len(events)) < spec["reflection_rate"]
     measured += reflected * rng_range.uniform(*spec["reflection_excess_m"], len(events))
     listener_boot_ms = int(rng_timing.integers(1_000, 60_000))        # listener clock offset
+    heads = [f"VR=2.0,ID={b},SP={s}" for b, s in zip(anchors["beacon_id"].tolist(), anchors["space_id"].tolist())]
+    hosts = (np.trunc(times).astype(np.int64) + clock_ms).tolist()
+    ultrasound = (distance <= spec["max_ultrasound_range_m"]).tolist()
+    db, dr = np.rint(measured * 100).astype(np.int64).tolist(), np.rint(measured / c * 1e6).astype(np.int64).tolist()
     lines = []
-    for t, j, d_true, d in zip(times, which, distance, measured):
-        host = int(t) + clock_ms
-        head = f"VR=2.0,ID={anchors['beacon_id'][j]},SP={anchors['space_id'][j]}"
-        ts = f"TS={host + listener_boot_ms}"
-        if d_true > spec["max_ultrasound_range_m"]:
-            lines.append(f"{host}\t{head},{ts}")
-        else:
-            lines.append(f"{host}\t{head},DB={int(round(d * 100))},DR={int(round(d / c * 1e6))},{ts}")
+    for host, j, heard, cm, us in zip(hosts, which.tolist(), ultrasound, db, dr):
+        ranged = f",DB={cm},DR={us}" if heard else ""
+        lines.append(f"{host}\t{heads[j]}{ranged},TS={host + listener_boot_ms}")
     header = [f"# {campaign.format}-listener v1", "# host_ms<TAB>Cricket v2 line"]
     return header + _serial_damage(lines, spec["serial_damage_rate"], rng_range)
 

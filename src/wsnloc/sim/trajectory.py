@@ -63,69 +63,171 @@ def constant_speed(length: float, static_start_s: float, accel_time_s: float,
     return traj
 
 
+def _steps_per_target(ramp_interval_s: float, budget: int) -> int:
+    """Moving steps between two target draws.
+
+    The controller's clock is t_move = dt + dt + ... (float sum, reset at each draw); a
+    new target is drawn at the first step with t_move >= ramp_interval_s. Returns that
+    count c* = #{c >= 0 : T_c < ramp_interval_s}, T_0 = 0, T_c = T_{c-1} + dt (np.cumsum
+    adds sequentially, so T_c is the loop's float sum), at most `budget`.
+    """
+    n = min(math.ceil(ramp_interval_s / STEP_S) + 2, budget)
+    clock = np.concatenate([[0.0], np.cumsum(np.full(max(n, 0), STEP_S))])
+    return int(np.searchsorted(clock, ramp_interval_s, side="left"))
+
+
+def _acceleration(s: float, v: float, target: float, stop: float, a_max: float) -> float:
+    """Controller output (m/s^2) at arc length s (m), speed v (m/s), for one step.
+
+    v_des = min(target, sqrt(2 a_max d)), d = stop - s (m, >= 0);
+    a = clip((v_des - v) / dt, -a_max, a_max), replaced by a = -v^2 / (2 d) when braking
+    harder than a_max is needed not to overshoot the stop point. Plain float arithmetic
+    and conditional expressions: this runs once per step outside the steady runs.
+    """
+    remaining = stop - s
+    braking = math.sqrt(2.0 * a_max * (0.0 if remaining < 0.0 else remaining))
+    v_des = target if target <= braking else braking
+    a = (v_des - v) / STEP_S
+    a = -a_max if a < -a_max else (a_max if a > a_max else a)
+    if remaining > 0 and v > 0 and v * v / (2 * remaining) > a_max:
+        a = -v * v / (2 * remaining)
+    return a
+
+
+def _arrived(s, v, stop: float, a_max: float):
+    """At the stop point and slower than one step of braking (a_max dt): at rest.
+    s in m, v in m/s, floats or arrays (`&` serves both)."""
+    return (stop - s <= 1e-6) & (v <= a_max * STEP_S)
+
+
+def _accelerations(s: np.ndarray, v: np.ndarray, target: float, stop: float, a_max: float) -> np.ndarray:
+    """`_acceleration` for arrays of states, with the same float operations in the same order."""
+    remaining = stop - s
+    braking = np.sqrt(2.0 * a_max * np.where(remaining < 0.0, 0.0, remaining))
+    v_des = np.where(target <= braking, target, braking)
+    a = (v_des - v) / STEP_S
+    a = np.where(a < -a_max, -a_max, np.where(a > a_max, a_max, a))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        overshoot = (remaining > 0) & (v > 0) & (v * v / (2 * remaining) > a_max)
+        return np.where(overshoot, -v * v / (2 * remaining), a)
+
+
+def _constant_acceleration(s0: float, v0: float, a: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """States s_k (m), v_k (m/s), k = 0..n, of n steps at constant acceleration a (m/s^2).
+
+    v_{k+1} = v_k + a dt, s_{k+1} = (s_k + v_k dt) + a dt^2/2, unclipped. np.cumsum adds
+    sequentially, so each value is the float the step-by-step recurrence gives (the
+    position sum interleaves the v_k dt and a dt^2/2 terms to keep the loop's order).
+    """
+    v = np.cumsum(np.concatenate([[v0], np.full(n, a * STEP_S)]))
+    terms = np.empty(2 * n + 1)
+    terms[0], terms[1::2], terms[2::2] = s0, v[:-1] * STEP_S, a * (0.5 * STEP_S**2)
+    return np.cumsum(terms)[::2], v
+
+
+def _steady_steps(s0: float, v0: float, a: float, n: int, target: float, stop: float, length: float,
+                  a_max: float) -> tuple[np.ndarray, np.ndarray, int]:
+    """The first m (1 <= m <= n) steps from (s0, v0) that all use acceleration `a`.
+
+    Step k > 0 keeps `a` while its state needs no clipping (s_k <= length, v_k >= 0), the
+    cart has not arrived and the controller still outputs exactly `a`. Returns the states
+    s_k, v_k for k = 0..m (state m unclipped) and m.
+    """
+    s, v = _constant_acceleration(s0, v0, a, n)
+    steady = (s[1:n] <= length) & (v[1:n] >= 0.0) & ~_arrived(s[1:n], v[1:n], stop, a_max) \
+        & (_accelerations(s[1:n], v[1:n], target, stop, a_max) == a)
+    m = 1 + int(np.argmin(steady)) if not steady.all() else n
+    return s[:m + 1], v[:m + 1], m
+
+
+class _Recorder:
+    """Recorded states, in chunks: runs and rests as arrays, single steps as float lists."""
+
+    def __init__(self):
+        self.parts: list[tuple] = []
+        self.s, self.v, self.a = [], [], []      # single steps since the last chunk
+
+    def step(self, s: float, v: float, a: float) -> None:
+        self.s.append(s)
+        self.v.append(v)
+        self.a.append(a)
+
+    def run(self, s: np.ndarray, v: np.ndarray, a: float) -> None:
+        """Steps at one acceleration a (m/s^2)."""
+        self._flush()
+        self.parts.append((s, v, np.full(len(s), a)))
+
+    def rest(self, s: float, n: int) -> None:
+        """n steps at rest at arc length s (m)."""
+        self.run(np.full(n, s), np.zeros(n), 0.0)
+
+    def _flush(self) -> None:
+        if self.s:
+            self.parts.append((np.array(self.s), np.array(self.v), np.array(self.a)))
+            for column in (self.s, self.v, self.a):
+                column.clear()
+
+    def trajectory(self) -> Trajectory:
+        self._flush()
+        s, v, a = (np.concatenate(column) for column in zip(*self.parts))
+        return Trajectory(t=np.arange(len(s)) * STEP_S, s=s, v=v, a=a)
+
+
 def variable_speed(length: float, rng: np.random.Generator, static_start_s: float,
                    ramp_interval_s: float, speed_range_mps, max_accel_mps2: float,
                    stop_s: float, static_end_s: float) -> Trajectory:
     """Random target speed every `ramp_interval_s`, one stop half-way, rest at both ends.
 
-    A speed controller tracks the target with |a| <= max_accel and brakes so as to stop
-    exactly at the half-way point and at the end: v_des = min(target, sqrt(2 a_max d)),
-    d being the distance to the next stop point. The state is recorded as integrated,
-    so the cart is exactly at rest (v = 0, s constant) during the stops.
+    A speed controller (`_acceleration`) tracks the target with |a| <= max_accel and brakes
+    so as to stop exactly at the half-way point and at the end: v_des = min(target,
+    sqrt(2 a_max d)), d being the distance to the next stop point. The state is recorded
+    as integrated, so the cart is exactly at rest (v = 0, s constant) during the stops.
+
+    Most steps accelerate at +-a_max or cruise at a = 0 (the controller saturates or sits on
+    its target): from such a step on, a run of steps at that acceleration is integrated at
+    once (`_steady_steps`) up to the first step where the controller's output changes; the
+    other steps are integrated one by one. Both give the same floats as a step-by-step
+    loop, so logs stay byte-identical.
     """
     low, high = speed_range_mps
     stops = [length / 2.0, length]
     dt, a_max = STEP_S, max_accel_mps2
-    half_dt2 = 0.5 * dt**2                  # 0.5 a dt^2 == a (0.5 dt^2) exactly (0.5 is a power of 2)
-    two_a_max = 2.0 * a_max
-    arrived_speed = a_max * dt              # slower than one step of braking: at rest
-    rest_start = int(round(static_start_s / dt))
-    s_list, v_list, a_list = [0.0] * rest_start, [0.0] * rest_start, [0.0] * rest_start
-    record_s, record_v, record_a = s_list.append, v_list.append, a_list.append
-    s, v, t_move, stop_index = 0.0, 0.0, 0.0, 0
-    target = rng.uniform(low, high)
-    # Plain float arithmetic and conditional expressions instead of numpy / min / max: this
-    # loop runs ~10^5 times per run (the simulator's hot spot) and is 2x faster this way
-    # (three lists of floats, not a list of tuples: floats are not tracked by the garbage
-    # collector). A stop (s constant, v = a = 0) is recorded in one go.
+    record = _Recorder()
+    record.rest(0.0, int(round(static_start_s / dt)))
+    s, v, stop_index = 0.0, 0.0, 0
     steps, budget = 0, int(10 * length / low / dt)
+    per_target = _steps_per_target(ramp_interval_s, budget)
+    target, since_draw = rng.uniform(low, high), 0
     while steps < budget:
         steps += 1
-        remaining = stops[stop_index] - s
-        if remaining <= 1e-6 and v <= arrived_speed:
+        stop = stops[stop_index]
+        if _arrived(s, v, stop, a_max):
             # Arrived: stop exactly, then hold or finish.
-            s, v = stops[stop_index], 0.0
+            s, v = stop, 0.0
             if stop_index == len(stops) - 1:
                 break
             stop_index += 1
             hold = min(int(round(stop_s / dt)), budget - steps)
-            s_list += [s] * (hold + 1)
-            v_list += [0.0] * (hold + 1)
-            a_list += [0.0] * (hold + 1)
+            record.rest(s, hold + 1)
             steps += hold
             continue
-        if t_move >= ramp_interval_s:
-            target, t_move = rng.uniform(low, high), 0.0
-        braking = math.sqrt(two_a_max * (0.0 if remaining < 0.0 else remaining))
-        v_des = target if target <= braking else braking
-        a = (v_des - v) / dt                                  # clipped to [-a_max, a_max]
-        a = -a_max if a < -a_max else (a_max if a > a_max else a)
-        if remaining > 0 and v > 0 and v * v / (2 * remaining) > a_max:
-            a = -v * v / (2 * remaining)   # never overshoot a stop point
-        t_move += dt
-        record_s(s)
-        record_v(v)
-        record_a(a)
-        s = s + v * dt + a * half_dt2
+        if since_draw >= per_target:
+            target, since_draw = rng.uniform(low, high), 0
+        a = _acceleration(s, v, target, stop, a_max)
+        n = min(per_target - since_draw, budget - steps + 1)      # steps left at this target
+        if n > 1 and (a == 0.0 or a == a_max or a == -a_max):
+            s_run, v_run, m = _steady_steps(s, v, a, n, target, stop, length, a_max)
+            record.run(s_run[:m], v_run[:m], a)
+            s, v = float(s_run[m]), float(v_run[m])
+            steps, since_draw = steps + m - 1, since_draw + m
+        else:
+            record.step(s, v, a)
+            s, v = s + v * dt + a * (0.5 * dt**2), v + a * dt
+            since_draw += 1
         s = length if s > length else s
-        v = v + a * dt
         v = 0.0 if v < 0.0 else v
-    rest_end = int(round(static_end_s / dt))
-    s_list += [length] * rest_end
-    v_list += [0.0] * rest_end
-    a_list += [0.0] * rest_end
-    t = np.arange(len(s_list)) * STEP_S
-    return Trajectory(t=t, s=np.asarray(s_list), v=np.asarray(v_list), a=np.asarray(a_list))
+    record.rest(length, int(round(static_end_s / dt)))
+    return record.trajectory()
 
 
 def for_scenario(scenario: dict, length: float, rng: np.random.Generator) -> Trajectory:
