@@ -75,6 +75,8 @@ def test_clean_logs_are_all_read_in_bulk(simulated_run, campaign):
     assert newcom._imu_plain(raws["imu.log"]) is not None
     assert newcom._truth_plain(raws["truth.log"], campaign.path.length) is not None
     assert newcom._zigbee_plain(raws["zigbee.log"], zigbee) is not None
+    uwb = set(campaign.anchors_of("uwb")["anchor_id"])
+    assert newcom._uwb_plain(raws["uwb.log"], uwb, campaign.spec["speed_of_light_mps"]) is not None
 
 
 @pytest.mark.parametrize("name", ["imu.log", "truth.log"])
@@ -124,6 +126,7 @@ LINE_DAMAGE = [
     lambda s: s.replace(":", " ", 1).replace(" Z02:", ":Z02:", 1),     # a pair without its colon
     lambda s: s.replace("Z02:", "Z01:", 1),
     lambda s: s.replace("Z01:", "Q01:", 1),
+    lambda s: s.replace(" U0", " Z0", 1),       # an anchor of another technology
     lambda s: s + "\u00e9",                     # not ASCII
     lambda s: s[: len(s) // 2],                 # cut short
     lambda s: s + "\n",                         # then a blank line
@@ -156,10 +159,12 @@ def _good_lines(name, n=12):
         return [f"{t[k]}.{k:03d} {k - 5} 3 1022 {-k}" for k in range(n)]
     if name == "truth.log":
         return [f"{t[k]} {k * 0.01:.2f}" for k in range(n)]
+    if name == "uwb.log":
+        return [f"{t[k]} U0{k % 4 + 1} {12000 + 999 * k} {k % 2 * 7}" for k in range(n)]
     return [f"{t[k]} {k} 2 Z01:-{50 + k} Z02:-{60 + k}" for k in range(n)]
 
 
-HEADERS = {"imu.log": "# newcom-imu v1\n# accel_lsb_per_g=1024 gyro_lsb_per_dps=131.072\n",
+HEADERS = {"uwb.log": "# newcom-uwb v1\n", "imu.log": "# newcom-imu v1\n# accel_lsb_per_g=1024 gyro_lsb_per_dps=131.072\n",
            "truth.log": "# newcom-truth v1\n", "zigbee.log": "# newcom-zigbee v1\n"}
 
 

@@ -92,6 +92,41 @@ def parse_uwb(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.Da
     check_magic(raw, "-uwb")
     c = campaign.spec["speed_of_light_mps"]
     techs = dict(zip(campaign.anchors["anchor_id"], campaign.anchors["tech"]))
+    plain = _uwb_plain(raw, {anchor for anchor, tech in techs.items() if tech == "uwb"}, c)
+    return plain if plain is not None else _uwb_lines(raw, techs, c, quarantine)
+
+
+def _plain_fields(raw: RawFile, most: int = -1) -> list[list[str]] | None:
+    """The space-separated fields of each line of a plain log, at most `most` splits per
+    line; None for another log. Where spaces are single these are the fields of
+    str.split(); elsewhere an empty field appears, which no bulk check accepts."""
+    if raw.plain is None:
+        return None
+    return [line.split(" ", most) for line in raw.plain.decode("ascii").splitlines()]
+
+
+def _uwb_plain(raw: RawFile, anchors: set[str], c: float) -> pd.DataFrame | None:
+    """The ranges rows of a clean uwb.log, read in bulk (the same values as the per-line
+    path); None when any line would be refused by the per-line checks (fields, numbers,
+    unknown anchor, time going backwards)."""
+    fields = _plain_fields(raw)
+    if fields is None or any(len(line) != 4 for line in fields):
+        return None
+    t_text, ids, toa_text, status_text = zip(*fields)
+    try:
+        t_ms = np.array(list(map(float, t_text)))
+        tw_toa_ps = np.array(list(map(int, toa_text)), dtype=np.int64)
+        status = np.array(list(map(int, status_text)), dtype=np.int64)
+    except (ValueError, OverflowError):
+        return None
+    if not (set(ids) <= anchors and np.all(np.isfinite(t_ms)) and in_order(t_ms, strict=False)):
+        return None
+    return pd.DataFrame({"t": t_ms / 1000.0, "anchor_id": list(ids), "range_m": c * tw_toa_ps * 1e-12 / 2.0,
+                         "status": status, "line": _plain_line_numbers(raw)})
+
+
+def _uwb_lines(raw: RawFile, techs: dict[str, str], c: float, quarantine: Quarantine) -> pd.DataFrame:
+    """The ranges rows of the usable lines, checked one by one (unusable ones quarantined)."""
     accepted, rejected = [], []
     for number, text, fields in iter_fields(raw):
         try:
@@ -125,9 +160,9 @@ def _zigbee_plain(raw: RawFile, anchors: set[str]) -> pd.DataFrame | None:
     """The rss rows of a clean zigbee.log, read in bulk (the same values as the per-line
     path); None when any line would be refused by the per-line checks (fields, numbers,
     n against the pairs, unknown or repeated anchor, time going backwards) or has no pair."""
-    if raw.plain is None or b"  " in raw.plain:
+    heads = _plain_fields(raw, 3)
+    if heads is None:
         return None
-    heads = [line.split(" ", 3) for line in raw.plain.decode("ascii").splitlines()]
     try:
         t_ms = np.array([float(head[0]) for head in heads])
         seq = np.array([int(head[1]) for head in heads], dtype=np.int64)
@@ -150,7 +185,7 @@ def _zigbee_plain(raw: RawFile, anchors: set[str]) -> pd.DataFrame | None:
     line_of_pair = np.repeat(np.arange(len(heads)), pairs_per_line)
     codes = {anchor: code for code, anchor in enumerate(anchors)}
     keys = line_of_pair * len(codes) + np.array([codes[anchor] for anchor in ids])
-    if len(np.unique(keys)) != len(keys):
+    if np.bincount(keys).max() > 1:                 # an anchor twice on one line
         return None
     return pd.DataFrame({"t": np.repeat(t_ms / 1000.0, pairs_per_line), "seq": seq[line_of_pair], "anchor_id": ids,
                          "rss_dbm": rss.astype(float), "line": _plain_line_numbers(raw)[line_of_pair]})
