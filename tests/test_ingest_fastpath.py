@@ -40,16 +40,19 @@ def _both_paths(path, campaign):
 
 
 def _reference(path):
-    """(lines, data lines, (number, text) of the ASCII data lines) of a log as read_raw
+    """(lines, data lines, (number, text) of the ASCII data lines, header) of a log as read_raw
     defines them, line by line: text right-stripped, blank and '#' lines skipped, a line
-    that is not ASCII counted as a data line (it is quarantined)."""
+    that is not ASCII counted as a data line (it is quarantined), the header made of the
+    '#' lines before the first data line."""
     texts = path.read_bytes().split(b"\n")
     if texts[-1] == b"":
         texts.pop()
     records = [not text.isascii() or bool(text.rstrip() and not text.startswith(b"#")) for text in texts]
     lines = [(number, text.decode().rstrip()) for number, (text, record) in enumerate(zip(texts, records), start=1)
              if record and text.isascii()]
-    return len(texts), sum(records), lines
+    before_data = texts[: lines[0][0] - 1] if lines else texts
+    header = [text.decode().rstrip() for text in before_data if text.isascii() and text.startswith(b"#")]
+    return len(texts), sum(records), lines, header
 
 
 @pytest.fixture(scope="module")
@@ -69,14 +72,13 @@ def test_clean_newcom_logs_take_the_bulk_path_with_the_per_line_result(simulated
 
 
 def test_clean_logs_are_all_read_in_bulk(simulated_run, campaign):
-    """Guards the speed: none of the clean logs falls back to the per-line path."""
+    """Guards the speed: no clean high-volume log falls back to the per-line path (uwb.log,
+    small, is always read line by line)."""
     raws = {name: read_raw(simulated_run / name, Quarantine()) for name in PARSERS}
     zigbee = set(campaign.anchors_of("zigbee")["anchor_id"])
     assert newcom._imu_plain(raws["imu.log"]) is not None
     assert newcom._truth_plain(raws["truth.log"], campaign.path.length) is not None
     assert newcom._zigbee_plain(raws["zigbee.log"], zigbee) is not None
-    uwb = set(campaign.anchors_of("uwb")["anchor_id"])
-    assert newcom._uwb_plain(raws["uwb.log"], uwb, campaign.spec["speed_of_light_mps"]) is not None
 
 
 @pytest.mark.parametrize("name", ["imu.log", "truth.log"])
@@ -174,7 +176,7 @@ def _check_both_paths(campaign, folder, name, body):
     assert fast_bad == slow_bad
     pd.testing.assert_frame_equal(fast, slow, check_exact=True)
     raw = read_raw(folder / name, Quarantine())
-    assert (raw.n_lines, raw.n_records, raw.lines) == _reference(folder / name)
+    assert (raw.n_lines, raw.n_records, raw.lines, raw.header) == _reference(folder / name)
     return fast_bad
 
 
@@ -202,3 +204,11 @@ def test_truth_beyond_the_path_gives_the_same_result_on_both_paths(campaign, tmp
     lines[3] = f"{lines[3].split()[0]} {s:.2f}"
     bad = _check_both_paths(campaign, tmp_path, "truth.log", "".join(line + "\n" for line in lines))
     assert [line for _, line, _, _ in bad] == [5]
+
+
+@pytest.mark.parametrize("before", ["\n", "   \n", "# a note  \r\n", "\n# a note\n\n"])
+def test_blank_and_comment_lines_before_the_data_are_read_as_line_by_line(campaign, tmp_path, before):
+    body = before + "".join(line + "\n" for line in _good_lines("imu.log"))
+    _check_both_paths(campaign, tmp_path, "imu.log", body)
+    raw = read_raw(tmp_path / "imu.log", Quarantine())
+    assert raw.plain is not None and raw.header[-1] != ""

@@ -92,41 +92,6 @@ def parse_uwb(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.Da
     check_magic(raw, "-uwb")
     c = campaign.spec["speed_of_light_mps"]
     techs = dict(zip(campaign.anchors["anchor_id"], campaign.anchors["tech"]))
-    plain = _uwb_plain(raw, {anchor for anchor, tech in techs.items() if tech == "uwb"}, c)
-    return plain if plain is not None else _uwb_lines(raw, techs, c, quarantine)
-
-
-def _plain_fields(raw: RawFile, most: int = -1) -> list[list[str]] | None:
-    """The space-separated fields of each line of a plain log, at most `most` splits per
-    line; None for another log. Where spaces are single these are the fields of
-    str.split(); elsewhere an empty field appears, which no bulk check accepts."""
-    if raw.plain is None:
-        return None
-    return [line.split(" ", most) for line in raw.plain.decode("ascii").splitlines()]
-
-
-def _uwb_plain(raw: RawFile, anchors: set[str], c: float) -> pd.DataFrame | None:
-    """The ranges rows of a clean uwb.log, read in bulk (the same values as the per-line
-    path); None when any line would be refused by the per-line checks (fields, numbers,
-    unknown anchor, time going backwards)."""
-    fields = _plain_fields(raw)
-    if fields is None or any(len(line) != 4 for line in fields):
-        return None
-    t_text, ids, toa_text, status_text = zip(*fields)
-    try:
-        t_ms = np.array(list(map(float, t_text)))
-        tw_toa_ps = np.array(list(map(int, toa_text)), dtype=np.int64)
-        status = np.array(list(map(int, status_text)), dtype=np.int64)
-    except (ValueError, OverflowError):
-        return None
-    if not (set(ids) <= anchors and np.all(np.isfinite(t_ms)) and in_order(t_ms, strict=False)):
-        return None
-    return pd.DataFrame({"t": t_ms / 1000.0, "anchor_id": list(ids), "range_m": c * tw_toa_ps * 1e-12 / 2.0,
-                         "status": status, "line": _plain_line_numbers(raw)})
-
-
-def _uwb_lines(raw: RawFile, techs: dict[str, str], c: float, quarantine: Quarantine) -> pd.DataFrame:
-    """The ranges rows of the usable lines, checked one by one (unusable ones quarantined)."""
     accepted, rejected = [], []
     for number, text, fields in iter_fields(raw):
         try:
@@ -150,6 +115,15 @@ def parse_zigbee(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd
     techs = dict(zip(campaign.anchors["anchor_id"], campaign.anchors["tech"]))
     plain = _zigbee_plain(raw, {anchor for anchor, tech in techs.items() if tech == "zigbee"})
     return plain if plain is not None else _zigbee_lines(raw, techs, quarantine)
+
+
+def _plain_fields(raw: RawFile, most: int = -1) -> list[list[str]] | None:
+    """The space-separated fields of each line of a plain log, at most `most` splits per
+    line; None for another log. Where spaces are single these are the fields of
+    str.split(); elsewhere an empty field appears, which no bulk check accepts."""
+    if raw.plain is None:
+        return None
+    return [line.split(" ", most) for line in raw.plain.decode("ascii").splitlines()]
 
 
 # Space-separated anchor:value pairs, each with exactly one colon (the pairs of a zigbee.log).
