@@ -29,14 +29,14 @@ class Quarantine:
 class RawFile:
     """A raw log read whole: its header comments and its data lines with 1-based numbers.
 
-    `plain`: the file's data lines as bytes when they are plain (see `plain_body`), else
-    None. The (line number, text) list `lines` of a plain file is only built when asked
-    for, since the parsers' fast paths read `plain` in bulk instead.
+    `plain`: the file's data lines as bytes when they are plain (see `plain_body`), the
+    first of them being line `first_line`, else None. `lines` may then be None: the
+    (line number, text) list is only built when asked for, since the parsers' bulk paths
+    read `plain` instead.
     """
 
-    def __init__(self, path: Path, header: list[str], lines: list[tuple[int, str]] | None = None,
-                 sha256: str = "", n_lines: int = 0, n_records: int = 0, plain: bytes | None = None,
-                 first_line: int = 1):
+    def __init__(self, path: Path, header: list[str], lines: list[tuple[int, str]] | None, sha256: str,
+                 n_lines: int, n_records: int, plain: bytes | None = None, first_line: int = 1):
         self.path, self.header, self.sha256 = Path(path), header, sha256
         self.n_lines = n_lines
         self.n_records = n_records          # non-blank, non-comment lines, usable or not
@@ -79,7 +79,8 @@ def read_raw(path: str | Path, quarantine: Quarantine) -> RawFile:
 
     Trailing whitespace and CR are stripped; blank lines are skipped. Bytes that are not
     ASCII make that line unusable (quarantined). A missing or unreadable file raises
-    IngestError naming the path.
+    IngestError naming the path. An ASCII file whose data lines are plain keeps them as
+    bytes (RawFile.plain) for the parsers' bulk paths.
     """
     path = Path(path)
     try:
@@ -94,7 +95,7 @@ def read_raw(path: str | Path, quarantine: Quarantine) -> RawFile:
             n_records = body.count(b"\n") + (not body.endswith(b"\n"))
             return RawFile(path, header, None, sha256, first_line - 1 + n_records, n_records, body, first_line)
     texts = _decode_lines(data, path.name, quarantine)
-    header = []
+    header: list[str] = []
     lines: list[tuple[int, str]] = []
     n_records = 0
     for number, text in enumerate(texts, start=1):
