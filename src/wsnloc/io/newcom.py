@@ -8,18 +8,21 @@ estimators can apply the preliminary filter.
 
 from __future__ import annotations
 
+import io
 import math
 import re
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
+import pyarrow.csv as pacsv
 
 from wsnloc.campaign import Campaign
 from wsnloc.errors import IngestError
 from wsnloc.io import tables
 from wsnloc.io.rawlines import Quarantine, RawFile, check_magic, header_value, iter_fields, read_raw
-from wsnloc.io.timeorder import keep_in_time_order, longest_ordered, out_of_order_reasons
+from wsnloc.io.timeorder import in_order, keep_in_time_order, longest_ordered, out_of_order_reasons
 
 FILES = ("uwb.log", "zigbee.log", "imu.log", "truth.log")
 TRUTH_TOLERANCE_M = 0.05
@@ -44,6 +47,35 @@ def _integer(text: str, what: str) -> int:
         return int(text)
     except ValueError:
         raise _LineError(f"{what} is not an integer: {text!r}") from None
+
+
+# The bytes a plain numeric log may hold for the bulk path: with only these, a token is
+# accepted by pyarrow's float64 / int64 parsers exactly when float() / int() accept it, with
+# the same value (both round a decimal to the nearest double); "nan", "inf", "1e3", "+1",
+# "1_0" and any other byte send the file to the per-line checks, which give the reasons.
+_NUMERIC_BYTES = b"0123456789.- \n"
+
+
+def _plain_numbers(raw: RawFile, columns: dict[str, pa.DataType]) -> dict[str, np.ndarray] | None:
+    """The columns of a plain log (rawlines.plain_body) whose every line is len(columns)
+    numbers separated by single spaces, parsed in bulk; None when the file is not such a
+    log (a line with another field count or a token that does not parse included)."""
+    if raw.plain is None or raw.plain.translate(None, _NUMERIC_BYTES):
+        return None
+    options = {"read_options": pacsv.ReadOptions(column_names=list(columns), use_threads=False),
+               "parse_options": pacsv.ParseOptions(delimiter=" ", quote_char=False, ignore_empty_lines=False),
+               "convert_options": pacsv.ConvertOptions(column_types=columns, null_values=[],
+                                                       strings_can_be_null=False, quoted_strings_can_be_null=False)}
+    try:
+        table = pacsv.read_csv(io.BytesIO(raw.plain), **options)
+    except pa.ArrowInvalid:
+        return None
+    return {name: table.column(name).to_numpy() for name in columns}
+
+
+def _plain_line_numbers(raw: RawFile) -> np.ndarray:
+    """Line numbers (int64) of the data lines of a plain log: consecutive from its first."""
+    return np.arange(raw.first_line, raw.first_line + raw.n_records, dtype=np.int64)
 
 
 def _anchor(anchor_id: str, techs: dict[str, str], tech: str) -> str:
@@ -81,6 +113,60 @@ def parse_zigbee(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd
     """zigbee.log: `t_ms seq n anchor:rssi_dbm ...` with n matching the number of pairs."""
     check_magic(raw, "-zigbee")
     techs = dict(zip(campaign.anchors["anchor_id"], campaign.anchors["tech"]))
+    plain = _zigbee_plain(raw, {anchor for anchor, tech in techs.items() if tech == "zigbee"})
+    return plain if plain is not None else _zigbee_lines(raw, techs, quarantine)
+
+
+def _plain_fields(raw: RawFile, most: int = -1) -> list[list[str]] | None:
+    """The space-separated fields of each line of a plain log, at most `most` splits per
+    line; None for another log. Where spaces are single these are the fields of
+    str.split(); elsewhere an empty field appears, which no bulk check accepts."""
+    if raw.plain is None:
+        return None
+    return [line.split(" ", most) for line in raw.plain.decode("ascii").splitlines()]
+
+
+# Space-separated anchor:value pairs, each with exactly one colon (the pairs of a zigbee.log).
+_PAIRS = re.compile(r"[^ :]+:[^ :]+(?: [^ :]+:[^ :]+)*")
+
+
+def _zigbee_plain(raw: RawFile, anchors: set[str]) -> pd.DataFrame | None:
+    """The rss rows of a clean zigbee.log, read in bulk (the same values as the per-line
+    path); None when any line would be refused by the per-line checks (fields, numbers,
+    n against the pairs, unknown or repeated anchor, time going backwards) or has no pair."""
+    heads = _plain_fields(raw, 3)
+    if heads is None:
+        return None
+    try:
+        t_ms = np.array([float(head[0]) for head in heads])
+        seq = np.array([int(head[1]) for head in heads], dtype=np.int64)
+        n = np.array([int(head[2]) for head in heads], dtype=np.int64)
+    except (ValueError, IndexError, OverflowError):
+        return None
+    pairs_per_line = np.array([head[3].count(" ") + 1 if len(head) == 4 else 0 for head in heads], dtype=np.int64)
+    pairs = " ".join(head[3] for head in heads if len(head) == 4)
+    if not (_PAIRS.fullmatch(pairs) and np.array_equal(n, pairs_per_line) and np.all(np.isfinite(t_ms))
+            and in_order(t_ms, strict=False)):
+        return None
+    tokens = pairs.replace(":", " ").split(" ")
+    ids = tokens[0::2]
+    if not set(ids) <= anchors:
+        return None
+    try:
+        rss = np.array(list(map(int, tokens[1::2])), dtype=np.int64)
+    except (ValueError, OverflowError):
+        return None
+    line_of_pair = np.repeat(np.arange(len(heads)), pairs_per_line)
+    codes = {anchor: code for code, anchor in enumerate(anchors)}
+    keys = line_of_pair * len(codes) + np.array([codes[anchor] for anchor in ids])
+    if np.bincount(keys).max() > 1:                 # an anchor twice on one line
+        return None
+    return pd.DataFrame({"t": np.repeat(t_ms / 1000.0, pairs_per_line), "seq": seq[line_of_pair], "anchor_id": ids,
+                         "rss_dbm": rss.astype(float), "line": _plain_line_numbers(raw)[line_of_pair]})
+
+
+def _zigbee_lines(raw: RawFile, techs: dict[str, str], quarantine: Quarantine) -> pd.DataFrame:
+    """The rss rows of the usable lines, checked one by one (unusable ones quarantined)."""
     accepted, rejected = [], []
     for number, text, fields in iter_fields(raw):
         try:
@@ -152,7 +238,8 @@ def parse_imu(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.Da
     """
     check_magic(raw, "-imu")
     accel_lsb, gyro_lsb = imu_scales(raw)
-    numbers, values, rejected = _imu_candidates(raw)
+    plain = _imu_plain(raw)
+    numbers, values, rejected = (*plain, []) if plain is not None else _imu_candidates(raw)
     accepted = longest_ordered(values[:, 0], strict=True)
     order_reasons = out_of_order_reasons(values[:, 0], accepted, strict=True)
     texts = dict(raw.lines) if order_reasons else {}
@@ -171,6 +258,21 @@ def parse_imu(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.Da
         "gz": np.deg2rad(c[:, 3] / gyro_lsb),
         "line": numbers[accepted].astype(np.int32),
     })
+
+
+def _imu_plain(raw: RawFile) -> tuple[np.ndarray, np.ndarray] | None:
+    """Line numbers and (t_ms, ax, ay, az, gz) of every line of a clean imu.log, read in
+    bulk (the same values as the per-line path); None when any line would be refused by
+    the per-line checks: field count, a token that is not a number / an integer, a count
+    beyond MAX_COUNT, or time that does not increase strictly (t_ms is finite by the
+    bytes allowed)."""
+    columns = _plain_numbers(raw, {"t_ms": pa.float64(), **{name: pa.int64() for name in _IMU_FIELDS}})
+    if columns is None:
+        return None
+    t_ms, counts = columns["t_ms"], np.column_stack([columns[name] for name in _IMU_FIELDS])
+    if np.any((counts < -MAX_COUNT) | (counts > MAX_COUNT)) or not in_order(t_ms, strict=True):
+        return None
+    return _plain_line_numbers(raw), np.column_stack([t_ms, counts.astype(float)])
 
 
 def _imu_candidates(raw: RawFile) -> tuple[np.ndarray, np.ndarray, list[tuple[int, str, str]]]:
@@ -207,6 +309,31 @@ def parse_truth(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.
     """truth.log: `t_ms rail_m` (or `path_m`); (x, y) from the campaign's path at that arc length."""
     check_magic(raw, "-truth")
     length = campaign.path.length
+    frame = _truth_plain(raw, length)
+    if frame is None:
+        frame = _truth_lines(raw, length, quarantine)
+    if frame is None:
+        return tables.empty("truth")
+    pose = campaign.path.evaluate(frame["s"].to_numpy())
+    frame["x"], frame["y"] = pose["x"], pose["y"]
+    return frame
+
+
+def _truth_plain(raw: RawFile, length: float) -> pd.DataFrame | None:
+    """(t, s, line) of every line of a clean truth.log, read in bulk (the same values as
+    the per-line path); None when any line would be refused by the per-line checks."""
+    columns = _plain_numbers(raw, {"t_ms": pa.float64(), "s": pa.float64()})
+    if columns is None:
+        return None
+    t_ms, s = columns["t_ms"], columns["s"]
+    if not (np.all((-TRUTH_TOLERANCE_M <= s) & (s <= length + TRUTH_TOLERANCE_M)) and in_order(t_ms, strict=True)):
+        return None
+    return pd.DataFrame({"t": t_ms / 1000.0, "s": s, "line": _plain_line_numbers(raw)})
+
+
+def _truth_lines(raw: RawFile, length: float, quarantine: Quarantine) -> pd.DataFrame | None:
+    """(t, s, line) of the usable lines, checked one by one (unusable ones quarantined);
+    None when no line is usable."""
     accepted, rejected = [], []
     for number, text, fields in iter_fields(raw):
         try:
@@ -221,12 +348,7 @@ def parse_truth(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.
             continue
         accepted.append((number, text, t_ms, (t_ms / 1000.0, s, number)))
     rows = keep_in_time_order(raw.name, accepted, rejected, quarantine, strict=True)
-    if not rows:
-        return tables.empty("truth")
-    frame = pd.DataFrame(rows, columns=["t", "s", "line"])
-    pose = campaign.path.evaluate(frame["s"].to_numpy())
-    frame["x"], frame["y"] = pose["x"], pose["y"]
-    return frame
+    return pd.DataFrame(rows, columns=["t", "s", "line"]) if rows else None
 
 
 def ingest_run(run_dir: str | Path, campaign: Campaign) -> tuple[dict[str, pd.DataFrame], dict]:

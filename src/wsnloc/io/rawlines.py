@@ -26,20 +26,52 @@ class Quarantine:
         return frame.astype({"file": str, "line": "int32", "text": str, "reason": str})
 
 
-@dataclass
 class RawFile:
-    """A raw log read whole: its header comments and its data lines with 1-based numbers."""
+    """A raw log read whole: its header comments and its data lines with 1-based numbers.
 
-    path: Path
-    header: list[str]
-    lines: list[tuple[int, str]]
-    sha256: str
-    n_lines: int
-    n_records: int      # non-blank, non-comment lines, usable or not
+    `plain`: the file's data lines as bytes when they are plain (see `plain_body`), the
+    first of them being line `first_line`, else None. `lines` may then be None: the
+    (line number, text) list is only built when asked for, since the parsers' bulk paths
+    read `plain` instead.
+    """
+
+    def __init__(self, path: Path, header: list[str], lines: list[tuple[int, str]] | None, sha256: str,
+                 n_lines: int, n_records: int, plain: bytes | None = None, first_line: int = 1):
+        self.path, self.header, self.sha256 = Path(path), header, sha256
+        self.n_lines = n_lines
+        self.n_records = n_records          # non-blank, non-comment lines, usable or not
+        self.plain, self.first_line = plain, first_line
+        self._lines = lines
 
     @property
     def name(self) -> str:
         return self.path.name
+
+    @property
+    def lines(self) -> list[tuple[int, str]]:
+        """(line number, text) of each data line, in file order."""
+        if self._lines is None:
+            texts = self.plain.decode("ascii").split("\n")
+            if texts[-1] == "":
+                texts.pop()
+            self._lines = list(enumerate(texts, start=self.first_line))
+        return self._lines
+
+
+# Whitespace that str.rstrip() removes from an ASCII line, other than the space and "\n".
+_OTHER_SPACE = (b"\t", b"\r", b"\x0b", b"\x0c", b"\x1c", b"\x1d", b"\x1e", b"\x1f")
+
+
+def plain_body(body: bytes) -> bool:
+    """Whether every line of `body` (an ASCII file from its first data line on) is a data
+    line exactly as read_raw keeps it.
+
+    That is: no blank line, no comment line, no whitespace at a line's end and no
+    whitespace but spaces and line ends; the line texts are then the bytes between the
+    newlines, and their count is the number of data lines.
+    """
+    return bool(body) and not (body.endswith(b" ") or b"\n\n" in body or b" \n" in body or b"\n#" in body
+                               or any(space in body for space in _OTHER_SPACE))
 
 
 def read_raw(path: str | Path, quarantine: Quarantine) -> RawFile:
@@ -47,13 +79,21 @@ def read_raw(path: str | Path, quarantine: Quarantine) -> RawFile:
 
     Trailing whitespace and CR are stripped; blank lines are skipped. Bytes that are not
     ASCII make that line unusable (quarantined). A missing or unreadable file raises
-    IngestError naming the path.
+    IngestError naming the path. An ASCII file whose data lines are plain keeps them as
+    bytes (RawFile.plain) for the parsers' bulk paths.
     """
     path = Path(path)
     try:
         data = path.read_bytes()
     except OSError as exc:
         raise IngestError(f"{path}: cannot read ({exc.strerror or exc})") from exc
+    sha256 = hashlib.sha256(data).hexdigest()
+    if data.isascii():
+        header, start, first_line = _ascii_header(data)
+        body = data[start:]
+        if plain_body(body):
+            n_records = body.count(b"\n") + (not body.endswith(b"\n"))
+            return RawFile(path, header, None, sha256, first_line - 1 + n_records, n_records, body, first_line)
     texts = _decode_lines(data, path.name, quarantine)
     header: list[str] = []
     lines: list[tuple[int, str]] = []
@@ -66,7 +106,23 @@ def read_raw(path: str | Path, quarantine: Quarantine) -> RawFile:
             lines.append((number, text))
         elif text and not lines:
             header.append(text)
-    return RawFile(path, header, lines, hashlib.sha256(data).hexdigest(), len(texts), n_records)
+    return RawFile(path, header, lines, sha256, len(texts), n_records)
+
+
+def _ascii_header(data: bytes) -> tuple[list[str], int, int]:
+    """Header comments (right-stripped) before the first data line of an ASCII file, the
+    byte offset of that line and its 1-based number (past the end: the file has none)."""
+    header, start, number = [], 0, 1
+    while start < len(data):
+        end = data.find(b"\n", start)
+        end = len(data) if end < 0 else end
+        text = data[start:end].decode("ascii").rstrip()
+        if text and text[0] != "#":
+            break
+        if text:
+            header.append(text)
+        start, number = end + 1, number + 1
+    return header, start, number
 
 
 def _decode_lines(data: bytes, name: str, quarantine: Quarantine) -> list[str | None]:
