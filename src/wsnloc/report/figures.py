@@ -67,13 +67,14 @@ def text_overlaps(fig, dpi: float = PNG_DPI, drawn: bool = False) -> list[tuple[
 def to_png(fig, tight: bool = True) -> bytes:
     """PNG bytes of the figure (closed afterwards), with its overlapping texts in OVERLAPS_KEY.
 
-    A figure with a layout engine (constrained layout), or placed by its caller (tight False),
-    is saved as laid out and its texts are measured on that same pass (one draw). Other
-    figures are measured on a draw of their own and saved with a tight bounding box. The
+    tight False: the caller laid the figure out (fitted_png, bound_figures._fit_slots); it is
+    saved as is and its texts are measured on that same draw. tight True: the texts are
+    measured on a draw of their own and the figure is saved with a tight bounding box (the
+    crop moves the axes' labels after their draw, so they cannot be measured on it). The
     overlaps are recorded in a tEXt chunk inserted after the PNG header."""
     fig.set_dpi(PNG_DPI)
     buffer = io.BytesIO()
-    if fig.get_layout_engine() is not None or not tight:
+    if not tight:
         fig.savefig(buffer, format="png", dpi=PNG_DPI, metadata={"Software": None})
         overlaps = text_overlaps(fig, drawn=True)
     else:
