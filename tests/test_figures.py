@@ -4,6 +4,7 @@ labels, fitted grids saved as laid out (one measuring pass)."""
 import io
 
 import numpy as np
+import pandas as pd
 import pytest
 from matplotlib.collections import LineCollection
 from matplotlib.ticker import NullLocator
@@ -84,3 +85,16 @@ def test_stacked_consistency_panels_record_no_overlaps():
     image = Image.open(io.BytesIO(png))
     assert image.size == (8 * PNG_DPI, round(4 * 3.6 * PNG_DPI))
     assert image.text[OVERLAPS_KEY] == "[]"
+
+
+def test_long_curve_title_is_wrapped_inside_the_figure(monkeypatch):
+    saved = {}
+    monkeypatch.setattr(figures, "to_png", lambda fig, tight=True: saved.setdefault("fig", fig) and b"")
+    title = "Paper C: RMSE against the a-priori noise, cricket/speed_20 (first runs; PVA: assumed IMU)"
+    frame = {"x": [0.5, 1.0, 2.0], "value": [0.2, 0.2, 0.3], "ci95_low": [0.1] * 3, "ci95_high": [0.4] * 3}
+    figures.curve_with_interval({"P": pd.DataFrame(frame)}, "factor", "RMSE [m]", title)
+    fig = saved["fig"]
+    fig.draw_without_rendering()
+    box = fig.axes[0].title.get_window_extent()
+    assert 0 <= box.x0 and box.x1 <= fig.bbox.width and "\n" in fig.axes[0].get_title()
+    plt.close(fig)

@@ -6,6 +6,7 @@ import io
 import struct
 import zlib
 import json
+import textwrap
 
 import matplotlib
 import matplotlib.text
@@ -289,6 +290,9 @@ def error_histograms(errors: dict[str, pd.Series], title: str, xmax: float = 1.5
     return fitted_png(fig)
 
 
+CURVE_TITLE_CHARS = 75     # a 10 pt title line of at most this many characters fits the 6.5 in wide figure
+
+
 def curve_with_interval(curves: dict[str, pd.DataFrame], xlabel: str, ylabel: str, title: str,
                         references: dict[str, float] | None = None, logy: bool = False,
                         logx: bool = False) -> bytes:
@@ -311,7 +315,7 @@ def curve_with_interval(curves: dict[str, pd.DataFrame], xlabel: str, ylabel: st
         ax.minorticks_off()
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
-    ax.set_title(title, fontsize=10)
+    ax.set_title(textwrap.fill(title, CURVE_TITLE_CHARS), fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
     return fitted_png(fig)
