@@ -74,6 +74,7 @@ def test_fitted_figures_are_saved_as_laid_out(panels):
     png = figures.error_cdf(curves)
     image = Image.open(io.BytesIO(png))
     assert image.size == (round(5.2 * panels * PNG_DPI), round(3.8 * PNG_DPI))   # not cropped by a tight box
+    assert image.mode == "P"                                                      # indexed colours
     assert image.text[OVERLAPS_KEY] == "[]"
     assert figures.error_cdf(curves) == png
 
@@ -98,3 +99,16 @@ def test_long_curve_title_is_wrapped_inside_the_figure(monkeypatch):
     box = fig.axes[0].title.get_window_extent()
     assert 0 <= box.x0 and box.x1 <= fig.bbox.width and "\n" in fig.axes[0].get_title()
     plt.close(fig)
+
+
+def test_palette_png_keeps_the_rendered_colours():
+    fig, _ = stacked_figure()
+    fig.canvas.draw()
+    rgba = np.asarray(fig.canvas.buffer_rgba())
+    buffer = io.BytesIO()
+    figures._save_palette_png(rgba, buffer)
+    plt.close(fig)
+    image = Image.open(io.BytesIO(buffer.getvalue()))
+    assert image.mode == "P" and image.size == (rgba.shape[1], rgba.shape[0])
+    difference = np.abs(np.asarray(image.convert("RGB"), dtype=int) - rgba[..., :3].astype(int))
+    assert difference.mean() < 2.0 and difference.max() <= 24, (difference.mean(), difference.max())   # of 255

@@ -16,6 +16,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.layout_engine import TightLayoutEngine  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
+from PIL import Image  # noqa: E402
 
 from wsnloc.campaign import Campaign  # noqa: E402
 
@@ -69,20 +70,30 @@ def to_png(fig, tight: bool = True) -> bytes:
     """PNG bytes of the figure (closed afterwards), with its overlapping texts in OVERLAPS_KEY.
 
     tight False: the caller laid the figure out (fitted_png, bound_figures._fit_slots); it is
-    saved as is and its texts are measured on that same draw. tight True: the texts are
+    drawn as is, saved as an indexed PNG (_save_palette_png) and its texts are measured on
+    that same draw. tight True: the texts are
     measured on a draw of their own and the figure is saved with a tight bounding box (the
     crop moves the axes' labels after their draw, so they cannot be measured on it). The
     overlaps are recorded in a tEXt chunk inserted after the PNG header."""
     fig.set_dpi(PNG_DPI)
     buffer = io.BytesIO()
     if not tight:
-        fig.savefig(buffer, format="png", dpi=PNG_DPI, metadata={"Software": None})
+        fig.canvas.draw()
+        _save_palette_png(np.asarray(fig.canvas.buffer_rgba()), buffer)
         overlaps = text_overlaps(fig, drawn=True)
     else:
         overlaps = text_overlaps(fig)
         fig.savefig(buffer, format="png", dpi=PNG_DPI, bbox_inches="tight", metadata={"Software": None})
     plt.close(fig)
     return _with_text_chunk(buffer.getvalue(), OVERLAPS_KEY, json.dumps(overlaps, ensure_ascii=True))
+
+
+def _save_palette_png(rgba: np.ndarray, buffer) -> None:
+    """An RGBA canvas (rows, columns, 4) as an indexed PNG of at most 256 colours (fast
+    octree quantisation): line figures use a few colours and their anti-aliased shades, so
+    the image looks the same while the PNG is about 3x smaller and quicker to encode."""
+    image = Image.fromarray(rgba).convert("RGB").quantize(256, method=Image.Quantize.FASTOCTREE)
+    image.save(buffer, format="png", dpi=(PNG_DPI, PNG_DPI))
 
 
 def fitted_png(fig) -> bytes:
