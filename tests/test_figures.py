@@ -112,3 +112,13 @@ def test_palette_png_keeps_the_rendered_colours():
     assert image.mode == "P" and image.size == (rgba.shape[1], rgba.shape[0])
     difference = np.abs(np.asarray(image.convert("RGB"), dtype=int) - rgba[..., :3].astype(int))
     assert difference.mean() < 2.0 and difference.max() <= 24, (difference.mean(), difference.max())   # of 255
+
+
+def test_palette_png_keeps_a_white_background():
+    fig, ax = plt.subplots(figsize=(3, 2))
+    ax.plot([0, 1], [0, 1])
+    fig.canvas.draw()
+    buffer = io.BytesIO()
+    figures._save_palette_png(np.asarray(fig.canvas.buffer_rgba()), buffer)
+    plt.close(fig)
+    assert Image.open(buffer).convert("RGB").getpixel((0, 0)) == (255, 255, 255)

@@ -93,6 +93,9 @@ def _save_palette_png(rgba: np.ndarray, buffer) -> None:
     octree quantisation): line figures use a few colours and their anti-aliased shades, so
     the image looks the same while the PNG is about 3x smaller and quicker to encode."""
     image = Image.fromarray(rgba).convert("RGB").quantize(256, method=Image.Quantize.FASTOCTREE)
+    palette = np.asarray(image.getpalette(), dtype=np.uint8)
+    palette[palette >= 253] = 255      # an octree bin averages its colours: the white background came back 254
+    image.putpalette(palette.tolist())
     image.save(buffer, format="png", dpi=(PNG_DPI, PNG_DPI))
 
 
