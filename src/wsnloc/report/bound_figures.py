@@ -17,7 +17,6 @@ from wsnloc.campaign import Campaign
 from wsnloc.metrics.consistency import ConsistencyTest
 from wsnloc.report.figures import LABEL_OFFSET, PNG_DPI, TECH_STYLE, plt, to_png
 
-
 LEGEND_DROP_IN = 0.45      # inches from the bottom of the axes to the legend, below tick labels and x label
 TITLE_WRAP_CHARS = 90      # a 9 pt title line of this many characters fits the 8 in wide figure
 

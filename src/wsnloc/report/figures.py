@@ -3,19 +3,19 @@
 from __future__ import annotations
 
 import io
-import struct
-import zlib
 import json
+import struct
 import textwrap
+import zlib
 
 import matplotlib
 import matplotlib.text
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.layout_engine import TightLayoutEngine  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
+from matplotlib.layout_engine import TightLayoutEngine  # noqa: E402
 from PIL import Image  # noqa: E402
 
 from wsnloc.campaign import Campaign  # noqa: E402
