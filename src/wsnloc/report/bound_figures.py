@@ -3,14 +3,22 @@ ANEES / ANIS with their chi-square band. Each function returns PNG bytes."""
 
 from __future__ import annotations
 
+import textwrap
+
+import matplotlib as mpl
 import numpy as np
 import pandas as pd
-from matplotlib.ticker import NullFormatter, StrMethodFormatter
+from matplotlib.collections import LineCollection
+from matplotlib.ticker import FuncFormatter, LogLocator, NullLocator, StrMethodFormatter
+from matplotlib.transforms import ScaledTranslation
 from mpl_toolkits.axes_grid1 import make_axes_locatable
 
 from wsnloc.campaign import Campaign
 from wsnloc.metrics.consistency import ConsistencyTest
-from wsnloc.report.figures import LABEL_OFFSET, TECH_STYLE, plt, to_png
+from wsnloc.report.figures import LABEL_OFFSET, PNG_DPI, TECH_STYLE, plt, to_png
+
+LEGEND_DROP_IN = 0.45      # inches from the bottom of the axes to the legend, below tick labels and x label
+TITLE_WRAP_CHARS = 90      # a 9 pt title line of this many characters fits the 8 in wide figure
 
 
 def _finish_time_axes(ax, ylabel: str, title: str) -> None:
@@ -21,9 +29,33 @@ def _finish_time_axes(ax, ylabel: str, title: str) -> None:
     ax.grid(alpha=0.3, which="both")
     ax.yaxis.set_major_formatter(StrMethodFormatter("{x:g}"))
     low, high = ax.get_ylim()   # minor labels only within a decade (more would overlap)
-    ax.yaxis.set_minor_formatter(StrMethodFormatter("{x:g}") if high < 10 * low else NullFormatter())
-    ax.tick_params(axis="y", which="minor", labelsize=7)
-    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, frameon=False)
+    if high < 10 * low:
+        ax.yaxis.set_minor_formatter(FuncFormatter(_minor_log_label))
+        ax.tick_params(axis="y", which="minor", labelsize=7)
+    else:
+        _minor_log_grid(ax, low, high)
+    below = ScaledTranslation(0.0, -LEGEND_DROP_IN, ax.figure.dpi_scale_trans)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, 0.0), bbox_transform=ax.transAxes + below,
+              ncol=2, frameon=False)
+
+
+def _minor_log_label(value: float, _position=None) -> str:
+    """Label of a minor log tick m x 10^k: the value for m in 2, 3, 5 only (at least
+    log10(5/3) = 0.22 decade apart; m = 9 would touch the label of 10^(k+1))."""
+    mantissa = value / 10.0 ** np.floor(np.log10(value))
+    return f"{value:g}" if round(mantissa) in (2, 3, 5) else ""
+
+
+def _minor_log_grid(ax, low: float, high: float) -> None:
+    """The unlabelled minor grid of a log y axis (2..9 x 10^k within [low, high]) as one
+    LineCollection instead of minor ticks (three artists each, re-laid out on every draw)."""
+    ax.yaxis.set_minor_locator(NullLocator())
+    levels = LogLocator(subs=np.arange(2, 10)).tick_values(low, high)
+    levels = levels[(levels >= low) & (levels <= high)]
+    grid = LineCollection([[(0.0, y), (1.0, y)] for y in levels], transform=ax.get_yaxis_transform(),
+                          colors=mpl.rcParams["grid.color"], linewidths=mpl.rcParams["grid.linewidth"],
+                          alpha=0.3, zorder=1.5)
+    ax.add_collection(grid, autolim=False)
 
 
 def _overlay_floor(ax, campaign: Campaign, anchors: pd.DataFrame) -> None:
@@ -73,7 +105,8 @@ def _draw_pcrb(ax, t, rmse: dict[str, np.ndarray], sqrt_pcrb: np.ndarray, bound_
         ax.plot(t, values, lw=1.2, label=f"{label} RMSE")
     ax.plot(t, sqrt_pcrb, color="k", lw=1.8, ls="--", label="sqrt(PCRB)")
     ax.set_yscale("log")
-    _finish_time_axes(ax, "position error [m]", f"{title}\nbound for: {bound_model}")
+    _finish_time_axes(ax, "position error [m]",
+                      f"{title}\n" + textwrap.fill(f"bound for: {bound_model}", TITLE_WRAP_CHARS))
 
 
 def _draw_consistency(ax, t, test: ConsistencyTest, statistic: str, title: str) -> None:
@@ -86,13 +119,39 @@ def _draw_consistency(ax, t, test: ConsistencyTest, statistic: str, title: str) 
     _finish_time_axes(ax, statistic, title)
 
 
+STACK_PAD_IN = 0.08       # inches between a panel's decorations and the edge of its slot
+
+
 def _stacked(draw, panels: list[tuple], height: float) -> bytes:
-    """One axes per panel (the arguments of draw after the axes), stacked vertically."""
-    # constrained layout: a fraction of tight_layout's cost on many stacked panels (a summary job's main cost)
-    fig, axes = plt.subplots(len(panels), 1, figsize=(8, height * len(panels)), squeeze=False, layout="constrained")
+    """One axes per panel (the arguments of draw after the axes), stacked vertically in slots
+    of `height` inches, laid out by _fit_slots (one measuring pass, no layout engine)."""
+    fig, axes = plt.subplots(len(panels), 1, figsize=(8, height * len(panels)), squeeze=False)
     for ax, args in zip(axes[:, 0], panels):
         draw(ax, *args)
-    return to_png(fig)
+    _fit_slots(fig, list(axes[:, 0]), height)
+    return to_png(fig, tight=False)
+
+
+def _fit_slots(fig, axes: list, height: float) -> None:
+    """Axes i fills slot i (the i-th band of `height` inches from the top) minus its
+    decorations: margins m = tight bbox - axes box, measured once (inches); all axes share
+    the left edge max(m_left) + pad and the right edge width - max(m_right) - pad, and
+    axes i spans [slot bottom + m_below + pad, slot top - m_above - pad].
+    The decorations do not scale with the axes (font sizes, legend offset in inches)."""
+    fig.set_dpi(PNG_DPI)
+    renderer = fig.canvas.get_renderer()
+    width, total = fig.get_size_inches()
+    margins = []
+    for ax in axes:
+        inner, outer = ax.get_window_extent(renderer), ax.get_tightbbox(renderer)
+        margins.append(np.array([inner.x0 - outer.x0, outer.x1 - inner.x1,
+                                 inner.y0 - outer.y0, outer.y1 - inner.y1]) / fig.dpi)
+    left = max(m[0] for m in margins) + STACK_PAD_IN
+    right = width - max(m[1] for m in margins) - STACK_PAD_IN
+    for i, (ax, (_, _, below, above)) in enumerate(zip(axes, margins)):
+        top = total - i * height - above - STACK_PAD_IN
+        bottom = total - (i + 1) * height + below + STACK_PAD_IN
+        ax.set_position([left / width, bottom / total, (right - left) / width, (top - bottom) / total])
 
 
 def pcrb_vs_rmse(t, rmse: dict[str, np.ndarray], sqrt_pcrb: np.ndarray, bound_model: str, title: str) -> bytes:

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import io
-import struct
-import zlib
 import json
+import struct
+import textwrap
+import zlib
 
 import matplotlib
 import matplotlib.text
@@ -14,6 +15,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
+from matplotlib.layout_engine import TightLayoutEngine  # noqa: E402
+from PIL import Image  # noqa: E402
 
 from wsnloc.campaign import Campaign  # noqa: E402
 
@@ -54,34 +57,56 @@ def text_overlaps(fig, dpi: float = PNG_DPI, drawn: bool = False) -> list[tuple[
     if not drawn:
         fig.draw_without_rendering()
     renderer = fig.canvas.get_renderer()
-    boxes = [(t.get_text(), t.get_window_extent(renderer)) for t in _drawn_texts(fig)]
-    pairs = []
-    for i, (text_a, a) in enumerate(boxes):
-        for text_b, b in boxes[i + 1:]:
-            width = min(a.x1, b.x1) - max(a.x0, b.x0)
-            height = min(a.y1, b.y1) - max(a.y0, b.y0)
-            if width > OVERLAP_TOLERANCE_PX and height > OVERLAP_TOLERANCE_PX:
-                pairs.append((text_a, text_b))
-    return pairs
+    texts = _drawn_texts(fig)
+    boxes = np.array([t.get_window_extent(renderer).extents for t in texts]).reshape(-1, 4)   # x0, y0, x1, y1
+    x0, y0, x1, y1 = (boxes[:, [k]] for k in range(4))
+    width = np.minimum(x1, x1.T) - np.maximum(x0, x0.T)       # of the intersection of boxes i and j
+    height = np.minimum(y1, y1.T) - np.maximum(y0, y0.T)
+    overlap = np.triu((width > OVERLAP_TOLERANCE_PX) & (height > OVERLAP_TOLERANCE_PX), k=1)
+    return [(texts[i].get_text(), texts[j].get_text()) for i, j in zip(*np.nonzero(overlap))]
 
 
-def to_png(fig) -> bytes:
+def to_png(fig, tight: bool = True) -> bytes:
     """PNG bytes of the figure (closed afterwards), with its overlapping texts in OVERLAPS_KEY.
 
-    A figure with a layout engine (constrained layout) already fits its canvas: it is saved
-    as laid out and its texts are measured on that same pass (one draw). Other figures are
-    measured on a draw of their own and saved with a tight bounding box. The overlaps are
-    recorded in a tEXt chunk inserted after the PNG header."""
+    tight False: the caller laid the figure out (fitted_png, bound_figures._fit_slots); it is
+    drawn as is, saved as an indexed PNG (_save_palette_png) and its texts are measured on
+    that same draw. tight True: the texts are
+    measured on a draw of their own and the figure is saved with a tight bounding box (the
+    crop moves the axes' labels after their draw, so they cannot be measured on it). The
+    overlaps are recorded in a tEXt chunk inserted after the PNG header."""
     fig.set_dpi(PNG_DPI)
     buffer = io.BytesIO()
-    if fig.get_layout_engine() is not None:
-        fig.savefig(buffer, format="png", dpi=PNG_DPI, metadata={"Software": None})
+    if not tight:
+        fig.canvas.draw()
+        _save_palette_png(np.asarray(fig.canvas.buffer_rgba()), buffer)
         overlaps = text_overlaps(fig, drawn=True)
     else:
         overlaps = text_overlaps(fig)
         fig.savefig(buffer, format="png", dpi=PNG_DPI, bbox_inches="tight", metadata={"Software": None})
     plt.close(fig)
     return _with_text_chunk(buffer.getvalue(), OVERLAPS_KEY, json.dumps(overlaps, ensure_ascii=True))
+
+
+def _save_palette_png(rgba: np.ndarray, buffer) -> None:
+    """An RGBA canvas (rows, columns, 4) as an indexed PNG of at most 256 colours (fast
+    octree quantisation): line figures use a few colours and their anti-aliased shades, so
+    the image looks the same while the PNG is about 3x smaller and quicker to encode."""
+    image = Image.fromarray(rgba).convert("RGB").quantize(256, method=Image.Quantize.FASTOCTREE)
+    palette = np.asarray(image.getpalette(), dtype=np.uint8)
+    palette[palette >= 253] = 255      # an octree bin averages its colours: the white background came back 254
+    image.putpalette(palette.tolist())
+    image.save(buffer, format="png", dpi=(PNG_DPI, PNG_DPI))
+
+
+def fitted_png(fig) -> bytes:
+    """to_png of a grid of axes first fitted to its canvas by one measuring pass (tight
+    layout: margins and spacing from each axes' tight bounding box, texts included), saved
+    as laid out. The engine is run once, not attached: a figure with a layout engine is
+    drawn twice more by savefig (renderer probe, layout draw) before the saved draw."""
+    fig.set_dpi(PNG_DPI)
+    TightLayoutEngine().execute(fig)
+    return to_png(fig, tight=False)
 
 
 def _with_text_chunk(png: bytes, key: str, text: str) -> bytes:
@@ -129,7 +154,7 @@ def range_error_figure(errors: pd.DataFrame, title: str, max_points: int = 6000)
     """Range error (measured - true, m): histogram of LOS and NLOS links (left) and error against
     the true distance (right): a sample of the ranges, grey, and each anchor's median per 1 m bin,
     so a per-anchor offset shows as a shifted line and a scale error as a slope."""
-    fig, (hist, dist) = plt.subplots(1, 2, figsize=(11, 3.8), layout="constrained")
+    fig, (hist, dist) = plt.subplots(1, 2, figsize=(11, 3.8))
     bins = np.linspace(-1.0, 5.0, 121)
     for los, color, name in ((True, "tab:green", "LOS"), (False, "tab:purple", "NLOS")):
         e = errors.loc[errors["los"] == los, "error_m"].clip(bins[0], bins[-1]) if len(errors) else []
@@ -152,7 +177,7 @@ def range_error_figure(errors: pd.DataFrame, title: str, max_points: int = 6000)
     dist.set_xlabel("true distance [m]")
     dist.set_ylabel("range error [m] (clipped to [-1, 5])")
     dist.set_title("error against distance, per anchor")
-    return to_png(fig)
+    return fitted_png(fig)
 
 
 def rss_vs_distance(rss: pd.DataFrame, fit: dict, configured: dict, title: str, max_points: int = 6000) -> bytes:
@@ -202,7 +227,7 @@ def imu_resampling(raw: pd.DataFrame, resampled: pd.DataFrame, title: str, windo
 def error_cdf(panels: dict[str, dict[str, np.ndarray]], xmax: float | None = 4.0) -> bytes:
     """Empirical CDFs of position error (m), one panel per title, one curve per label;
     xmax None: 1.2 x the largest 95th percentile of the panel's curves."""
-    fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 3.8), squeeze=False, layout="constrained")
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 3.8), squeeze=False)
     for ax, (title, curves) in zip(axes[0], panels.items()):
         finite = [np.asarray(e, dtype=float)[np.isfinite(e)] for e in curves.values()]
         limit = xmax if xmax is not None else 1.2 * max([np.percentile(e, 95) for e in finite if len(e)] or [1.0])
@@ -217,12 +242,12 @@ def error_cdf(panels: dict[str, dict[str, np.ndarray]], xmax: float | None = 4.0
         ax.set_ylabel("CDF")
         ax.set_title(title, fontsize=10)
         ax.legend(fontsize=7, loc="lower right")
-    return to_png(fig)
+    return fitted_png(fig)
 
 
 def trajectories(panels: dict[str, tuple[pd.DataFrame, dict[str, pd.DataFrame]]]) -> bytes:
     """True path and estimated tracks (x, y in m), one panel per title."""
-    fig, axes = plt.subplots(len(panels), 1, figsize=(10, 3.3 * len(panels)), squeeze=False, layout="constrained")
+    fig, axes = plt.subplots(len(panels), 1, figsize=(10, 3.3 * len(panels)), squeeze=False)
     for ax, (title, (truth, tracks)) in zip(axes[:, 0], panels.items()):
         ax.plot(truth["x"], truth["y"], color="k", lw=2.2, label="truth")
         for label, track in tracks.items():
@@ -232,12 +257,12 @@ def trajectories(panels: dict[str, tuple[pd.DataFrame, dict[str, pd.DataFrame]]]
         ax.set_ylabel("y [m]")
         ax.set_title(title, fontsize=10)
         ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    return to_png(fig)
+    return fitted_png(fig)
 
 
 def error_over_time(panels: dict[str, dict[str, pd.DataFrame]]) -> bytes:
     """Position error (m) against time (s from the start), one panel per title."""
-    fig, axes = plt.subplots(len(panels), 1, figsize=(9, 2.8 * len(panels)), squeeze=False, layout="constrained")
+    fig, axes = plt.subplots(len(panels), 1, figsize=(9, 2.8 * len(panels)), squeeze=False)
     for ax, (title, curves) in zip(axes[:, 0], panels.items()):
         start = min(c["t"].min() for c in curves.values() if len(c))
         for label, curve in curves.items():
@@ -247,7 +272,7 @@ def error_over_time(panels: dict[str, dict[str, pd.DataFrame]]) -> bytes:
         ax.set_title(title, fontsize=10)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="upper left")
-    return to_png(fig)
+    return fitted_png(fig)
 
 
 def rmse_vs_anchors(curves: dict[str, tuple[list[int], list[float]]], title: str) -> bytes:
@@ -266,7 +291,7 @@ def rmse_vs_anchors(curves: dict[str, tuple[list[int], list[float]]], title: str
 def error_histograms(errors: dict[str, pd.Series], title: str, xmax: float = 1.5) -> bytes:
     """Histograms of position error (m), one per label, side by side."""
     fig, axes = plt.subplots(1, max(1, len(errors)), figsize=(4.2 * max(1, len(errors)), 3.4), squeeze=False,
-                             sharey=True, layout="constrained")
+                             sharey=True)
     bins = np.linspace(0, xmax, 31)
     for ax, (label, e) in zip(axes[0], errors.items()):
         e = np.asarray(e, dtype=float)
@@ -276,7 +301,10 @@ def error_histograms(errors: dict[str, pd.Series], title: str, xmax: float = 1.5
         ax.set_xlabel("position error [m]")
     axes[0][0].set_ylabel("density")
     fig.suptitle(title, fontsize=10)
-    return to_png(fig)
+    return fitted_png(fig)
+
+
+CURVE_TITLE_CHARS = 75     # a 10 pt title line of at most this many characters fits the 6.5 in wide figure
 
 
 def curve_with_interval(curves: dict[str, pd.DataFrame], xlabel: str, ylabel: str, title: str,
@@ -284,7 +312,7 @@ def curve_with_interval(curves: dict[str, pd.DataFrame], xlabel: str, ylabel: st
                         logx: bool = False) -> bytes:
     """One line per label through (x, value) with its 95% interval as a band (frames with
     columns x, value, ci95_low, ci95_high), and horizontal reference lines (e.g. a paper's value)."""
-    fig, ax = plt.subplots(figsize=(6.5, 3.8), layout="constrained")
+    fig, ax = plt.subplots(figsize=(6.5, 3.8))
     for label, frame in curves.items():
         line, = ax.plot(frame["x"], frame["value"], marker="o", label=label)
         low, high = frame["ci95_low"].to_numpy(float), frame["ci95_high"].to_numpy(float)
@@ -301,7 +329,7 @@ def curve_with_interval(curves: dict[str, pd.DataFrame], xlabel: str, ylabel: st
         ax.minorticks_off()
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
-    ax.set_title(title, fontsize=10)
+    ax.set_title(textwrap.fill(title, CURVE_TITLE_CHARS), fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
-    return to_png(fig)
+    return fitted_png(fig)

@@ -1,0 +1,124 @@
+"""Report figures: stacked time panels laid out without a layout engine, log minor grid and
+labels, fitted grids saved as laid out (one measuring pass)."""
+
+import io
+
+import numpy as np
+import pandas as pd
+import pytest
+from matplotlib.collections import LineCollection
+from matplotlib.ticker import NullLocator
+from PIL import Image
+
+from wsnloc.metrics.consistency import consistency_test
+from wsnloc.report import bound_figures, figures
+from wsnloc.report.figures import OVERLAPS_KEY, PNG_DPI, plt, text_overlaps
+
+LONG_MODEL = ("PV, white acceleration 0.3 m/s^2; Gaussian ranges sigma 0.3 m, log-normal RSS (the filter's "
+              "path-loss model); anchors UWB=12+ZigBee=21; epoch updates every 0.5 s, static epochs frozen")
+
+
+def stacked_figure(height: float = 3.8):
+    """Three pcrb panels: a long bound model, errors within a decade, errors over three decades."""
+    t = np.linspace(0.0, 100.0, 201)
+    panels = [(t, {"EKF": 0.3 + 0.1 * np.sin(t)}, np.full_like(t, 0.2), LONG_MODEL, "newcom/constant: Table I"),
+              (t, {"EKF": 0.15 + 0.05 * np.cos(t), "UKF": 0.12 + 0.0 * t}, np.full_like(t, 0.1), "P", "narrow"),
+              (t, {"PF with a long estimator label": np.logspace(-2, 1, t.size)}, np.full_like(t, 0.05), "P", "wide")]
+    fig, axes = plt.subplots(len(panels), 1, figsize=(8, height * len(panels)), squeeze=False)
+    for ax, args in zip(axes[:, 0], panels):
+        bound_figures._draw_pcrb(ax, *args)
+    bound_figures._fit_slots(fig, list(axes[:, 0]), height)
+    return fig, list(axes[:, 0])
+
+
+def test_stacked_panels_fill_their_slots_with_decorations_inside():
+    height = 3.8
+    fig, axes = stacked_figure(height)
+    renderer = fig.canvas.get_renderer()
+    width_px, total_px = fig.bbox.width, fig.bbox.height
+    lefts = set()
+    for i, ax in enumerate(axes):
+        outer = ax.get_tightbbox(renderer)
+        slot_top, slot_bottom = total_px - i * height * PNG_DPI, total_px - (i + 1) * height * PNG_DPI
+        assert outer.x0 >= 0 and outer.x1 <= width_px, (i, outer)
+        assert slot_bottom <= outer.y0 and outer.y1 <= slot_top, (i, outer, slot_bottom, slot_top)
+        assert ax.bbox.height > 0.5 * height * PNG_DPI      # the axes keep most of the slot
+        lefts.add(round(ax.bbox.x0, 6))
+    assert len(lefts) == 1                                  # one left edge for all panels
+    assert text_overlaps(fig) == []
+    assert axes[0].get_title().count("\n") >= 2             # the long bound model is wrapped, not cut
+    plt.close(fig)
+
+
+def test_minor_log_labels_only_at_2_3_5():
+    values = [0.09, 0.2, 0.3, 0.4, 0.5, 0.7, 2.0, 3.0, 9.0]
+    assert [bound_figures._minor_log_label(v) for v in values] == ["", "0.2", "0.3", "", "0.5", "", "2", "3", ""]
+
+
+def test_wide_log_axis_draws_its_minor_grid_as_one_collection():
+    fig, axes = stacked_figure()
+    wide, narrow = axes[2], axes[1]
+    low, high = wide.get_ylim()
+    expected = [m * 10.0 ** k for k in range(-4, 3) for m in range(2, 10) if low <= m * 10.0 ** k <= high]
+    grids = [c for c in wide.collections if isinstance(c, LineCollection)]
+    assert isinstance(wide.yaxis.get_minor_locator(), NullLocator) and len(grids) == 1
+    assert np.allclose(sorted(seg[0][1] for seg in grids[0].get_segments()), expected)
+    assert not isinstance(narrow.yaxis.get_minor_locator(), NullLocator)   # within a decade: labelled ticks
+    plt.close(fig)
+
+
+@pytest.mark.parametrize("panels", [1, 3])
+def test_fitted_figures_are_saved_as_laid_out(panels):
+    rng = np.random.default_rng(1)
+    curves = {f"panel {i}": {"EKF": rng.gamma(2.0, 0.2, 500), "UKF": rng.gamma(2.0, 0.25, 500)} for i in range(panels)}
+    png = figures.error_cdf(curves)
+    image = Image.open(io.BytesIO(png))
+    assert image.size == (round(5.2 * panels * PNG_DPI), round(3.8 * PNG_DPI))   # not cropped by a tight box
+    assert image.mode == "P"                                                      # indexed colours
+    assert image.text[OVERLAPS_KEY] == "[]"
+    assert figures.error_cdf(curves) == png
+
+
+def test_stacked_consistency_panels_record_no_overlaps():
+    t = np.arange(200) * 0.5
+    test = consistency_test(np.random.default_rng(0).chisquare(4, size=(10, 200)), 4)
+    png = bound_figures.consistency_panels([(t, test, "ANEES", f"cell {i}") for i in range(4)])
+    image = Image.open(io.BytesIO(png))
+    assert image.size == (8 * PNG_DPI, round(4 * 3.6 * PNG_DPI))
+    assert image.text[OVERLAPS_KEY] == "[]"
+
+
+def test_long_curve_title_is_wrapped_inside_the_figure(monkeypatch):
+    saved = {}
+    monkeypatch.setattr(figures, "to_png", lambda fig, tight=True: saved.setdefault("fig", fig) and b"")
+    title = "Paper C: RMSE against the a-priori noise, cricket/speed_20 (first runs; PVA: assumed IMU)"
+    frame = {"x": [0.5, 1.0, 2.0], "value": [0.2, 0.2, 0.3], "ci95_low": [0.1] * 3, "ci95_high": [0.4] * 3}
+    figures.curve_with_interval({"P": pd.DataFrame(frame)}, "factor", "RMSE [m]", title)
+    fig = saved["fig"]
+    fig.draw_without_rendering()
+    box = fig.axes[0].title.get_window_extent()
+    assert 0 <= box.x0 and box.x1 <= fig.bbox.width and "\n" in fig.axes[0].get_title()
+    plt.close(fig)
+
+
+def test_palette_png_keeps_the_rendered_colours():
+    fig, _ = stacked_figure()
+    fig.canvas.draw()
+    rgba = np.asarray(fig.canvas.buffer_rgba())
+    buffer = io.BytesIO()
+    figures._save_palette_png(rgba, buffer)
+    plt.close(fig)
+    image = Image.open(io.BytesIO(buffer.getvalue()))
+    assert image.mode == "P" and image.size == (rgba.shape[1], rgba.shape[0])
+    difference = np.abs(np.asarray(image.convert("RGB"), dtype=int) - rgba[..., :3].astype(int))
+    assert difference.mean() < 2.0 and difference.max() <= 24, (difference.mean(), difference.max())   # of 255
+
+
+def test_palette_png_keeps_a_white_background():
+    fig, ax = plt.subplots(figsize=(3, 2))
+    ax.plot([0, 1], [0, 1])
+    fig.canvas.draw()
+    buffer = io.BytesIO()
+    figures._save_palette_png(np.asarray(fig.canvas.buffer_rgba()), buffer)
+    plt.close(fig)
+    assert Image.open(buffer).convert("RGB").getpixel((0, 0)) == (255, 255, 255)
