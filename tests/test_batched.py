@@ -135,6 +135,15 @@ def test_batched_kf_over_fixes_equals_registry_run(campaign, simulated_runs, par
     assert all(len(s) > 100 for s in single)
 
 
+def test_kf_cells_with_different_matrices_and_fixes_equal_registry_run(campaign, simulated_runs):
+    """run_cells groups kf_tracker cells by their KF matrices; each cell keeps its own fixes."""
+    datas = _datas(simulated_runs, campaign)
+    params = [{"anchors": "UWB=12"}, {"anchors": "UWB=9", "solver": "minmax"},
+              {"anchors": "UWB=12", "accel_sigma_mps2": 1.0}]
+    cells = [(data, q) for q in params for data in datas]
+    _assert_same(batched.run_cells("kf_tracker", cells), [registry.run("kf_tracker", d, q) for d, q in cells])
+
+
 def test_batched_kf_over_fixes_with_a_gap_in_one_run():
     t, ids = bursts(40.0)
     gap = (t > 10.0) & (t < 20.0)

@@ -18,11 +18,10 @@ settings = paper_d.Settings.from_config(sm.params.settings)
 settings.check_against(campaign)
 runs = load_runs(sm.input.tables, paper_d.INPUT_TABLES)
 models = paper_d.rss_models_for_runs(runs, campaign, settings)
-estimates, metrics, data = [], [], {}
-for name, run_tables in runs.items():
-    data[name] = RunData(run_tables, campaign, models[name], name)
-    est = paper_d.run(data[name], settings).assign(run=name)
-    estimates.append(est)
+data = {name: RunData(run_tables, campaign, models[name], name) for name, run_tables in runs.items()}
+estimates = [est.assign(run=name) for name, est in zip(runs, paper_d.run_all(list(data.values()), settings))]
+metrics = []
+for (name, run_tables), est in zip(runs.items(), estimates):
     metrics.append(paper_d.run_metrics(est, run_tables["truth"])
                    .assign(run=name, **{f"rss_{k}": v for k, v in models[name].items()}))
     log.info("%s: RSS model %s", name, json.dumps(models[name]))
@@ -31,14 +30,15 @@ metrics = pd.concat(metrics, ignore_index=True)
 metrics.to_csv(sm.output.metrics, index=False, float_format="%.6g")
 
 
-def kalman_variant(spec: dict, sigma: str, run: str) -> pd.DataFrame:
+def kalman_variant(spec: dict, sigma: str, names: list[str]) -> pd.DataFrame:
     """Paper D's a-priori sigmas (paper_d.SENSITIVITY_SIGMAS) act on the KF cells only:
-    re-run those, keep the run's other cells."""
-    kalman = paper_d.run(data[run], paper_d.Settings.from_config(spec), stages=("kalman",))
-    return sensitivity.replace_cells(metrics, run, paper_d.run_metrics(kalman, runs[run]["truth"]),
-                                     ["localizer", "technique", "stage"])
+    re-run those (all sampled runs together), keep each run's other cells."""
+    reruns = paper_d.run_all([data[name] for name in names], paper_d.Settings.from_config(spec), stages=("kalman",))
+    return pd.concat([sensitivity.replace_cells(metrics, name, paper_d.run_metrics(rerun, runs[name]["truth"]),
+                                                ["localizer", "technique", "stage"]).assign(run=name)
+                      for name, rerun in zip(names, reruns)], ignore_index=True)
 
 
-grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_d", metrics, sensitivity.each_run(kalman_variant),
+grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_d", metrics, kalman_variant,
                                 paper_d.SENSITIVITY_SIGMAS)
 grid.to_csv(sm.output.sensitivity, index=False, float_format="%.6g")

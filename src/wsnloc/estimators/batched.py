@@ -2,7 +2,8 @@
 fixes (`kf_tracker`) stepped on many runs at once: every array carries a leading run axis,
 so one predict and one update per epoch cost a few array operations for all Monte Carlo
 runs of a cell. Entry points: `run_many` (registry.run over the runs of a cell) and
-`run_cells` (registry.run over (run, parameter set) cells, e.g. every run x row of a paper's table).
+`run_cells` (registry.run over (run, parameter set) cells, e.g. every run x row of a paper's
+table); both also step the KF over fixes (`kf_tracker`) of many cells together.
 
 Same filter as `bayes.run_filter` in epoch mode (same initiator, coasting limit, motion
 detection and PVA input; estimates equal to round-off), for runs whose epoch grids and
@@ -268,28 +269,37 @@ def kalman_tracks(fix_tables: list[pd.DataFrame], matrices: tuple) -> list[pd.Da
 
 
 def run_many(name: str, datas: list[RunData], overrides: dict | None = None, where: str = "") -> list[pd.DataFrame]:
-    """registry.run(name, data, overrides, where) for every run of `datas`: the epoch-mode
-    EKF estimators and the KF over fixes (kf_tracker) are stepped on all runs together, the
-    others run one run at a time."""
-    estimator = registry.get(name)
-    p = estimator.resolve(overrides or {}, where)
-    if estimator.function is bayes.run_filter and supports(p):
-        frames = run_epoch_ekf([(data, p) for data in datas])
-    elif name == "kf_tracker":
-        matrices = trackers.kalman_matrices(p["epoch_s"], p["accel_sigma_mps2"], p["position_sigma_m"],
-                                            p["initial_speed_sigma_mps"])
-        frames = kalman_tracks([fixes.epoch_fixes(data, p, p["fixes"]) for data in datas], matrices)
-    else:
-        return [registry.run(name, data, overrides, where) for data in datas]
-    return [registry.finish(frame) for frame in frames]
+    """registry.run(name, data, overrides, where) for every run of `datas` (run_cells)."""
+    return run_cells(name, [(data, overrides or {}) for data in datas], where)
 
 
 def run_cells(name: str, cells: list[tuple[RunData, dict]], where: str = "") -> list[pd.DataFrame]:
     """[registry.run(name, data, overrides, where) for data, overrides in cells] (e.g. every run
-    x row of a paper's table): the epoch-mode EKF cells are stepped together, so the Python
-    loop over epochs runs once for all of them (per group of cells sharing a motion model)."""
+    x row of a paper's table): the epoch-mode EKF cells and the KF over fixes (kf_tracker) are
+    stepped together, so the Python loop over epochs runs once for all of them (per group of
+    cells sharing a motion model or KF matrices); other estimators run one cell at a time."""
     estimator = registry.get(name)
     params = [estimator.resolve(overrides, where) for _, overrides in cells]
-    if estimator.function is not bayes.run_filter or not all(supports(p) for p in params):
+    if estimator.function is bayes.run_filter and all(supports(p) for p in params):
+        frames = run_epoch_ekf([(data, p) for (data, _), p in zip(cells, params)])
+    elif name == "kf_tracker":
+        frames = _kalman_cells([data for data, _ in cells], params)
+    else:
         return [registry.run(name, data, overrides, where) for data, overrides in cells]
-    return [registry.finish(frame) for frame in run_epoch_ekf([(data, p) for (data, _), p in zip(cells, params)])]
+    return [registry.finish(frame) for frame in frames]
+
+
+def _kalman_cells(datas: list[RunData], params: list[dict]) -> list[pd.DataFrame]:
+    """kf_tracker of every (run, resolved parameters) cell: cells with the same KF matrices are
+    stepped together (kalman_tracks)."""
+    groups: dict[tuple, list[int]] = {}
+    for i, p in enumerate(params):
+        key = (p["epoch_s"], p["accel_sigma_mps2"], p["position_sigma_m"], p["initial_speed_sigma_mps"])
+        groups.setdefault(key, []).append(i)
+    frames: list[pd.DataFrame] = [pd.DataFrame()] * len(params)
+    for key, members in groups.items():
+        tracks = kalman_tracks([fixes.epoch_fixes(datas[i], params[i], params[i]["fixes"]) for i in members],
+                               trackers.kalman_matrices(*key))
+        for i, track in zip(members, tracks):
+            frames[i] = track
+    return frames

@@ -20,7 +20,7 @@ from wsnloc.analysis import setup_facts
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
 from wsnloc.experiments import calibration
-from wsnloc.estimators import registry
+from wsnloc.estimators import batched, registry
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import claims as claims_of
 from wsnloc.estimators.trackers import kalman_matrices
@@ -115,12 +115,27 @@ def _names(estimator: str) -> set[str]:
     return {p.name for p in registry.get(estimator).params}
 
 
+def run_all(datas: list[RunData], settings: Settings, stages=("raw", "velocity", "kalman")) -> list[pd.DataFrame]:
+    """All estimates of each run (every cell of the given stages), scored against its truth; the
+    cells of one registry estimator over all runs go through one batched.run_cells (the KF
+    cells of every run and technique are stepped together)."""
+    selected = [cell for cell in cells(settings) if cell[2] in stages]
+    tracks: dict[int, list[pd.DataFrame]] = {}
+    for name in dict.fromkeys(cell[3] for cell in selected):
+        mine = [i for i, cell in enumerate(selected) if cell[3] == name]
+        out = batched.run_cells(name, [(data, selected[i][4]) for i in mine for data in datas],
+                                where="experiments.paper_d")
+        for j, i in enumerate(mine):
+            tracks[i] = out[j * len(datas):(j + 1) * len(datas)]
+    return [score(pd.concat([tracks[i][r][["t", "x", "y"]].assign(localizer=loc, technique=tech, stage=stage)
+                             for i, (loc, tech, stage, _, _) in enumerate(selected)], ignore_index=True),
+                  data.table("truth"))
+            for r, data in enumerate(datas)]
+
+
 def run(data: RunData, settings: Settings, stages=("raw", "velocity", "kalman")) -> pd.DataFrame:
-    """All estimates of one run (every cell of the given stages), scored against its truth."""
-    frames = [registry.run(name, data, params, where="experiments.paper_d")[["t", "x", "y"]]
-              .assign(localizer=loc, technique=tech, stage=stage)
-              for loc, tech, stage, name, params in cells(settings) if stage in stages]
-    return score(pd.concat(frames, ignore_index=True), data.table("truth"))
+    """run_all of one run."""
+    return run_all([data], settings, stages)[0]
 
 
 def run_metrics(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
@@ -138,8 +153,9 @@ def evaluate_runs(run_tables: dict[str, dict], campaign: Campaign, settings: Set
     """Per-run metrics of every cell on runs given as tables (e.g. extra simulated runs),
     each run's RSS model calibrated as in the workflow (rss_models_for_runs)."""
     models = rss_models_for_runs(run_tables, campaign, settings)
-    return pd.concat([run_metrics(run(RunData(tables, campaign, models[name], name), settings), tables["truth"])
-                      .assign(run=name) for name, tables in run_tables.items()], ignore_index=True)
+    estimates = run_all([RunData(tables, campaign, models[name], name) for name, tables in run_tables.items()], settings)
+    return pd.concat([run_metrics(est, tables["truth"]).assign(run=name)
+                      for (name, tables), est in zip(run_tables.items(), estimates)], ignore_index=True)
 
 
 # ---- tables, claims and cost -------------------------------------------------------------
