@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+from scipy.stats import chi2
 import yaml
 from PIL import Image
 
@@ -63,6 +64,8 @@ def test_gate_rejects_an_injected_ten_sigma_range_and_keeps_the_rest():
 def test_gate_threshold_is_the_chi_square_quantile():
     assert robust.gate_threshold(0.999) == pytest.approx(3.2905**2, rel=1e-4)
     assert robust.gate_threshold(0.95) == pytest.approx(1.95996**2, rel=1e-5)
+    for p in (0.5, 0.9, 0.99, 0.999, 0.99999):
+        assert robust.gate_threshold(p) == pytest.approx(chi2.ppf(p, 1), rel=1e-10)
 
 
 @pytest.mark.parametrize("loss", ["huber", "cauchy"])
