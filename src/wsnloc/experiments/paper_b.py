@@ -23,6 +23,7 @@ from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import claims as claims_of
 from wsnloc.metrics import verdicts
 from wsnloc.metrics.tracking import cell_metrics, score
+from wsnloc.signal.resample import resample_imu
 
 EXPERIMENT = "B"
 INPUT_TABLES = ("ranges", "rss", "truth", "anchors", "imu_5hz")   # the processed tables a run needs (see load_runs)
@@ -98,7 +99,6 @@ def evaluate_runs(run_tables: dict[str, dict], campaign: Campaign, settings: Set
     simulated runs), their IMU resampled with the workflow's `resample` settings."""
     frames = []
     for name, tables in run_tables.items():
-        from wsnloc.signal.resample import resample_imu   # scipy.signal: only for the NLOS sweep
         data = RunData(dict(tables, imu_5hz=resample_imu(tables["imu"], **resample)), campaign, None, name)
         frames.append(run_metrics(run(data, settings), tables["truth"]).assign(run=name))
     return pd.concat(frames, ignore_index=True)
