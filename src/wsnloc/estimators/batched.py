@@ -23,7 +23,7 @@ Only the initiator's multilateration runs per run (once per track start).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 import pandas as pd
@@ -141,34 +141,44 @@ class _Run:
 
 def pack(runs: list[_Run], period: float) -> Measurements:
     """The epochs of every run (MeasurementSource.epochs: per-anchor means; ranges first,
-    then RSS, as in MeasurementSource.model) in one padded Measurements."""
+    then RSS, as in MeasurementSource.model) in one padded Measurements; cells sharing a
+    measurement source (e.g. a row with and without motion detection) are packed once."""
     epochs = [r.source.epochs(r.times, period) for r in runs]
     width = max([len(e.ranges) + len(e.rss) for es in epochs for e in es] + [1])
     out = Measurements.empty(len(runs), max([len(r.times) for r in runs] + [0]), width)
+    packed: dict[tuple, int] = {}
     for i, (run, run_epochs) in enumerate(zip(runs, epochs)):
-        if not run_epochs:
-            continue
-        data, rss = run.source.data, run.source.rss_params
-        n_ranges = np.array([len(e.ranges) for e in run_epochs])
-        counts = n_ranges + np.array([len(e.rss) for e in run_epochs])
-        ids = np.concatenate([a for e in run_epochs for a in (e.range_ids, e.rss_ids)])
-        values = np.concatenate([a for e in run_epochs for a in (e.ranges, e.rss)])
-        code, distinct = pd.factorize(ids)          # anchor lookups once per distinct id
-        epoch = np.repeat(np.arange(len(counts)), counts)
-        slot = np.arange(len(ids)) - np.repeat(np.cumsum(counts) - counts, counts)   # index within the epoch
-        is_rss = slot >= n_ranges[epoch]
-        out.count[i, :len(counts)] = counts
-        out.kind[i, epoch, slot] = np.where(is_rss, RSS, RANGE)
-        out.anchors[i, epoch, slot] = data.positions(distinct)[code]
-        out.z[i, epoch, slot] = values
-        out.variance[i, epoch, slot] = run.source.range_sigma_m**2
-        if data.three_d:
-            out.dz[i, epoch[~is_rss], slot[~is_rss]] = data.height_offsets(distinct)[code[~is_rss]]
-        if is_rss.any():
-            at = (i, epoch[is_rss], slot[is_rss])
-            out.p0[at], out.exponent[at], out.d0[at] = rss.p0_dbm, rss.path_loss_exponent, rss.d0_m
-            out.variance[at] = rss.sigma_db**2
+        same = packed.setdefault((id(run.source), id(run_epochs)), i)
+        if same != i:
+            for field in fields(out):
+                getattr(out, field.name)[i] = getattr(out, field.name)[same]
+        elif run_epochs:
+            _fill(out, i, run, run_epochs)
     return out
+
+
+def _fill(out: Measurements, i: int, run: _Run, run_epochs: list) -> None:
+    """Row i of `out`: the (non-empty list of) epochs of one run."""
+    data, rss = run.source.data, run.source.rss_params
+    n_ranges = np.array([len(e.ranges) for e in run_epochs])
+    counts = n_ranges + np.array([len(e.rss) for e in run_epochs])
+    ids = np.concatenate([a for e in run_epochs for a in (e.range_ids, e.rss_ids)])
+    values = np.concatenate([a for e in run_epochs for a in (e.ranges, e.rss)])
+    code, distinct = pd.factorize(ids)          # anchor lookups once per distinct id
+    epoch = np.repeat(np.arange(len(counts)), counts)
+    slot = np.arange(len(ids)) - np.repeat(np.cumsum(counts) - counts, counts)   # index within the epoch
+    is_rss = slot >= n_ranges[epoch]
+    out.count[i, :len(counts)] = counts
+    out.kind[i, epoch, slot] = np.where(is_rss, RSS, RANGE)
+    out.anchors[i, epoch, slot] = data.positions(distinct)[code]
+    out.z[i, epoch, slot] = values
+    out.variance[i, epoch, slot] = run.source.range_sigma_m**2
+    if data.three_d:
+        out.dz[i, epoch[~is_rss], slot[~is_rss]] = data.height_offsets(distinct)[code[~is_rss]]
+    if is_rss.any():
+        at = (i, epoch[is_rss], slot[is_rss])
+        out.p0[at], out.exponent[at], out.d0[at] = rss.p0_dbm, rss.path_loss_exponent, rss.d0_m
+        out.variance[at] = rss.sigma_db**2
 
 
 def supports(p: dict) -> bool:

@@ -40,7 +40,7 @@ def _assign(t: np.ndarray, times: np.ndarray, period: float) -> np.ndarray:
 
 def _per_anchor_mean(frame: pd.DataFrame, value: str, times, period) -> list[tuple[np.ndarray, np.ndarray]]:
     """Per epoch ending at `times`: (anchor ids in sorted order, mean of `value` per anchor)."""
-    out = [(np.array([], dtype=object), np.array([])) for _ in times]
+    out = [(np.array([], dtype=object), np.array([]))] * len(times)      # one shared empty pair
     epoch = _assign(frame["t"].to_numpy(float), times, period)
     inside = epoch >= 0
     if not inside.any():
