@@ -10,14 +10,15 @@ detection and PVA input; estimates equal to round-off), for runs whose epoch gri
 measurement sets differ:
 - run r's k-th epoch is processed at step k; runs with fewer epochs are masked after
   their end;
-- the measurements of epoch k of all runs are padded to the largest count M_k: a padded
-  row has H = 0, y = 0 and R = 1, so S = blockdiag(S_real, I), its Kalman gain column is
-  0 and it changes neither x, P nor NIS = y^T S^-1 y;
+- the measurements of epoch k of all runs (any kinds and anchor subsets) are padded to
+  the largest count M_k: a padded row has H = 0, y = 0 and R = 1, so it adds nothing to
+  H^T R^-1 H, H^T R^-1 y or y^T R^-1 y and changes neither x, P nor NIS = y^T S^-1 y;
 - per run, measurement i of an epoch is a range (h = sqrt(d^2 + dz^2),
   H = [(p - a) / h, 0...]) or an RSS value (h = P0 - 10 n log10(d / d0),
   H = [-10 n / ln10 (p - a) / d^2, 0...]) with d = max(||p - a||, 1 mm), as in
   filters.measurement_models; R is diagonal (range sigma^2, RSS sigma_dB^2).
-Predict x <- F x + B u, P <- F P F^T + Q; Joseph-form update (filters.kalman).
+Predict x <- F x + B u, P <- F P F^T + Q; Joseph-form update (filters.kalman), computed in
+2 x 2 algebra as H sees the position only (position_update), so its cost hardly grows with M_k.
 Only the initiator's multilateration runs per run (once per track start).
 """
 
