@@ -127,6 +127,34 @@ def test_padded_measurements_change_nothing():
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
 
 
+@pytest.mark.parametrize("dim", [2, 4, 6])
+def test_position_update_equals_the_full_joseph_update(dim):
+    """The 2 x 2 form of the update (H = [H_p, 0], diagonal R) gives joseph_update's x, P and
+    NIS with the m x m innovation covariance, for P, PV and PVA states and mixed variances."""
+    rng = np.random.default_rng(dim)
+    runs, width = 5, 7
+    x = rng.normal(0.0, 3.0, (runs, dim))
+    root = rng.normal(0.0, 1.0, (runs, dim, dim))
+    P = root @ np.swapaxes(root, 1, 2) + 0.1 * np.eye(dim)
+    H_p, y = rng.normal(0.0, 1.0, (runs, width, 2)), rng.normal(0.0, 2.0, (runs, width))
+    variance = rng.choice([0.09, 25.0], (runs, width))
+    H = np.concatenate([H_p, np.zeros((runs, width, dim - 2))], axis=2)
+    full = batched.joseph_update(x, P, y, H, variance[:, :, None] * np.eye(width))
+    for a, b in zip(batched.position_update(x, P, y, H_p, 1.0 / variance), full):
+        np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-12)
+
+
+def test_cells_of_different_kinds_subsets_and_models_in_one_call_equal_registry_run(campaign, simulated_runs):
+    """run_cells steps the cells sharing a motion model together, whatever their measurement
+    kinds and anchor subsets (padded to the widest epoch), and the others in their own group."""
+    datas = _datas(simulated_runs, campaign)
+    rows = [{"measurements": "toa", "anchors": "UWB=9"}, {"measurements": "rss", "anchors": "ZigBee=21"},
+            {"measurements": "hybrid", "anchors": "UWB=12+ZigBee=21"},
+            {"measurements": "toa", "anchors": "UWB=12", "motion": "p"}]
+    cells = [(data, dict(row, update="epoch", rss_calibration="other_run")) for row in rows for data in datas]
+    _assert_same(batched.run_cells("ekf", cells), [registry.run("ekf", d, q) for d, q in cells])
+
+
 @pytest.mark.parametrize("params", [{"anchors": "UWB=12"}, {"anchors": "UWB=9", "solver": "minmax", "k_smallest": 6}])
 def test_batched_kf_over_fixes_equals_registry_run(campaign, simulated_runs, params):
     single = [registry.run("kf_tracker", data, params) for data in _datas(simulated_runs, campaign)]

@@ -134,6 +134,9 @@ def test_grouped_quality_keeps_each_rows_values_and_index():
         np.testing.assert_array_equal(rows["t"], scored.loc[scored["row"] == name, "t"])
         expected = epoch_quality(scored[scored["row"] == name].reset_index(drop=True), filter_pcrb(data, p))
         np.testing.assert_allclose(rows["pcrb_m2"], expected["pcrb_m2"])
+        expected_efficiency = run_efficiency(expected)
+        for column in ("sqrt_pcrb", "efficiency"):
+            assert efficiency.set_index("row").loc[name, column] == pytest.approx(expected_efficiency[column], rel=1e-12)
     loose, tight = (efficiency.set_index("row").loc[n, "sqrt_pcrb"] for n in ("loose", "tight"))
     assert loose > 5 * tight
 

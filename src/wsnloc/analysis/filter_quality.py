@@ -33,18 +33,31 @@ QUALITY_COLUMNS = ["t", "error_m", "pcrb_m2", "nees", "nis", "n_meas"]
 def epoch_quality(scored: pd.DataFrame, bound: pd.DataFrame) -> pd.DataFrame:
     """QUALITY_COLUMNS of the finite estimates of one run: scored filter output (t, x, y,
     true_x, true_y, error_m, p_xx, p_xy, p_yy, nis, n_meas) beside its bound (filter_bounds)."""
-    est = scored[np.isfinite(scored["x"]) & np.isfinite(scored["y"])]
-    t, bound_t = est["t"].to_numpy(float), bound["t"].to_numpy(float)
-    at = np.searchsorted(bound_t, t)                 # the bound at the estimate's epoch end (same grid)
-    found = at < len(bound_t)
-    found[found] = bound_t[at[found]] == t[found]
-    trace = np.full(len(t), np.nan)
-    trace[found] = (bound["pcrb_xx"].to_numpy(float) + bound["pcrb_yy"].to_numpy(float))[at[found]]
-    error = est[["x", "y"]].to_numpy(float) - est[["true_x", "true_y"]].to_numpy(float)
-    covariance = est[["p_xx", "p_xy", "p_xy", "p_yy"]].to_numpy(float).reshape(-1, 2, 2)
-    columns = {"t": t, "error_m": est["error_m"], "pcrb_m2": trace, "nees": normalized_squared(error, covariance),
-               "nis": est["nis"], "n_meas": est["n_meas"]}
-    return pd.DataFrame({k: np.asarray(v, dtype=float) for k, v in columns.items()}, index=est.index)
+    rows = np.flatnonzero(_finite(scored))
+    return pd.DataFrame(_quality(scored, rows, np.zeros(len(rows), dtype=np.intp), [bound]),
+                        index=scored.index[rows])
+
+
+def _finite(scored: pd.DataFrame) -> np.ndarray:
+    return np.isfinite(scored["x"].to_numpy(float)) & np.isfinite(scored["y"].to_numpy(float))
+
+
+def _quality(scored: pd.DataFrame, rows: np.ndarray, group: np.ndarray, bounds: list[pd.DataFrame]) -> dict:
+    """QUALITY_COLUMNS (arrays) of the estimates at positions `rows` of scored, the one at
+    rows[i] beside the bound bounds[group[i]] (matched on t: same epoch grid):
+    pcrb_m2 = pcrb_xx + pcrb_yy (m^2), NaN off the bound's grid; nees = e^T P^-1 e."""
+    column = lambda name: scored[name].to_numpy(float)[rows]        # noqa: E731
+    t, trace = column("t"), np.full(len(rows), np.nan)
+    for g, bound in enumerate(bounds):
+        mine, bound_t = np.flatnonzero(group == g), bound["t"].to_numpy(float)
+        at = np.searchsorted(bound_t, t[mine])       # the bound at the estimate's epoch end
+        found = at < len(bound_t)
+        found[found] = bound_t[at[found]] == t[mine][found]
+        trace[mine[found]] = (bound["pcrb_xx"].to_numpy(float) + bound["pcrb_yy"].to_numpy(float))[at[found]]
+    error = np.column_stack([column("x") - column("true_x"), column("y") - column("true_y")])
+    covariance = np.stack([column("p_xx"), column("p_xy"), column("p_xy"), column("p_yy")], axis=-1).reshape(-1, 2, 2)
+    return {"t": t, "error_m": column("error_m"), "pcrb_m2": trace, "nees": normalized_squared(error, covariance),
+            "nis": column("nis"), "n_meas": column("n_meas")}
 
 
 def run_efficiency(quality: pd.DataFrame) -> dict[str, float]:
@@ -119,19 +132,41 @@ def grouped_quality(runs: list[tuple[RunData, pd.DataFrame]], keys: list[str],
     """run_quality of every Bayesian filter in each run's scored estimates ((run data, scored)
     pairs), grouped by keys (e.g. a paper's table and row); params_of(*key values) gives that
     filter's resolved registry parameters. The bounds of all runs and groups are computed in
-    one batch (filter_pcrbs). Per run: (quality rows with the keys, per group sqrt_pcrb and
-    efficiency)."""
-    groups = [(data, key, group) for data, scored in runs for key, group in scored.groupby(keys, sort=False)]
-    bounds = iter(filter_pcrbs([(data, params_of(*key)) for data, key, _ in groups]))
-    out = []
-    for data, scored in runs:
-        qualities, efficiencies = [], []
-        for key, group in scored.groupby(keys, sort=False):
-            quality = epoch_quality(group, next(bounds))
-            qualities.append(quality.assign(**dict(zip(keys, key))))
-            efficiencies.append({**dict(zip(keys, key)), **run_efficiency(quality)})
-        out.append((pd.concat(qualities, ignore_index=True), pd.DataFrame(efficiencies)))
-    return out
+    one batch (filter_pcrbs). Per run: (quality rows with the keys, group after group in order
+    of first appearance, per group sqrt_pcrb and efficiency)."""
+    split = [(data, scored, *_groups(scored, keys)) for data, scored in runs]
+    bounds = iter(filter_pcrbs([(data, params_of(*key)) for data, _, _, names in split for key in names]))
+    return [_run_groups(scored, keys, code, names, [next(bounds) for _ in names])
+            for _, scored, code, names in split]
+
+
+def _groups(scored: pd.DataFrame, keys: list[str]) -> tuple[np.ndarray, list[tuple]]:
+    """Group number of every row of scored (-1: a missing key) in order of first appearance,
+    and each group's key values."""
+    code = scored.groupby(keys, sort=False).ngroup().to_numpy()
+    first = np.unique(code[code >= 0], return_index=True)[1]
+    return code, list(scored[keys].iloc[np.flatnonzero(code >= 0)[first]].itertuples(index=False, name=None))
+
+
+def _run_groups(scored: pd.DataFrame, keys: list[str], code: np.ndarray, names: list[tuple],
+                bounds: list[pd.DataFrame]) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """epoch_quality of every group of one run (stacked, with the keys) and run_efficiency per group,
+    as sums over each group's usable rows: sqrt_pcrb = sqrt(sum pcrb / n), RMSE = sqrt(sum e^2 / n)."""
+    order = np.argsort(code, kind="stable")
+    rows = order[(code[order] >= 0) & _finite(scored)[order]]
+    group = code[rows]
+    quality = pd.DataFrame(_quality(scored, rows, group, bounds))
+    for j, name in enumerate(keys):
+        quality[name] = pd.Series([key[j] for key in names]).to_numpy()[group]
+    usable = np.isfinite(quality["error_m"].to_numpy()) & np.isfinite(quality["pcrb_m2"].to_numpy())
+    count = np.bincount(group[usable], minlength=len(names))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        bound = np.sqrt(np.bincount(group[usable], quality["pcrb_m2"].to_numpy()[usable], len(names)) / count)
+        rmse = np.sqrt(np.bincount(group[usable], quality["error_m"].to_numpy()[usable] ** 2, len(names)) / count)
+    efficiencies = [{**dict(zip(keys, key)), "sqrt_pcrb": float(b), "efficiency": float(r / b)} if n else
+                    {**dict(zip(keys, key)), "sqrt_pcrb": np.nan, "efficiency": np.nan}
+                    for key, n, b, r in zip(names, count, bound, rmse)]
+    return quality, pd.DataFrame(efficiencies)
 
 
 def cell_outputs(quality: pd.DataFrame, p: dict, label: str, title: str, **keys) -> tuple[list, tuple, list]:

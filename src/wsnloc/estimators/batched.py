@@ -10,20 +10,21 @@ detection and PVA input; estimates equal to round-off), for runs whose epoch gri
 measurement sets differ:
 - run r's k-th epoch is processed at step k; runs with fewer epochs are masked after
   their end;
-- the measurements of epoch k of all runs are padded to the largest count M_k: a padded
-  row has H = 0, y = 0 and R = 1, so S = blockdiag(S_real, I), its Kalman gain column is
-  0 and it changes neither x, P nor NIS = y^T S^-1 y;
+- the measurements of epoch k of all runs (any kinds and anchor subsets) are padded to
+  the largest count M_k: a padded row has H = 0, y = 0 and R = 1, so it adds nothing to
+  H^T R^-1 H, H^T R^-1 y or y^T R^-1 y and changes neither x, P nor NIS = y^T S^-1 y;
 - per run, measurement i of an epoch is a range (h = sqrt(d^2 + dz^2),
   H = [(p - a) / h, 0...]) or an RSS value (h = P0 - 10 n log10(d / d0),
   H = [-10 n / ln10 (p - a) / d^2, 0...]) with d = max(||p - a||, 1 mm), as in
   filters.measurement_models; R is diagonal (range sigma^2, RSS sigma_dB^2).
-Predict x <- F x + B u, P <- F P F^T + Q; Joseph-form update (filters.kalman).
+Predict x <- F x + B u, P <- F P F^T + Q; Joseph-form update (filters.kalman), computed in
+2 x 2 algebra as H sees the position only (position_update), so its cost hardly grows with M_k.
 Only the initiator's multilateration runs per run (once per track start).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 import pandas as pd
@@ -74,8 +75,9 @@ def predict(x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray, Bu: np.n
 
 
 def update(x: np.ndarray, P: np.ndarray, m: Measurements):
-    """Joseph-form EKF update of every run with its (padded) measurements; returns (x, P, NIS)."""
-    runs, width = m.z.shape
+    """Joseph-form EKF update of every run with its (padded) measurements; returns (x, P, NIS).
+    Only the position columns of H are non-zero: position_update."""
+    width = m.z.shape[1]
     diff = x[:, None, :2] - m.anchors
     d = np.maximum(np.hypot(diff[..., 0], diff[..., 1]), MIN_DISTANCE)
     is_range = m.kind == RANGE
@@ -83,10 +85,29 @@ def update(x: np.ndarray, P: np.ndarray, m: Measurements):
     h = np.where(is_range, slant, m.p0 - 10.0 * m.exponent * np.log10(d / m.d0))
     gain = np.where(is_range, 1.0 / np.maximum(slant, MIN_DISTANCE), -10.0 * m.exponent / np.log(10.0) / d**2)
     real = np.arange(width)[None, :] < m.count[:, None]
-    H = np.zeros((runs, width, x.shape[1]))
-    H[..., :2] = np.where(real[..., None], diff * gain[..., None], 0.0)
+    H = np.where(real[..., None], diff * gain[..., None], 0.0)
     y = np.where(real, m.z - h, 0.0)
-    return joseph_update(x, P, y, H, m.variance[:, :, None] * np.eye(width))
+    return position_update(x, P, y, H, 1.0 / m.variance)
+
+
+def position_update(x: np.ndarray, P: np.ndarray, y: np.ndarray, H: np.ndarray, r_inv: np.ndarray):
+    """joseph_update with H = [H_p, 0] (H_p (runs, m, 2): the measurements see the position
+    only) and R = diag(1 / r_inv) (r_inv (runs, m)), in 2 x 2 algebra whatever m:
+    with C = P[:, :2], A = H_p^T R^-1 H_p, b = H_p^T R^-1 y and G = (I + A P_pp)^-1 the
+    push-through identity H_p^T S^-1 = G H_p^T R^-1 gives K = C G H_p^T R^-1, so
+    x <- x + C G b, K H = [C G A, 0], K R K^T = C G A G^T C^T,
+    P <- (I - K H) P (I - K H)^T + K R K^T, and S^-1 y = R^-1 (y - H_p P_pp G b), so
+    NIS = sum_i y_i (y - H_p dp)_i / R_ii with dp = P_pp G b the position correction."""
+    weighted = np.swapaxes(H * r_inv[..., None], 1, 2)           # H_p^T R^-1 (runs, 2, m)
+    A, b = weighted @ H, (weighted @ y[..., None])[..., 0]
+    CG = P[:, :, :2] @ np.linalg.inv(np.eye(2) + A @ P[:, :2, :2])
+    correction = (CG @ b[..., None])[..., 0]
+    KH = np.zeros_like(P)
+    KH[:, :, :2] = CG @ A
+    joseph = np.eye(x.shape[1]) - KH
+    P = joseph @ P @ np.swapaxes(joseph, 1, 2) + KH[:, :, :2] @ np.swapaxes(CG, 1, 2)
+    residual = y - (H @ correction[:, :2, None])[..., 0]
+    return x + correction, P, np.sum(y * residual * r_inv, axis=1)
 
 
 def joseph_update(x: np.ndarray, P: np.ndarray, y: np.ndarray, H: np.ndarray, R: np.ndarray):
@@ -121,33 +142,44 @@ class _Run:
 
 def pack(runs: list[_Run], period: float) -> Measurements:
     """The epochs of every run (MeasurementSource.epochs: per-anchor means; ranges first,
-    then RSS, as in MeasurementSource.model) in one padded Measurements."""
+    then RSS, as in MeasurementSource.model) in one padded Measurements; cells sharing a
+    measurement source (e.g. a row with and without motion detection) are packed once."""
     epochs = [r.source.epochs(r.times, period) for r in runs]
     width = max([len(e.ranges) + len(e.rss) for es in epochs for e in es] + [1])
     out = Measurements.empty(len(runs), max([len(r.times) for r in runs] + [0]), width)
+    packed: dict[tuple, int] = {}
     for i, (run, run_epochs) in enumerate(zip(runs, epochs)):
-        if not run_epochs:
-            continue
-        data, rss = run.source.data, run.source.rss_params
-        n_ranges = np.array([len(e.ranges) for e in run_epochs])
-        counts = n_ranges + np.array([len(e.rss) for e in run_epochs])
-        ids = np.concatenate([np.concatenate([e.range_ids, e.rss_ids]) for e in run_epochs])
-        values = np.concatenate([np.concatenate([e.ranges, e.rss]) for e in run_epochs])
-        epoch = np.repeat(np.arange(len(counts)), counts)
-        slot = np.arange(len(ids)) - np.repeat(np.cumsum(counts) - counts, counts)   # index within the epoch
-        is_rss = slot >= n_ranges[epoch]
-        out.count[i, :len(counts)] = counts
-        out.kind[i, epoch, slot] = np.where(is_rss, RSS, RANGE)
-        out.anchors[i, epoch, slot] = data.positions(ids)
-        out.z[i, epoch, slot] = values
-        out.variance[i, epoch, slot] = run.source.range_sigma_m**2
-        if data.three_d:
-            out.dz[i, epoch[~is_rss], slot[~is_rss]] = data.height_offsets(ids[~is_rss])
-        if is_rss.any():
-            at = (i, epoch[is_rss], slot[is_rss])
-            out.p0[at], out.exponent[at], out.d0[at] = rss.p0_dbm, rss.path_loss_exponent, rss.d0_m
-            out.variance[at] = rss.sigma_db**2
+        same = packed.setdefault((id(run.source), id(run_epochs)), i)
+        if same != i:
+            for field in fields(out):
+                getattr(out, field.name)[i] = getattr(out, field.name)[same]
+        elif run_epochs:
+            _fill(out, i, run, run_epochs)
     return out
+
+
+def _fill(out: Measurements, i: int, run: _Run, run_epochs: list) -> None:
+    """Row i of `out`: the (non-empty list of) epochs of one run."""
+    data, rss = run.source.data, run.source.rss_params
+    n_ranges = np.array([len(e.ranges) for e in run_epochs])
+    counts = n_ranges + np.array([len(e.rss) for e in run_epochs])
+    ids = np.concatenate([a for e in run_epochs for a in (e.range_ids, e.rss_ids)])
+    values = np.concatenate([a for e in run_epochs for a in (e.ranges, e.rss)])
+    code, distinct = pd.factorize(ids)          # anchor lookups once per distinct id
+    epoch = np.repeat(np.arange(len(counts)), counts)
+    slot = np.arange(len(ids)) - np.repeat(np.cumsum(counts) - counts, counts)   # index within the epoch
+    is_rss = slot >= n_ranges[epoch]
+    out.count[i, :len(counts)] = counts
+    out.kind[i, epoch, slot] = np.where(is_rss, RSS, RANGE)
+    out.anchors[i, epoch, slot] = data.positions(distinct)[code]
+    out.z[i, epoch, slot] = values
+    out.variance[i, epoch, slot] = run.source.range_sigma_m**2
+    if data.three_d:
+        out.dz[i, epoch[~is_rss], slot[~is_rss]] = data.height_offsets(distinct)[code[~is_rss]]
+    if is_rss.any():
+        at = (i, epoch[is_rss], slot[is_rss])
+        out.p0[at], out.exponent[at], out.d0[at] = rss.p0_dbm, rss.path_loss_exponent, rss.d0_m
+        out.variance[at] = rss.sigma_db**2
 
 
 def supports(p: dict) -> bool:
@@ -159,19 +191,15 @@ def supports(p: dict) -> bool:
 
 
 def _shared(p: dict) -> tuple:
-    """What cells stepped together must share: motion model, period, coasting limit, window."""
+    """What cells stepped together must share: motion model, period, coasting limit, window.
+    Cells of any measurement kinds and anchor subsets are stepped together (their epochs
+    padded to the largest count; position_update costs little per padded row)."""
     return bayes.motion_model(p), p["epoch_s"], p["max_coast_s"], p["init_window_s"] or p["epoch_s"]
-
-
-def _group(p: dict) -> tuple:
-    """_shared(p), and the measurement kinds and anchor subset: cells of one group pad their
-    epochs to similar measurement counts (no 33-wide update for a 12-anchor TOA row)."""
-    return _shared(p), p["measurements"], p["anchors"]
 
 
 def run_epoch_ekf(cells: list[tuple[RunData, dict]]) -> list[pd.DataFrame]:
     """bayes.run_filter(data, p) for every (run, resolved parameters) cell with filter ekf and
-    update epoch; the cells that share _group(p) are stepped together (different runs, RSS
+    update epoch; the cells that share _shared(p) are stepped together (different runs, RSS
     models and motion detection). One frame
     (bayes.COLUMNS; attrs as bayes.run_filter's: resets, the gate counters, all zero for the
     bare filter, and the identity range correction) per cell, in order."""
@@ -179,9 +207,9 @@ def run_epoch_ekf(cells: list[tuple[RunData, dict]]) -> list[pd.DataFrame]:
         raise ValueError("run_epoch_ekf steps the epoch-mode EKF only (filter: ekf, update: epoch)")
     groups: dict[tuple, list[int]] = {}
     for i, (_, p) in enumerate(cells):
-        groups.setdefault(_group(p), []).append(i)
+        groups.setdefault(_shared(p), []).append(i)
     frames: list[pd.DataFrame] = [pd.DataFrame()] * len(cells)
-    for (shared, *_), members in groups.items():
+    for shared, members in groups.items():
         for i, frame in zip(members, _step_together([cells[i] for i in members], *shared)):
             frame.attrs.update(filter_options.UpdateCounts().attrs())
             frame.attrs.update(range_calibration.correction(*cells[i]).describe())
@@ -237,10 +265,17 @@ def _step_together(cells: list[tuple[RunData, dict]], motion, period: float, max
                                         np.where(measured[kept], meas.count[kept, k], 0), nis[kept]])
     frames = []
     for i in range(n_runs):
-        frame = pd.DataFrame(out[i, emitted[i]], columns=bayes.COLUMNS).astype({"n_meas": int})
+        frame = _frame(out[i, emitted[i]])
         frame.attrs["resets"] = int(resets[i])
         frames.append(frame)
     return frames
+
+
+def _frame(rows: np.ndarray) -> pd.DataFrame:
+    """bayes.COLUMNS of the (estimates, columns) array `rows`, n_meas as int (column by column:
+    a frame of one float block cast afterwards costs several times more)."""
+    return pd.DataFrame({name: rows[:, j].astype(int) if name == "n_meas" else rows[:, j]
+                         for j, name in enumerate(bayes.COLUMNS)})
 
 
 def kalman_tracks(fix_tables: list[pd.DataFrame], matrices: tuple) -> list[pd.DataFrame]:

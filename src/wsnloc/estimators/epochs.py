@@ -40,13 +40,14 @@ def _assign(t: np.ndarray, times: np.ndarray, period: float) -> np.ndarray:
 
 def _per_anchor_mean(frame: pd.DataFrame, value: str, times, period) -> list[tuple[np.ndarray, np.ndarray]]:
     """Per epoch ending at `times`: (anchor ids in sorted order, mean of `value` per anchor)."""
-    out = [(np.array([], dtype=object), np.array([])) for _ in times]
+    out = [(np.array([], dtype=object), np.array([]))] * len(times)      # one shared empty pair
     epoch = _assign(frame["t"].to_numpy(float), times, period)
     inside = epoch >= 0
     if not inside.any():
         return out
     epoch, values = epoch[inside], frame[value].to_numpy(float)[inside]
-    ids, code = np.unique(frame["anchor_id"].to_numpy(object)[inside].astype(str), return_inverse=True)
+    ids, code = _sorted_codes(frame["anchor_id"])
+    code = code[inside]
     order = np.lexsort((code, epoch))                   # by epoch, then anchor id
     epoch, code, values = epoch[order], code[order], values[order]
     first = np.flatnonzero(np.r_[True, (epoch[1:] != epoch[:-1]) | (code[1:] != code[:-1])])   # one per (epoch, anchor)
@@ -56,6 +57,17 @@ def _per_anchor_mean(frame: pd.DataFrame, value: str, times, period) -> list[tup
     for k, a, b in zip(group_epoch[starts], starts, np.r_[starts[1:], len(group_epoch)]):
         out[k] = (group_ids[a:b], means[a:b])
     return out
+
+
+def _sorted_codes(anchor_ids: pd.Series) -> tuple[np.ndarray, np.ndarray]:
+    """np.unique(anchor_ids as str, return_inverse=True), by hashing (pd.factorize) and sorting
+    only the distinct ids: (ids in sorted order, index of each row's id in them)."""
+    code, distinct = pd.factorize(anchor_ids, use_na_sentinel=False)
+    names = np.asarray(distinct, dtype=object).astype(str)
+    order = np.argsort(names, kind="stable")
+    rank = np.empty(len(order), dtype=np.intp)
+    rank[order] = np.arange(len(order))
+    return names[order], rank[code]
 
 
 def grid_over(stamps: np.ndarray, period: float) -> np.ndarray:
