@@ -113,8 +113,8 @@ LINE_DAMAGE = [
     lambda s: s.rsplit(" ", 1)[0],              # a field missing
     lambda s: s + " 7",                         # a field too many
     lambda s: s.replace(" ", " nan ", 1)[: len(s) + 4],
-    lambda s: "inf" + s[s.index(" "):],
-    lambda s: "1e4" + s[s.index(" "):],
+    lambda s: "inf" + "".join(s.partition(" ")[1:]),   # first field replaced (a line without spaces: "inf")
+    lambda s: "1e4" + "".join(s.partition(" ")[1:]),
     lambda s: s.replace(" ", " +", 1),
     lambda s: s.replace("0", "0_0", 1),
     lambda s: s.replace(" ", " 2147483649 ", 1).rsplit(" ", 1)[0],
