@@ -76,3 +76,14 @@ def k_smallest(ranges, k: int) -> np.ndarray:
     """Reference: indices of the k smallest finite ranges of one epoch, increasing, ties in order."""
     finite = np.flatnonzero(np.isfinite(ranges))
     return finite[np.argsort(ranges[finite], kind="stable")][:k]
+
+
+def epoch_stamped_bursts(n_epochs: int, seed: int = 3) -> tuple[RunData, np.ndarray]:
+    """A run whose range bursts (0.1 m noise, SQUARE) carry exactly the epoch end times of its
+    0.5 s grid, and those ends (s). The grid starts at the run's first measurement, one RSS
+    sample at t0 = 0.3 s, so epoch k ends at t0 - 1e-9 + 0.5 k."""
+    ends = (0.3 - 1e-9) + 0.5 * np.arange(1, n_epochs + 1)
+    ids = np.tile(np.array(list(SQUARE), dtype=object), len(ends))
+    tables = tables_for(np.repeat(ends, len(SQUARE)), ids, walk, SQUARE, noise_m=0.1, rng=np.random.default_rng(seed))
+    tables["rss"] = pd.DataFrame({"t": [0.3], "seq": [-1], "anchor_id": ["A1"], "rss_dbm": [-60.0], "line": [1]})
+    return run_data(tables), ends

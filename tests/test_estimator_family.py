@@ -12,7 +12,7 @@ from filterpy.kalman import KalmanFilter as FilterpyKF
 from filterpy.kalman import MerweScaledSigmaPoints
 from filterpy.kalman import UnscentedKalmanFilter as FilterpyUKF
 
-from synthetic import SQUARE, bursts, one_at_a_time, run_data, tables_for, walk
+from synthetic import SQUARE, bursts, epoch_stamped_bursts, one_at_a_time, run_data, tables_for, walk
 from test_estimators import CONFIGURED_RSS, TARGET, static_run
 from test_smoother import _block_row
 from wsnloc.cli import main
@@ -154,12 +154,7 @@ def test_epoch_ukf_equals_filterpys_ukf_on_the_same_measurements():
 def test_sequential_smoother_equals_epoch_smoother_when_measurements_share_the_epoch_time():
     """All ranges of an epoch at t_k: both forward passes update at t_k, so the recorded
     chains and their smoothed states are the same."""
-    rng = np.random.default_rng(3)
-    ends = (0.3 - 1e-9) + 0.5 * np.arange(1, 121)
-    ids = np.tile(np.array(list(SQUARE), dtype=object), len(ends))
-    tables = tables_for(np.repeat(ends, len(SQUARE)), ids, walk, SQUARE, noise_m=0.1, rng=rng)
-    tables["rss"] = pd.DataFrame({"t": [0.3], "seq": [-1], "anchor_id": ["A1"], "rss_dbm": [-60.0], "line": [1]})
-    data = run_data(tables)
+    data, _ = epoch_stamped_bursts(120)
     epoch = registry.run("ekf_rts", data, {"update": "epoch"})
     sequential = registry.run("ekf_rts", data, {"update": "sequential"})
     assert len(epoch) == len(sequential) > 100

@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 from filterpy.kalman import ExtendedKalmanFilter as FilterpyEKF
 
-from synthetic import RSS_MODEL, SQUARE, bursts, one_at_a_time, run_data, tables_for, walk
+from synthetic import RSS_MODEL, SQUARE, bursts, epoch_stamped_bursts, one_at_a_time, run_data, tables_for, walk
 from wsnloc.errors import ConfigError
 from wsnloc.estimators import registry
 from wsnloc.estimators.measurements import MeasurementSource, RssParams
@@ -87,14 +87,7 @@ def test_pv_ekf_follows_a_walk_with_noise_free_ranges():
 
 def test_sequential_equals_epoch_updates_when_measurements_share_the_epoch_time():
     """All ranges of an epoch carry the time t_k: predict to t_k then update in both modes."""
-    rng = np.random.default_rng(3)
-    # The run's grid starts at its first measurement (one RSS sample at t0 = 0.3 s): epoch k
-    # ends at t0 - 1e-9 + 0.5 k, and every range burst is stamped with exactly that time.
-    ends = (0.3 - 1e-9) + 0.5 * np.arange(1, 201)
-    ids = np.tile(np.array(list(SQUARE), dtype=object), len(ends))
-    tables = tables_for(np.repeat(ends, len(SQUARE)), ids, walk, SQUARE, noise_m=0.1, rng=rng)
-    tables["rss"] = pd.DataFrame({"t": [0.3], "seq": [-1], "anchor_id": ["A1"], "rss_dbm": [-60.0], "line": [1]})
-    data = run_data(tables)
+    data, ends = epoch_stamped_bursts(200)
     assert np.array_equal(data.grid(0.5, True, 100.0)[:len(ends)], ends)
     epoch = registry.run("ekf", data, {"update": "epoch", "epoch_s": 0.5})
     sequential = registry.run("ekf", data, {"update": "sequential", "epoch_s": 0.5})
