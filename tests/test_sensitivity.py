@@ -171,6 +171,36 @@ def test_nlos_severity_sweep_adds_the_configured_excess_per_wall(campaign):
     assert campaign.section("radio", "uwb")["excess_path_per_wall_m"] == 0.3
 
 
+def test_a_level_without_changes_reuses_the_workflows_runs(campaign, tmp_path, monkeypatch):
+    """The workflow's simulate + ingest of runs 1..N give the tables the sweep would simulate
+    (same campaign, seeds and reader), so the {} level reads them and only the other levels
+    simulate."""
+    from wsnloc.analysis import nlos_severity, simulated_runs
+    from wsnloc.io.ingest import ingest_scenario
+    from wsnloc.io.limits import QuarantineLimits
+    from wsnloc.metrics.data_quality import load_runs
+    from wsnloc.sim.newcom import simulate_run
+    from wsnloc.sim.seeding import run_seed_sequence
+
+    raw = {"run-01": simulate_run(campaign, "constant", run_seed_sequence(5, "newcom", "constant", 1),
+                                  tmp_path / "raw" / "run-01")}
+    ingest_scenario("newcom", raw, campaign, tmp_path / "tables", QuarantineLimits(), tmp_path / "keep")
+    workflow_runs = load_runs(tmp_path / "tables")
+    simulated = simulated_runs.simulate_tables(campaign, "constant", 1, 5)
+    for name in ("ranges", "rss", "imu", "truth"):
+        pd.testing.assert_frame_equal(workflow_runs["run-01"][name], simulated["run-01"][name], check_dtype=False,
+                                      check_like=True)   # Parquet: schema types and column order
+
+    calls = []
+    original = nlos_severity.simulate_tables
+    monkeypatch.setattr(nlos_severity, "simulate_tables", lambda c, *a: calls.append(c) or original(c, *a))
+    levels = {"spec": {}, "severe": {"excess_path_per_wall_m": 2.3}}
+    count = lambda severe, tables: pd.DataFrame({"run": list(tables), "n": [len(t["ranges"]) for t in tables.values()]})
+    sweep = nlos_severity.sweep(campaign, "constant", levels, 1, 5, count, simulated=workflow_runs)
+    assert len(calls) == 1 and calls[0].section("radio", "uwb")["excess_path_per_wall_m"] == 2.3
+    assert sweep["n"].iloc[0] == len(workflow_runs["run-01"]["ranges"])
+
+
 def test_nlos_levels_apply_the_hardware_class_then_the_level_values(campaign):
     from wsnloc.analysis import nlos_severity
     from wsnloc.errors import ConfigError

@@ -118,6 +118,16 @@ def sweep_campaign(spec, key):
     return [campaign_of_label(sweep["scenario"])] if sweep.get("runs") else []
 
 
+def sweep_tables(spec, key):
+    """The workflow's table folders of an experiment's sweep scenario when its dataset is
+    simulated (a sweep level without changes reuses those runs); [] when off or real logs."""
+    sweep = (spec or {}).get(key) or {}
+    if not sweep.get("runs"):
+        return []
+    dataset, scenario = sweep["scenario"].split("/", 1)
+    return tables_of(dataset, scenario) if config["datasets"][dataset]["source"] == "simulate" else []
+
+
 def campaign_of_label(label):
     """Campaign file of a dataset/scenario label."""
     dataset, _ = label.split("/", 1)

@@ -33,6 +33,7 @@ rule paper_b_summary:
         estimates=[f"data/processed/{d}/{s}/paper_b/estimates.parquet" for d, s in PAPER_B_PAIRS],
         papers="config/papers.yaml",
         nlos_campaign=sweep_campaign(PAPER_B, "nlos_sweep"),
+        nlos_tables=sweep_tables(PAPER_B, "nlos_sweep"),
         snr_campaign=[config["datasets"][d]["campaign"] for d, _ in experiment_pairs(PAPER_B, "simulation_scenarios")[:1]],
     output:
         results="data/processed/paper_b/results.csv",

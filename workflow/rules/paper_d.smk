@@ -31,6 +31,7 @@ rule paper_d_summary:
         estimates=[f"data/processed/{d}/{s}/paper_d/estimates.parquet" for d, s in PAPER_D_PAIRS],
         papers="config/papers.yaml",
         nlos_campaign=sweep_campaign(PAPER_D, "nlos_sweep"),
+        nlos_tables=sweep_tables(PAPER_D, "nlos_sweep"),
     output:
         results="data/processed/paper_d/results.csv",
         claims="data/processed/paper_d/claims.json",

@@ -34,7 +34,8 @@ nlos_settings = paper_b.Settings.from_config(
     paper_b.scenario_config(sm.params.settings, nlos.get("scenario") in simulated))
 rows += nlos_severity.claim_rows(
     paper_b.EXPERIMENT, nlos, (sm.input.nlos_campaign or [""])[0], sm.params.seed,
-    lambda campaign, tables: paper_b.evaluate_runs(tables, campaign, nlos_settings, sm.params.resample), paper_b.claims)
+    lambda campaign, tables: paper_b.evaluate_runs(tables, campaign, nlos_settings, sm.params.resample), paper_b.claims,
+    sm.input.nlos_tables)
 rows += sensitivity.results_rows(paper_b.EXPERIMENT, grids, paper_b.claims)
 estimates = {label: tables.read(p) for label, p in zip(labels, sm.input.estimates)}
 rows += paper_b.setup_rows(estimates)

@@ -28,7 +28,7 @@ rows += paper_d.cost_rows(cost, paper_cost_ms) + paper_d.operation_rows(counts, 
 grids = {label: pd.read_csv(path) for label, path in zip(labels, sm.input.sensitivity)}
 rows += nlos_severity.claim_rows(   # claims against NLOS ranging severity (opt-in)
     paper_d.EXPERIMENT, sm.params.settings.get("nlos_sweep"), (sm.input.nlos_campaign or [""])[0], sm.params.seed,
-    lambda campaign, tables: paper_d.evaluate_runs(tables, campaign, settings), paper_d.claims)
+    lambda campaign, tables: paper_d.evaluate_runs(tables, campaign, settings), paper_d.claims, sm.input.nlos_tables)
 rows += sensitivity.results_rows(paper_d.EXPERIMENT, grids, paper_d.claims)
 estimates = {label: tables.read(p) for label, p in zip(labels, sm.input.estimates)}
 rows += paper_d.setup_rows(estimates)

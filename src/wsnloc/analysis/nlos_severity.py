@@ -64,15 +64,19 @@ def setting_label(campaign: Campaign, level: dict, runs: int) -> str:
 
 def sweep(campaign: Campaign, scenario: str, levels: dict[str, dict], runs: int, seed: int,
           evaluate: Callable[[Campaign, dict[str, dict]], pd.DataFrame], dataset: str = "newcom",
-          where: str = "nlos_sweep.levels") -> pd.DataFrame:
+          where: str = "nlos_sweep.levels", simulated: dict[str, dict] | None = None) -> pd.DataFrame:
     """Per-run metrics of every level, with a `setting` column (setting_label).
 
     evaluate(campaign, tables by run name) -> per-run metrics of those runs (column `run`).
+    simulated: the tables of runs 1..`runs` of the scenario as the workflow simulated and
+    ingested them (same campaign, same seeds); a level that changes nothing ({}) reads them
+    instead of simulating the same runs again.
     """
     frames = []
     for name, level in levels.items():
         severe = level_campaign(campaign, level, f"{where}.{name}")
-        tables = simulate_tables(severe, scenario, runs, seed, dataset)
+        reuse = not level and simulated is not None and len(simulated) == runs
+        tables = simulated if reuse else simulate_tables(severe, scenario, runs, seed, dataset)
         frames.append(evaluate(severe, tables).assign(setting=setting_label(severe, level, runs)))
     return pd.concat(frames, ignore_index=True)
 
@@ -94,18 +98,22 @@ def rmse_rows(experiment: str, scenario: str, severity: pd.DataFrame) -> list[di
 
 
 def claim_rows(experiment: str, spec: dict | None, campaign_file: str, seed: int,
-               evaluate: Callable[[Campaign, dict], pd.DataFrame], claims) -> list[dict]:
+               evaluate: Callable[[Campaign, dict], pd.DataFrame], claims, simulated_dirs=()) -> list[dict]:
     """results.csv rows of a paper's claims against UWB ranging severity (config
     `experiments.paper_<experiment>.nlos_sweep`: scenario, levels, runs; none when runs is 0),
     and of every cell's RMSE per level (rmse_rows): `evaluate(campaign, tables)` gives the
-    per-run metrics of extra simulated runs at each level, `claims` decides on them."""
+    per-run metrics of extra simulated runs at each level, `claims` decides on them.
+    simulated_dirs: the workflow's table folders of the (simulated) sweep scenario, whose
+    first runs a level without changes reuses (sweep)."""
     from wsnloc.experiments import sensitivity
+    from wsnloc.metrics.data_quality import load_runs
 
     spec = spec or {"runs": 0}
     if not spec["runs"]:
         return []
     dataset, scenario = spec["scenario"].split("/", 1)
+    simulated = load_runs(simulated_dirs, first=spec["runs"]) if simulated_dirs else None
     severity = sweep(Campaign.load(campaign_file), scenario, spec["levels"], spec["runs"], seed, evaluate, dataset,
-                     f"experiments.paper_{experiment.lower()}.nlos_sweep.levels")
+                     f"experiments.paper_{experiment.lower()}.nlos_sweep.levels", simulated)
     return sensitivity.results_rows(experiment, {spec["scenario"]: severity}, claims) \
         + rmse_rows(experiment, spec["scenario"], severity)
