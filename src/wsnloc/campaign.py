@@ -12,9 +12,8 @@ from pathlib import Path as FsPath
 
 import numpy as np
 import pandas as pd
-import yaml
 
-from wsnloc.config import read_yaml, validate
+from wsnloc.config import parse_yaml, read_yaml, validate
 from wsnloc.errors import ConfigError
 from wsnloc.geometry.path import Path
 from wsnloc.geometry.walls import count_crossings, wall_pieces
@@ -22,7 +21,7 @@ from wsnloc.geometry.walls import count_crossings, wall_pieces
 
 def _campaign_schema() -> dict:
     text = resources.files("wsnloc.schemas").joinpath("campaign.schema.yaml").read_text()
-    return yaml.safe_load(text)
+    return parse_yaml(text)
 
 
 @dataclass

@@ -17,6 +17,15 @@ import yaml
 
 from wsnloc.errors import ConfigError
 
+# libyaml's parser when PyYAML was built with it (same safe schema, ~10x faster than the pure
+# Python one: every job reads its campaign file).
+_SafeLoader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+def parse_yaml(text: str) -> Any:
+    """yaml.safe_load with libyaml's parser when available (raises yaml.YAMLError)."""
+    return yaml.load(text, Loader=_SafeLoader)
+
 
 def read_yaml(path: str | Path) -> Any:
     """Parse a YAML file; a syntax error becomes a ConfigError naming the file and line."""
@@ -26,7 +35,7 @@ def read_yaml(path: str | Path) -> Any:
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read ({exc.strerror})") from exc
     try:
-        return yaml.safe_load(text)
+        return parse_yaml(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"{path}:{mark.line + 1}" if mark is not None else str(path)
