@@ -15,11 +15,11 @@ from wsnloc.workflow import (
 )
 
 ENV = "../envs/wsnloc.yaml"
-# Job order on few cores (higher first among ready jobs): the long estimator jobs start as
-# soon as their inputs exist and the Newcom++ chain that feeds most of them goes first;
-# the short per-scenario summaries (priority 0) fill the cores at the end, so that no long
-# job runs alone before the report.
-PRIORITY = {"estimator": 3, "simulate_newcom": 2, "ingest": 1, "simulate_cricket": 1, "summary": 1}
+# Job order on few cores (higher first among ready jobs): the data chain (simulate, ingest)
+# first, Newcom++ before Cricket, so that every estimator job is ready early; then the long
+# estimator jobs; the short summaries (priority 1) fill the cores at the end, so that no
+# long job runs alone before the report.
+PRIORITY = {"simulate_newcom": 5, "simulate_cricket": 4, "ingest": 4, "estimator": 3, "summary": 1}
 RAW_FILES = {"newcom": ["uwb.log", "zigbee.log", "imu.log", "truth.log"],
              "cricket": ["listener.log", "imu.log", "truth.log"]}
 SIMULATED = [name for name, d in config["datasets"].items() if d["source"] == "simulate"]
@@ -33,8 +33,8 @@ wildcard_constraints:
 
 
 def shard_runs(wildcards):
-    """The runs of one shard of a scenario."""
-    return shards_of(config, wildcards.dataset, wildcards.scenario)[wildcards.shard]
+    """The runs of one shard of a scenario (shard-1 for a rule whose paths name it)."""
+    return shards_of(config, wildcards.dataset, wildcards.scenario)[wildcards.get("shard", "shard-1")]
 
 
 def tables_of(dataset, scenario):
@@ -66,6 +66,20 @@ def simulated_of(fmt):
     """Regex of the simulated datasets of one format (never matches when there are none)."""
     names = [n for n in SIMULATED if config["datasets"][n]["format"] == fmt]
     return "|".join(names) or "(?!x)x"
+
+
+# With one shard per scenario, the job that ingests a scenario's runs also writes its data
+# summary (it holds all the runs); with more, rule summarize_data reads all the shards' tables.
+SUMMARY_IN_INGEST = config["shards"] == 1
+SUMMARY_FILES = {
+    "summary": "data/processed/{dataset}/{scenario}/data_summary.json",
+    "results": "data/processed/{dataset}/{scenario}/data_results.csv",
+    "range_error": "data/processed/{dataset}/{scenario}/figures/range_error.png",
+    "rss": "data/processed/{dataset}/{scenario}/figures/rss_distance.png",
+    "imu": "data/processed/{dataset}/{scenario}/figures/imu_resampling.png",
+}
+# The shard in the paths of the ingest rule, whose summary outputs have none: with one shard, its name.
+ONE_SHARD = "shard-1" if SUMMARY_IN_INGEST else "{shard}"
 
 
 def experiment_pairs(spec, key="scenarios"):
