@@ -9,6 +9,8 @@ is updated with each fix. Both trackers output only at epochs that have a fix.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pandas as pd
 
@@ -28,10 +30,10 @@ def kalman_matrices(epoch_s: float, accel_sigma_mps2: float, position_sigma_m: f
 
 
 def velocity_track(fixes: pd.DataFrame, window: int, speed_from: str) -> pd.DataFrame:
-    """Velocity-bounded tracker output (t, x, y) at the epochs with a fix."""
+    """Velocity-bounded tracker output (t, x, y) at the epochs with a fix (t in s, x, y in m)."""
     tracker = VelocityBoundedTracker(window, speed_from)
-    rows = [(t, *tracker.step(t, (x, y))) for t, x, y in fixes[["t", "x", "y"]].itertuples(index=False)
-            if np.isfinite(x) and np.isfinite(y)]
+    columns = (fixes[c].to_numpy(float).tolist() for c in ("t", "x", "y"))
+    rows = [(t, *tracker.update(t, x, y)) for t, x, y in zip(*columns) if math.isfinite(x) and math.isfinite(y)]
     return pd.DataFrame(rows, columns=["t", "x", "y"])
 
 

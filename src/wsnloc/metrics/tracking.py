@@ -35,26 +35,46 @@ def output_period(t: np.ndarray) -> float:
     return float(np.median(steps)) if len(steps) else float("nan")
 
 
+def truth_span(truth: pd.DataFrame) -> tuple[float, float] | None:
+    """[T0, T1] (s): the first and last truth times (NaN ignored); None with fewer than two truth rows."""
+    if len(truth) < 2:
+        return None
+    t = truth["t"].to_numpy(float)
+    return float(np.nanmin(t)), float(np.nanmax(t))
+
+
 def availability(estimates: pd.DataFrame, truth: pd.DataFrame, period: float | None = None) -> float:
     """Share of [T0, T1] covered by the union of (t_i - T, t_i] over the finite estimates."""
-    if len(truth) < 2:
+    finite = np.isfinite(estimates["x"].to_numpy(float)) & np.isfinite(estimates["y"].to_numpy(float))
+    return covered_share(estimates["t"].to_numpy(float), finite, truth_span(truth), period)
+
+
+def covered_share(t: np.ndarray, finite: np.ndarray, span: tuple[float, float] | None,
+                  period: float | None = None) -> float:
+    """Availability of estimates at times t (s), `finite` marking those with a position.
+
+    With T the period (s; output_period(t) if None, 0 if not finite), e_i the finite
+    estimates' times sorted and clipped to span = [T0, T1] and s_i = clip(e_i - T, T0, T1):
+      A = sum_i max(0, e_i - max(s_i, r_i)) / (T1 - T0),  r_i = max(T0, e_{i-1}),
+    the length of the union of the intervals (s_i, e_i] over the span's length. The running
+    reach r_i is the previous end because the e_i are sorted; empty intervals (e_i <= s_i,
+    NaN times) cover nothing and are dropped first, so they set no reach.
+    NaN if span is None (truth too short), 0 without finite estimates or if T1 <= T0.
+    """
+    if span is None:
         return float("nan")
-    t0, t1 = float(truth["t"].min()), float(truth["t"].max())
-    finite = estimates[np.isfinite(estimates["x"]) & np.isfinite(estimates["y"])]["t"].to_numpy(float)
-    period = output_period(estimates["t"].to_numpy(float)) if period is None else period
-    if len(finite) == 0 or t1 <= t0:
+    t0, t1 = span
+    period = output_period(t) if period is None else period
+    if not finite.any() or t1 <= t0:
         return 0.0
     if not np.isfinite(period):
         period = 0.0
-    ends = np.clip(np.sort(finite), t0, t1)
+    ends = np.clip(np.sort(t[finite]), t0, t1)
     starts = np.clip(ends - period, t0, t1)
-    covered, reach = 0.0, t0
-    for a, b in zip(starts, ends):
-        a = max(a, reach)
-        if b > a:
-            covered += b - a
-            reach = b
-    return covered / (t1 - t0)
+    nonempty = ends > starts
+    ends, starts = ends[nonempty], starts[nonempty]
+    reach = np.concatenate(([t0], ends[:-1]))
+    return float(np.sum(np.maximum(ends - np.maximum(starts, reach), 0.0))) / (t1 - t0)
 
 
 def run_metrics(scored: pd.DataFrame, truth: pd.DataFrame, period: float | None = None) -> dict[str, float]:
@@ -64,7 +84,24 @@ def run_metrics(scored: pd.DataFrame, truth: pd.DataFrame, period: float | None 
 
 
 def cell_metrics(scored: pd.DataFrame, keys: list[str], truth: pd.DataFrame) -> pd.DataFrame:
-    """RUN_METRICS of each cell (group of `keys`) of one run's scored estimates."""
-    rows = [{**dict(zip(keys, key if isinstance(key, tuple) else (key,))), **run_metrics(group, truth)}
-            for key, group in scored.groupby(keys, sort=False)]
-    return pd.DataFrame(rows, columns=keys + list(RUN_METRICS))
+    """RUN_METRICS of each cell (group of `keys`, in order of first appearance; rows with a
+    missing key are left out) of one run's scored estimates. The cells are index arrays into
+    the columns (no sub-frame per cell); the truth span is read once."""
+    span, cells = truth_span(truth), _cell_rows(scored, keys)
+    t, x, y, error = (scored[c].to_numpy(float) for c in ("t", "x", "y", "error_m"))
+    finite = np.isfinite(x) & np.isfinite(y)
+    names = scored[keys].iloc[[rows[0] for rows in cells]].itertuples(index=False, name=None)
+    records = [{**dict(zip(keys, name)), **error_summary(error[rows]),
+                "availability": covered_share(t[rows], finite[rows], span)} for name, rows in zip(names, cells)]
+    return pd.DataFrame(records, columns=keys + list(RUN_METRICS))
+
+
+def _cell_rows(frame: pd.DataFrame, keys: list[str]) -> list[np.ndarray]:
+    """Row positions of each group of `keys` (groupby(keys, sort=False) order), ascending;
+    rows with a missing key (group number NaN, -1 here) are in none."""
+    grouped = frame[keys].groupby(keys, sort=False)
+    ids = grouped.ngroup().fillna(-1).to_numpy(int)
+    counts = np.bincount(ids[ids >= 0], minlength=grouped.ngroups)
+    order = np.argsort(ids, kind="stable")[len(ids) - counts.sum():]
+    ends = np.cumsum(counts)
+    return [order[end - n:end] for n, end in zip(counts, ends)]

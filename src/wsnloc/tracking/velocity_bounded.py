@@ -20,12 +20,18 @@ Until the window holds two positions the raw fix is accepted.
 
 from __future__ import annotations
 
+import math
 from collections import deque
+from itertools import islice
 
 import numpy as np
 
 
 class VelocityBoundedTracker:
+    """State: the last N + 1 (time, position) pairs of the speed window, the tracked
+    position x_{i-1}, the last raw fix p_{i-1} and its time T_{i-1}; all plain floats (m, s),
+    as numpy's per-call overhead on 2-vectors is many times the arithmetic of one step."""
+
     def __init__(self, window: int = 6, speed_from: str = "raw"):
         if window < 1:
             raise ValueError("tracker window must be at least 1")
@@ -33,38 +39,46 @@ class VelocityBoundedTracker:
             raise ValueError(f"speed_from must be 'raw' or 'tracked', not {speed_from!r}")
         self.window = window
         self.speed_from = speed_from
-        self._history: deque = deque(maxlen=window + 1)   # N steps need N + 1 positions
-        self.position: np.ndarray | None = None
-        self._last_raw: np.ndarray | None = None
+        self._times: deque = deque(maxlen=window + 1)      # N steps need N + 1 positions
+        self._points: deque = deque(maxlen=window + 1)
+        self.position: tuple[float, float] | None = None
+        self._last_raw: tuple[float, float] | None = None
         self._last_time: float | None = None
         self.speed = float("nan")
 
     def _speed(self) -> float:
-        if len(self._history) < 2:
+        """v_hat (m/s): path length over the window / its duration (eq. 1/6); NaN until the
+        window holds two positions or if its duration is not positive."""
+        if len(self._times) < 2:
             return float("nan")
-        times = np.array([t for t, _ in self._history])
-        points = np.array([p for _, p in self._history])
-        elapsed = times[-1] - times[0]
+        elapsed = self._times[-1] - self._times[0]
         if elapsed <= 0:
             return float("nan")
-        return float(np.sum(np.hypot(*np.diff(points, axis=0).T)) / elapsed)
+        path = sum(math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in zip(self._points, islice(self._points, 1, None)))
+        return path / elapsed
 
-    def step(self, t: float, raw) -> np.ndarray:
-        """Tracked position (m) for the raw fix `raw` at time t (s)."""
-        raw = np.asarray(raw, dtype=float)
+    def update(self, t: float, x: float, y: float) -> tuple[float, float]:
+        """Tracked position (x, y) (m) for the raw fix (x, y) (m) at time t (s)."""
         if self.position is None:
-            out = raw.copy()
-        elif self._last_raw is not None and np.array_equal(raw, self._last_raw):
-            out = self.position.copy()                       # target stopped
+            out = (x, y)
+        elif x == self._last_raw[0] and y == self._last_raw[1]:
+            out = self.position                               # target stopped
         else:
             self.speed = self._speed()
-            out = raw.copy()
-            if np.isfinite(self.speed):
+            out = (x, y)
+            if math.isfinite(self.speed):
                 bound = self.speed * (t - self._last_time)
-                offset = raw - self.position
-                length = float(np.hypot(*offset))
-                if length >= bound:
-                    out = self.position + (bound / length) * offset if length > 0 else self.position.copy()
-        self._history.append((t, raw.copy() if self.speed_from == "raw" else out.copy()))
-        self.position, self._last_raw, self._last_time = out, raw.copy(), t
+                px, py = self.position
+                dx, dy = x - px, y - py
+                length = math.hypot(dx, dy)
+                if length >= bound:                          # onto the circle of radius R_b
+                    out = (px + bound / length * dx, py + bound / length * dy) if length > 0 else self.position
+        self._times.append(t)
+        self._points.append((x, y) if self.speed_from == "raw" else out)
+        self.position, self._last_raw, self._last_time = out, (x, y), t
         return out
+
+    def step(self, t: float, raw) -> np.ndarray:
+        """Tracked position (m) as an array for the raw fix `raw` (x, y; m) at time t (s)."""
+        x, y = np.asarray(raw, dtype=float)
+        return np.array(self.update(float(t), float(x), float(y)))
