@@ -16,10 +16,11 @@ from wsnloc.workflow import (
 
 ENV = "../envs/wsnloc.yaml"
 # Job order on few cores (higher first among ready jobs): the data chain (simulate, ingest)
-# first, Newcom++ before Cricket, so that every estimator job is ready early; then the long
-# estimator jobs; the short summaries (priority 1) fill the cores at the end, so that no
-# long job runs alone before the report.
-PRIORITY = {"simulate_newcom": 5, "simulate_cricket": 4, "ingest": 4, "estimator": 3, "summary": 1}
+# first, Newcom++ before Cricket, so that every estimator job is ready early; then the papers'
+# jobs, each paper's summary as soon as its scenarios are done; the short study cells fill
+# the cores around them; the study summary and the static bounds last, side by side, so that
+# no long job runs alone before the report.
+PRIORITY = {"simulate_newcom": 5, "simulate_cricket": 4, "ingest": 4, "paper": 3, "cell": 2, "summary": 1}
 RAW_FILES = {"newcom": ["uwb.log", "zigbee.log", "imu.log", "truth.log"],
              "cricket": ["listener.log", "imu.log", "truth.log"]}
 SIMULATED = [name for name, d in config["datasets"].items() if d["source"] == "simulate"]

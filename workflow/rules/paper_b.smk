@@ -5,21 +5,29 @@ PAPER_B = config["experiments"].get("paper_b")
 PAPER_B_PAIRS = experiment_pairs(PAPER_B) + experiment_pairs(PAPER_B, "simulation_scenarios")
 
 
+# Paper B's scenarios are short (a few seconds each, about half of it job start-up): one job
+# runs them all, scenario after scenario, with each scenario's files as before.
+PAPER_B_FILES = {name: [f"data/processed/{d}/{s}/paper_b/{name}.{ext}" for d, s in PAPER_B_PAIRS]
+                 for name, ext in (("estimates", "parquet"), ("metrics", "csv"), ("sensitivity", "csv"))}
+
+
 rule paper_b:
     input:
-        tables=lambda w: tables_of(w.dataset, w.scenario),
-        imu_5hz=lambda w: imu_of(w.dataset, w.scenario),
-        campaign=campaign_file,
+        tables=all_tables(PAPER_B_PAIRS),
+        imu_5hz=[p for d, s in PAPER_B_PAIRS for p in imu_of(d, s)],
+        campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_B_PAIRS}),
     output:
-        estimates="data/processed/{dataset}/{scenario}/paper_b/estimates.parquet",
-        metrics="data/processed/{dataset}/{scenario}/paper_b/metrics.csv",
-        sensitivity="data/processed/{dataset}/{scenario}/paper_b/sensitivity.csv",
+        **PAPER_B_FILES,
     params:
         settings=PAPER_B,
-        simulated=lambda w: f"{w.dataset}/{w.scenario}" in PAPER_B["simulation_scenarios"],
-    priority: PRIORITY["summary"]
+        labels=[f"{d}/{s}" for d, s in PAPER_B_PAIRS],
+        simulated=[f"{d}/{s}" for d, s in experiment_pairs(PAPER_B, "simulation_scenarios")],
+        tables_of={f"{d}/{s}": tables_of(d, s) for d, s in PAPER_B_PAIRS},
+        imu_of={f"{d}/{s}": imu_of(d, s) for d, s in PAPER_B_PAIRS},
+        campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in PAPER_B_PAIRS},
+    priority: PRIORITY["paper"]
     log:
-        "logs/paper_b/{dataset}-{scenario}.log",
+        "logs/paper_b/scenarios.log",
     conda:
         ENV
     script:
@@ -28,9 +36,9 @@ rule paper_b:
 
 rule paper_b_summary:
     input:
-        metrics=[f"data/processed/{d}/{s}/paper_b/metrics.csv" for d, s in PAPER_B_PAIRS],
-        sensitivity=[f"data/processed/{d}/{s}/paper_b/sensitivity.csv" for d, s in PAPER_B_PAIRS],
-        estimates=[f"data/processed/{d}/{s}/paper_b/estimates.parquet" for d, s in PAPER_B_PAIRS],
+        metrics=PAPER_B_FILES["metrics"],
+        sensitivity=PAPER_B_FILES["sensitivity"],
+        estimates=PAPER_B_FILES["estimates"],
         papers="config/papers.yaml",
         nlos_campaign=sweep_campaign(PAPER_B, "nlos_sweep"),
         nlos_tables=sweep_tables(PAPER_B, "nlos_sweep"),
@@ -50,7 +58,7 @@ rule paper_b_summary:
         snr_scenario=next((f"{d}/{s}" for d, s in experiment_pairs(PAPER_B, "simulation_scenarios")), ""),
         seed=config["seed"],
         resample=config["resample"],
-    priority: PRIORITY["summary"]
+    priority: PRIORITY["paper"]
     log:
         "logs/paper_b/summary.log",
     conda:

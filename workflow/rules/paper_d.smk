@@ -15,7 +15,7 @@ rule paper_d:
         sensitivity="data/processed/{dataset}/{scenario}/paper_d/sensitivity.csv",
     params:
         settings=PAPER_D,
-    priority: PRIORITY["estimator"]
+    priority: PRIORITY["paper"]
     log:
         "logs/paper_d/{dataset}-{scenario}.log",
     conda:
@@ -42,7 +42,7 @@ rule paper_d_summary:
         settings=PAPER_D,
         labels=[f"{d}/{s}" for d, s in PAPER_D_PAIRS],
         seed=config["seed"],
-    priority: PRIORITY["summary"]
+    priority: PRIORITY["paper"]
     log:
         "logs/paper_d/summary.log",
     conda:

@@ -1,5 +1,6 @@
-# Papers A and C: one estimator job per scenario (all its runs), then one summary job per
-# paper for the tables, claims and figures over all scenarios.
+# Papers A and C: estimator jobs (paper A: one per scenario; paper C: one for all its short
+# scenarios), each over all the runs, then one summary job per paper for the tables, claims
+# and figures over all scenarios.
 PAPER_A = config["experiments"].get("paper_a")
 PAPER_C = config["experiments"].get("paper_c")
 PAPER_A_PAIRS = experiment_pairs(PAPER_A)
@@ -17,7 +18,7 @@ rule paper_a:
         sensitivity="data/processed/{dataset}/{scenario}/paper_a/sensitivity.csv",
     params:
         settings=PAPER_A,
-    priority: PRIORITY["estimator"]
+    priority: PRIORITY["paper"]
     log:
         "logs/paper_a/{dataset}-{scenario}.log",
     conda:
@@ -49,7 +50,7 @@ rule paper_a_summary:
         labels=[f"{d}/{s}" for d, s in PAPER_A_PAIRS],
         campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in PAPER_A_PAIRS},
         seed=config["seed"],
-    priority: PRIORITY["summary"]
+    priority: PRIORITY["paper"]
     log:
         "logs/paper_a/summary.log",
     conda:
@@ -58,22 +59,29 @@ rule paper_a_summary:
         "../scripts/paper_a_summary.py"
 
 
+# Paper C's scenarios are short (a few seconds each, about half of it job start-up): one job
+# runs them all, scenario after scenario, with each scenario's files as before.
+PAPER_C_FILES = {name: [f"data/processed/{d}/{s}/paper_c/{name}.{ext}" for d, s in PAPER_C_PAIRS]
+                 for name, ext in (("estimates", "parquet"), ("metrics", "csv"), ("quality", "parquet"),
+                                   ("sensitivity", "csv"))}
+
+
 rule paper_c:
     input:
-        tables=lambda w: tables_of(w.dataset, w.scenario),
-        imu_5hz=lambda w: imu_of(w.dataset, w.scenario),
-        campaign=campaign_file,
+        tables=all_tables(PAPER_C_PAIRS),
+        imu_5hz=[p for d, s in PAPER_C_PAIRS for p in imu_of(d, s)],
+        campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_C_PAIRS}),
     output:
-        estimates="data/processed/{dataset}/{scenario}/paper_c/estimates.parquet",
-        metrics="data/processed/{dataset}/{scenario}/paper_c/metrics.csv",
-        quality="data/processed/{dataset}/{scenario}/paper_c/quality.parquet",
-        sensitivity="data/processed/{dataset}/{scenario}/paper_c/sensitivity.csv",
+        **PAPER_C_FILES,
     params:
         settings=PAPER_C,
-        label="{dataset}/{scenario}",
-    priority: PRIORITY["estimator"]
+        labels=[f"{d}/{s}" for d, s in PAPER_C_PAIRS],
+        tables_of={f"{d}/{s}": tables_of(d, s) for d, s in PAPER_C_PAIRS},
+        imu_of={f"{d}/{s}": imu_of(d, s) for d, s in PAPER_C_PAIRS},
+        campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in PAPER_C_PAIRS},
+    priority: PRIORITY["paper"]
     log:
-        "logs/paper_c/{dataset}-{scenario}.log",
+        "logs/paper_c/scenarios.log",
     conda:
         ENV
     script:
@@ -82,10 +90,10 @@ rule paper_c:
 
 rule paper_c_summary:
     input:
-        metrics=[f"data/processed/{d}/{s}/paper_c/metrics.csv" for d, s in PAPER_C_PAIRS],
-        sensitivity=[f"data/processed/{d}/{s}/paper_c/sensitivity.csv" for d, s in PAPER_C_PAIRS],
-        estimates=[f"data/processed/{d}/{s}/paper_c/estimates.parquet" for d, s in PAPER_C_PAIRS],
-        quality=[f"data/processed/{d}/{s}/paper_c/quality.parquet" for d, s in PAPER_C_PAIRS],
+        metrics=PAPER_C_FILES["metrics"],
+        sensitivity=PAPER_C_FILES["sensitivity"],
+        estimates=PAPER_C_FILES["estimates"],
+        quality=PAPER_C_FILES["quality"],
         campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_C_PAIRS}),
         papers="config/papers.yaml",
     output:
@@ -102,7 +110,7 @@ rule paper_c_summary:
         settings=PAPER_C,
         labels=[f"{d}/{s}" for d, s in PAPER_C_PAIRS],
         campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in PAPER_C_PAIRS},
-    priority: PRIORITY["summary"]
+    priority: PRIORITY["paper"]
     log:
         "logs/paper_c/summary.log",
     conda:

@@ -12,7 +12,7 @@ rule study_cell:
     params:
         cell=study_cell_spec,
         label="{dataset}/{scenario}",
-    priority: PRIORITY["estimator"]
+    priority: PRIORITY["cell"]
     log:
         "logs/studies/{study}/{dataset}-{scenario}-{cell}.log",
     conda:

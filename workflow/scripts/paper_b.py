@@ -1,5 +1,4 @@
-"""Snakemake adapter: paper B estimators on every run of one scenario."""
-
+"""Snakemake adapter: paper B estimators on every run of each of its scenarios."""
 
 import pandas as pd
 
@@ -12,28 +11,36 @@ from wsnloc.workflow import script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "paper_b")
-campaign = Campaign.load(sm.input.campaign)
-spec = paper_b.scenario_config(sm.params.settings, sm.params.simulated)
-settings = paper_b.Settings.from_config(spec)
-settings.check_against(campaign)
-estimates, metrics, data = [], [], {}
-runs = load_runs(sm.input.tables, paper_b.INPUT_TABLES, sm.input.imu_5hz)
-for name, run_tables in runs.items():
-    data[name] = RunData(run_tables, campaign, None, name)
-    est = paper_b.run(data[name], settings).assign(run=name)
-    estimates.append(est)
-    metrics.append(paper_b.run_metrics(est, run_tables["truth"]).assign(run=name))
-    log.info("%s done", name)
-tables.write("estimates_paper_b", pd.concat(estimates, ignore_index=True), sm.output.estimates)
-metrics = pd.concat(metrics, ignore_index=True)
-metrics.to_csv(sm.output.metrics, index=False, float_format="%.6g")
 
 
-def fusion_variant(spec: dict, sigma: str, run: str) -> pd.DataFrame:
-    """The a-priori sigmas act on the fusions only: re-run those, keep the run's other methods."""
-    fused = paper_b.run(data[run], paper_b.Settings.from_config(spec), paper_b.SENSITIVITY_METHODS)
-    return sensitivity.replace_cells(metrics, run, paper_b.run_metrics(fused, runs[run]["truth"]), ["method"])
+def run_scenario(label: str, campaign: Campaign, out: dict) -> None:
+    """Every run of one scenario: estimates, per-run metrics and sensitivity grid written to
+    out['estimates'], out['metrics'], out['sensitivity']."""
+    spec = paper_b.scenario_config(sm.params.settings, label in sm.params.simulated)
+    settings = paper_b.Settings.from_config(spec)
+    settings.check_against(campaign)
+    estimates, metrics, data = [], [], {}
+    runs = load_runs(sm.params.tables_of[label], paper_b.INPUT_TABLES, sm.params.imu_of[label])
+    for name, run_tables in runs.items():
+        data[name] = RunData(run_tables, campaign, None, name)
+        est = paper_b.run(data[name], settings).assign(run=name)
+        estimates.append(est)
+        metrics.append(paper_b.run_metrics(est, run_tables["truth"]).assign(run=name))
+    tables.write("estimates_paper_b", pd.concat(estimates, ignore_index=True), out["estimates"])
+    metrics = pd.concat(metrics, ignore_index=True)
+    metrics.to_csv(out["metrics"], index=False, float_format="%.6g")
+
+    def fusion_variant(spec: dict, sigma: str, run: str) -> pd.DataFrame:
+        """The a-priori sigmas act on the fusions only: re-run those, keep the run's other methods."""
+        fused = paper_b.run(data[run], paper_b.Settings.from_config(spec), paper_b.SENSITIVITY_METHODS)
+        return sensitivity.replace_cells(metrics, run, paper_b.run_metrics(fused, runs[run]["truth"]), ["method"])
+
+    grid = sensitivity.grid_metrics(spec, "experiments.paper_b", metrics, sensitivity.each_run(fusion_variant))
+    grid.to_csv(out["sensitivity"], index=False, float_format="%.6g")
+    log.info("%s: %d runs done", label, len(runs))
 
 
-grid = sensitivity.grid_metrics(spec, "experiments.paper_b", metrics, sensitivity.each_run(fusion_variant))
-grid.to_csv(sm.output.sensitivity, index=False, float_format="%.6g")
+campaigns = {path: Campaign.load(path) for path in set(sm.params.campaign_of.values())}
+for i, label in enumerate(sm.params.labels):
+    run_scenario(label, campaigns[sm.params.campaign_of[label]],
+                 {name: getattr(sm.output, name)[i] for name in ("estimates", "metrics", "sensitivity")})
