@@ -281,12 +281,11 @@ def run(name: str, data: RunData, overrides: dict | None = None, where: str = ""
 def finish(estimates: pd.DataFrame) -> pd.DataFrame:
     """Standard columns (NaN covariance, n_meas and nis where the estimator has none), sorted by
     time. A shallow copy: estimators may return frames they cache for other estimators."""
-    out = estimates.copy(deep=False)
-    for column in OUTPUT_COLUMNS:
-        if column not in out:
-            out[column] = np.nan
-        elif out[column].dtype != float:
-            out[column] = out[column].astype(float)
+    missing = [column for column in OUTPUT_COLUMNS if column not in estimates]
+    columns = {name: (values.astype(float) if name in OUTPUT_COLUMNS and values.dtype != float else values).array
+               for name, values in estimates.items()}
+    out = pd.DataFrame({**columns, **{column: np.full(len(estimates), np.nan) for column in missing}},
+                       index=estimates.index, copy=False)
     out.attrs = dict(estimates.attrs)
     if not out["t"].is_monotonic_increasing:
         out = out.sort_values("t", kind="stable")

@@ -127,10 +127,17 @@ def run_all(datas: list[RunData], settings: Settings, stages=("raw", "velocity",
                                 where="experiments.paper_d")
         for j, i in enumerate(mine):
             tracks[i] = out[j * len(datas):(j + 1) * len(datas)]
-    return [score(pd.concat([tracks[i][r][["t", "x", "y"]].assign(localizer=loc, technique=tech, stage=stage)
-                             for i, (loc, tech, stage, _, _) in enumerate(selected)], ignore_index=True),
-                  data.table("truth"))
+    return [score(_labelled([tracks[i][r] for i in range(len(selected))], selected), data.table("truth"))
             for r, data in enumerate(datas)]
+
+
+def _labelled(parts: list[pd.DataFrame], selected: list[tuple]) -> pd.DataFrame:
+    """The t, x, y of every cell's track stacked, with its localizer, technique and stage."""
+    lengths = [len(part) for part in parts]
+    stacked = {column: np.concatenate([part[column].to_numpy(float) for part in parts]) for column in ("t", "x", "y")}
+    labels = {key: np.repeat(np.array([cell[k] for cell in selected], dtype=object), lengths)
+              for k, key in enumerate(("localizer", "technique", "stage"))}
+    return pd.DataFrame({**stacked, **labels})
 
 
 def run(data: RunData, settings: Settings, stages=("raw", "velocity", "kalman")) -> pd.DataFrame:
