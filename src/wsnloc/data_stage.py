@@ -16,7 +16,7 @@ from wsnloc.campaign import Campaign
 from wsnloc.io import tables
 from wsnloc.io.ingest import ingest_scenario
 from wsnloc.io.limits import QuarantineLimits
-from wsnloc.metrics.data_quality import imu_files, load_inventory, load_runs, summarize
+from wsnloc.metrics.data_quality import SUMMARY_TABLES, imu_files, load_inventory, load_runs, run_folders, summarize
 from wsnloc.metrics.ranging import fit_path_loss
 from wsnloc.signal.resample import resample_imu
 
@@ -53,9 +53,11 @@ def summarize_scenario(tables_dirs, imu_dirs, campaign: Campaign, label: str, ou
     to outputs.summary, .results, .range_error, .rss and .imu (see SUMMARY_OUTPUTS)."""
     from wsnloc.report import figures    # here: only the job that summarizes loads matplotlib
 
-    runs = load_runs(tables_dirs)
+    folders = run_folders(tables_dirs)
+    runs = load_runs(tables_dirs, SUMMARY_TABLES)
+    imu_rows = {run: tables.row_count(folder / "imu.parquet") for run, folder in folders.items()}
     imu_5hz = {run: tables.read(path) for run, path in imu_files(imu_dirs).items()}
-    summary, rows, samples = summarize(runs, imu_5hz, campaign, label)
+    summary, rows, samples = summarize(runs, imu_5hz, campaign, label, imu_rows)
     summary["inventory"] = load_inventory(tables_dirs)
     Path(outputs.summary).write_text(json.dumps(summary, indent=1, default=float))
     results.write(rows, outputs.results)
@@ -68,7 +70,7 @@ def summarize_scenario(tables_dirs, imu_dirs, campaign: Campaign, label: str, ou
     Path(outputs.rss).write_bytes(figures.rss_vs_distance(first, pooled_fit, summary["configured_path_loss"],
                                                           f"{label}: ZigBee RSS, first run"))
     first_run = next(iter(runs))
-    Path(outputs.imu).write_bytes(figures.imu_resampling(runs[first_run]["imu"],
+    Path(outputs.imu).write_bytes(figures.imu_resampling(tables.read(folders[first_run] / "imu.parquet"),
                                                          imu_5hz.get(first_run, tables.empty("imu_5hz")),
                                                          f"{label}: IMU resampling, {first_run}"))
     log.info("summarized %d runs of %s", len(runs), label)

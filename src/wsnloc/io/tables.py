@@ -152,6 +152,11 @@ def read(path: str | Path) -> pd.DataFrame:
     return pq.read_table(path).to_pandas()
 
 
+def row_count(path: str | Path) -> int:
+    """Number of rows of a written table, from its Parquet footer (no column is read)."""
+    return pq.read_metadata(path).num_rows
+
+
 def unit_of(path: str | Path, column: str) -> str:
     """The unit recorded for `column` in a written table's schema."""
     field = pq.read_schema(path).field(column)

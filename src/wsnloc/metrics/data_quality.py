@@ -38,11 +38,15 @@ def load_runs(tables_dirs, names=tables.RAW_TABLES, imu_dirs=None, first: int | 
     500 Hz table); "imu_5hz" is read from `imu_dirs` (the resample stage's folders);
     first: only the first N runs.
     """
-    dirs = [tables_dirs] if isinstance(tables_dirs, (str, Path)) else list(tables_dirs)
-    run_dirs = sorted((p for d in dirs for p in Path(d).iterdir() if p.is_dir()), key=lambda p: p.name)[:first]
     imu = imu_files(imu_dirs) if "imu_5hz" in names else {}
-    return {p.name: {name: tables.read(imu[p.name] if name == "imu_5hz" else p / f"{name}.parquet")
-                     for name in names} for p in run_dirs}
+    return {run: {name: tables.read(imu[run] if name == "imu_5hz" else folder / f"{name}.parquet")
+                  for name in names} for run, folder in list(run_folders(tables_dirs).items())[:first]}
+
+
+def run_folders(tables_dirs) -> dict[str, Path]:
+    """{run: its table folder} over the (shard) folder(s), in run order."""
+    dirs = [tables_dirs] if isinstance(tables_dirs, (str, Path)) else list(tables_dirs)
+    return {p.name: p for p in sorted((p for d in dirs for p in Path(d).iterdir() if p.is_dir()), key=lambda p: p.name)}
 
 
 def load_inventory(tables_dirs) -> dict:
@@ -60,9 +64,18 @@ def imu_files(imu_dirs) -> dict[str, Path]:
     return dict(sorted((p.stem, p) for d in dirs for p in Path(d).glob("*.parquet")))
 
 
+SUMMARY_TABLES = tuple(name for name in tables.RAW_TABLES if name != "imu")   # the 500 Hz IMU is only counted
+
+
 def summarize(runs: dict[str, dict[str, pd.DataFrame]], imu_5hz: dict[str, pd.DataFrame],
-              campaign: Campaign, label: str) -> tuple[dict, list[dict], dict[str, pd.DataFrame]]:
-    """Summary dict, results rows and pooled samples (range errors, RSS vs distance)."""
+              campaign: Campaign, label: str, imu_rows: dict[str, int] | None = None
+              ) -> tuple[dict, list[dict], dict[str, pd.DataFrame]]:
+    """Summary dict, results rows and pooled samples (range errors, RSS vs distance).
+
+    runs: {run: tables} with at least SUMMARY_TABLES; imu_rows: {run: raw IMU samples}, counted
+    from the runs' "imu" tables when not given."""
+    if imu_rows is None:
+        imu_rows = {run: len(data["imu"]) for run, data in runs.items()}
     per_run, errors, rss_samples, quarantine = [], [], [], []
     for run, data in runs.items():
         err = range_errors(data["ranges"], data["truth"], campaign, data["anchors"]).assign(run=run)
@@ -82,7 +95,7 @@ def summarize(runs: dict[str, dict[str, pd.DataFrame]], imu_5hz: dict[str, pd.Da
             "uwb_valid": int((data["ranges"]["status"] == 0).sum()),
             "uwb_flagged": int((data["ranges"]["status"] != 0).sum()),
             "rss": len(data["rss"]),
-            "imu": len(data["imu"]),
+            "imu": imu_rows[run],
             "imu_5hz": len(resampled),
             "imu_5hz_in_gap": int(resampled["in_gap"].sum()) if len(resampled) else 0,
             "truth": len(truth),
