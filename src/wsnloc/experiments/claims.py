@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 
 from wsnloc.metrics import verdicts
+from wsnloc.metrics.stats import student_t_quantile
 from wsnloc.metrics.verdicts import Claim, Comparison
 
 VERDICT_CODE = {verdicts.HOLDS: 1, verdicts.INCONCLUSIVE: 0, verdicts.DOES_NOT_HOLD: -1}
@@ -63,9 +64,7 @@ def unpaired(a, b, side: str, label: str) -> Comparison:
         low = high = mean
     else:
         dof = (va + vb) ** 2 / (va ** 2 / (len(a) - 1) + vb ** 2 / (len(b) - 1))
-        from scipy.special import stdtrit    # here: estimator jobs importing this module load no scipy
-
-        half = float(stdtrit(dof, 0.975)) * se
+        half = student_t_quantile(0.975, dof) * se
         low, high = mean - half, mean + half
     return Comparison(label, side, verdicts.interval_verdict(low, high, side), mean, low, high, n)
 
