@@ -1,5 +1,5 @@
 """Report figures: stacked time panels laid out without a layout engine, log minor grid and
-labels, fitted grids saved as laid out (one measuring pass)."""
+labels, fitted grids saved as laid out (one measuring pass), tight figures cut from one draw."""
 
 import io
 
@@ -8,6 +8,7 @@ import pandas as pd
 import pytest
 from matplotlib.collections import LineCollection
 from matplotlib.ticker import NullLocator
+from matplotlib.transforms import Bbox
 from PIL import Image
 
 from wsnloc.metrics.consistency import consistency_test
@@ -122,3 +123,71 @@ def test_palette_png_keeps_a_white_background():
     figures._save_palette_png(np.asarray(fig.canvas.buffer_rgba()), buffer)
     plt.close(fig)
     assert Image.open(buffer).convert("RGB").getpixel((0, 0)) == (255, 255, 255)
+
+
+def busy_figure(legend_x: float = 0.9):
+    """A floor-plan-like figure: a figure legend at legend_x (figure fraction; 0.9 reaches
+    past the 5 in wide canvas), a colour bar with an extension, a suptitle, an annotation
+    and a marker not clipped to the axes."""
+    fig, ax = plt.subplots(figsize=(5, 3))
+    points = ax.scatter([0, 1, 2], [0, 1, 4], c=[0, 1, 2], label="anchors")
+    ax.plot([0, 2], [4, 0], label="path")
+    ax.plot([2.4], [2.0], "k^", clip_on=False)                     # past the right edge of the axes
+    ax.annotate("A01", (2, 4), xytext=(4, 3), textcoords="offset points", fontsize=7)
+    fig.colorbar(points, ax=ax, label="walls", extend="max")
+    ax.set(xlim=(0, 2), xlabel="x [m]", ylabel="y [m]", title="floor")
+    fig.suptitle("a suptitle")
+    fig.subplots_adjust(top=0.8)
+    fig.legend(loc="upper left", bbox_to_anchor=(legend_x, 0.8), fontsize=7)
+    return fig
+
+
+def savefig_tight_pixels(fig) -> np.ndarray:
+    """RGB of savefig with the padded tight box of matplotlib, its corners moved out to whole pixels."""
+    fig.set_dpi(PNG_DPI)
+    fig.draw_without_rendering()
+    box = fig.get_tightbbox(fig.canvas.get_renderer()).padded(plt.rcParams["savefig.pad_inches"])
+    snapped = Bbox([np.floor(np.asarray(box.p0) * PNG_DPI) / PNG_DPI, np.ceil(np.asarray(box.p1) * PNG_DPI) / PNG_DPI])
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=PNG_DPI, bbox_inches=snapped)
+    plt.close(fig)
+    return np.asarray(Image.open(buffer).convert("RGB"))
+
+
+def draws_of(fig) -> list:
+    """Records each draw of the figure (draw_event) in the list returned."""
+    draws = []
+    fig.canvas.mpl_connect("draw_event", lambda event: draws.append(event.renderer.width))
+    return draws
+
+
+@pytest.mark.parametrize("legend_x", [0.9, 1.5])      # past the canvas; past the canvas and its drawn margin
+def test_tight_png_is_the_tight_box_of_savefig(legend_x):
+    expected = savefig_tight_pixels(busy_figure(legend_x))
+    fig = busy_figure(legend_x)
+    draws = draws_of(fig)
+    image = Image.open(io.BytesIO(figures.to_png(fig, palette=False)))
+    assert image.mode == "RGB" and image.text[OVERLAPS_KEY] == "[]"
+    assert np.array_equal(np.asarray(image), expected)
+    assert len(draws) == (1 if legend_x < 1 else 2)             # drawn again only for what the margin missed
+    assert image.size[0] > 5 * PNG_DPI                           # the legend past the canvas is kept
+
+
+def test_tight_box_from_the_draw_is_matplotlibs():
+    for fig in (busy_figure(), busy_figure(1.5)):
+        fig.set_dpi(PNG_DPI)
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()
+        _, boxes = figures._text_boxes(fig, renderer)
+        assert np.allclose(figures._tight_box(fig, renderer, boxes).extents,
+                           fig.get_tightbbox(renderer).extents, atol=0.5 / PNG_DPI)
+        plt.close(fig)
+
+
+def test_tight_png_records_overlaps_of_its_own_draw():
+    fig, ax = plt.subplots(figsize=(4, 2))
+    ax.text(0.1, 0.5, "left", transform=ax.transAxes)
+    ax.text(0.12, 0.5, "right", transform=ax.transAxes)
+    draws = draws_of(fig)
+    image = Image.open(io.BytesIO(figures.to_png(fig)))
+    assert image.mode == "P" and image.text[OVERLAPS_KEY] == '[["left", "right"]]' and len(draws) == 1

@@ -97,7 +97,7 @@ def bound_maps(campaign: Campaign, anchors: pd.DataFrame | dict[str, pd.DataFram
         ax.set_ylabel("y [m]")
         ax.set_title(f"{campaign.name}: {title}", fontsize=10, pad=14)   # clear of labels of anchors on the edge
         ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.12), ncol=3, fontsize=7, frameon=False)
-    return to_png(fig)
+    return to_png(fig, palette=False)
 
 
 def _draw_pcrb(ax, t, rmse: dict[str, np.ndarray], sqrt_pcrb: np.ndarray, bound_model: str, title: str) -> None:

@@ -15,7 +15,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
+from matplotlib.axes import Axes  # noqa: E402
 from matplotlib.layout_engine import TightLayoutEngine  # noqa: E402
+from matplotlib.spines import Spine  # noqa: E402
+from matplotlib.transforms import Bbox  # noqa: E402
 from PIL import Image  # noqa: E402
 
 from wsnloc.campaign import Campaign  # noqa: E402
@@ -47,18 +50,25 @@ def _drawn_texts(fig) -> list:
 
 
 def text_overlaps(fig, dpi: float = PNG_DPI, drawn: bool = False) -> list[tuple[str, str]]:
-    """Pairs of texts whose rendered bounding boxes (pixels at `dpi`) overlap.
-
-    Boxes come from Text.get_window_extent with the figure's renderer after a layout pass
-    (drawn: the figure was just drawn at `dpi`, e.g. by savefig, so no second pass is needed);
-    two boxes overlap when their intersection is wider and taller than OVERLAP_TOLERANCE_PX.
-    """
+    """Pairs of texts whose rendered bounding boxes (pixels at `dpi`) overlap, measured with
+    the figure's renderer after a layout pass (drawn: the figure was just drawn at `dpi`,
+    so no second pass is needed); see _overlapping."""
     fig.set_dpi(dpi)
     if not drawn:
         fig.draw_without_rendering()
-    renderer = fig.canvas.get_renderer()
+    return _overlapping(*_text_boxes(fig, fig.canvas.get_renderer()))
+
+
+def _text_boxes(fig, renderer) -> tuple[list, np.ndarray]:
+    """The drawn texts (_drawn_texts) and their boxes (n, 4): x0, y0, x1, y1 in pixels, from
+    Text.get_window_extent with `renderer` (the layout of its last draw)."""
     texts = _drawn_texts(fig)
-    boxes = np.array([t.get_window_extent(renderer).extents for t in texts]).reshape(-1, 4)   # x0, y0, x1, y1
+    return texts, np.array([t.get_window_extent(renderer).extents for t in texts]).reshape(-1, 4)
+
+
+def _overlapping(texts: list, boxes: np.ndarray) -> list[tuple[str, str]]:
+    """Pairs of texts whose boxes (n, 4: x0, y0, x1, y1 in pixels) overlap: their
+    intersection is wider and taller than OVERLAP_TOLERANCE_PX."""
     x0, y0, x1, y1 = (boxes[:, [k]] for k in range(4))
     width = np.minimum(x1, x1.T) - np.maximum(x0, x0.T)       # of the intersection of boxes i and j
     height = np.minimum(y1, y1.T) - np.maximum(y0, y0.T)
@@ -66,26 +76,97 @@ def text_overlaps(fig, dpi: float = PNG_DPI, drawn: bool = False) -> list[tuple[
     return [(texts[i].get_text(), texts[j].get_text()) for i, j in zip(*np.nonzero(overlap))]
 
 
-def to_png(fig, tight: bool = True) -> bytes:
-    """PNG bytes of the figure (closed afterwards), with its overlapping texts in OVERLAPS_KEY.
+def _tight_box(fig, renderer, text_boxes: np.ndarray) -> Bbox:
+    """The figure's tight bounding box (inches) from the layout of its last draw: the union of
+    the boxes of the axes, of the drawn texts (text_boxes, pixels) and of the other artists
+    that Figure.get_tightbbox takes (legends, artists not clipped to their axes), without
+    laying out again the ticks and titles, as get_tightbbox does. Spines are left out: they
+    lie on the axes' edges, with their tick marks under the tick labels."""
+    boxes = [Bbox(row.reshape(2, 2)) for row in text_boxes]
+    for artist in fig.get_default_bbox_extra_artists():      # the figure's and its axes' own
+        if isinstance(artist, Axes):
+            boxes.append(artist.bbox)
+        elif not isinstance(artist, (Spine, matplotlib.text.Text)):
+            box = artist.get_tightbbox(renderer)
+            if box is not None and 0 < box.width < np.inf and 0 < box.height < np.inf:
+                boxes.append(box)
+    return Bbox.union(boxes).transformed(fig.dpi_scale_trans.inverted())
 
-    tight False: the caller laid the figure out (fitted_png, bound_figures._fit_slots); it is
-    drawn as is, saved as an indexed PNG (_save_palette_png) and its texts are measured on
-    that same draw. tight True: the texts are
-    measured on a draw of their own and the figure is saved with a tight bounding box (the
-    crop moves the axes' labels after their draw, so they cannot be measured on it). The
-    overlaps are recorded in a tEXt chunk inserted after the PNG header."""
+
+def to_png(fig, tight: bool = True, palette: bool = True) -> bytes:
+    """PNG bytes of the figure (closed afterwards) from a single draw, with the texts that
+    overlap on that draw in OVERLAPS_KEY (a tEXt chunk inserted after the PNG header).
+
+    tight False: the caller laid the figure out (fitted_png, bound_figures._fit_slots); the
+    canvas is saved as is. tight True: the figure's tight bounding box padded by
+    savefig.pad_inches, as savefig(bbox_inches="tight") saves it (_tight_render).
+    palette: an indexed PNG (_save_palette_png); False for continuous colour maps, which
+    256 colours would band: 24-bit RGB."""
     fig.set_dpi(PNG_DPI)
-    buffer = io.BytesIO()
-    if not tight:
-        fig.canvas.draw()
-        _save_palette_png(np.asarray(fig.canvas.buffer_rgba()), buffer)
-        overlaps = text_overlaps(fig, drawn=True)
+    if tight:
+        rgba, overlaps = _tight_render(fig)
     else:
-        overlaps = text_overlaps(fig)
-        fig.savefig(buffer, format="png", dpi=PNG_DPI, bbox_inches="tight", metadata={"Software": None})
+        fig.canvas.draw()
+        rgba = np.asarray(fig.canvas.buffer_rgba())
+        overlaps = text_overlaps(fig, drawn=True)
+    buffer = io.BytesIO()
+    if palette:
+        _save_palette_png(rgba, buffer)
+    else:
+        Image.fromarray(rgba).convert("RGB").save(buffer, format="png", dpi=(PNG_DPI, PNG_DPI))
     plt.close(fig)
     return _with_text_chunk(buffer.getvalue(), OVERLAPS_KEY, json.dumps(overlaps, ensure_ascii=True))
+
+
+TIGHT_MARGIN_IN = 0.5     # inches (whole pixels at PNG_DPI) drawn around the figure, for what reaches past its edge
+
+
+def _tight_render(fig) -> tuple[np.ndarray, list[tuple[str, str]]]:
+    """RGBA pixels (rows, columns, 4) of the figure's tight bounding box padded by
+    savefig.pad_inches, its corners moved out to whole pixels, and its overlapping texts, from
+    one draw of the figure grown by TIGHT_MARGIN_IN on each side; a box reaching past that is
+    drawn once more, on itself."""
+    area = fig.bbox_inches.padded(TIGHT_MARGIN_IN)
+    rgba, overlaps, box = _measured_draw(fig, area)
+    rows, columns = _pixel_span(box, rgba.shape[0])
+    if rows.start < 0 or columns.start < 0 or rows.stop > rgba.shape[0] or columns.stop > rgba.shape[1]:
+        area = box.translated(area.x0, area.y0)
+        area = Bbox(np.stack([np.floor(area.p0 * PNG_DPI), np.ceil(area.p1 * PNG_DPI)]) / PNG_DPI)
+        rgba, overlaps, box = _measured_draw(fig, area)
+        rows, columns = _pixel_span(box, rgba.shape[0])
+    return rgba[max(rows.start, 0):rows.stop, max(columns.start, 0):columns.stop], overlaps
+
+
+def _measured_draw(fig, area: Bbox) -> tuple[np.ndarray, list[tuple[str, str]], Bbox]:
+    """One draw of `area` (inches, figure coordinates) by savefig(bbox_inches=area), which
+    shifts the figure without laying it out again: its RGBA pixels (row 0 on top), the
+    overlapping texts and the padded tight box (inches from the lower left corner of area),
+    both measured on that draw (draw_event)."""
+    measured = {}
+
+    def measure(event) -> None:
+        texts, boxes = _text_boxes(fig, event.renderer)
+        measured["overlaps"] = _overlapping(texts, boxes)
+        measured["box"] = _tight_box(fig, event.renderer, boxes).padded(matplotlib.rcParams["savefig.pad_inches"])
+        measured["shape"] = (int(event.renderer.height), int(event.renderer.width), 4)
+
+    connection = fig.canvas.mpl_connect("draw_event", measure)
+    raw = io.BytesIO()
+    try:
+        fig.savefig(raw, format="rgba", dpi=PNG_DPI, bbox_inches=area)
+    finally:
+        fig.canvas.mpl_disconnect(connection)
+    rgba = np.frombuffer(raw.getbuffer(), dtype=np.uint8).reshape(measured["shape"])
+    return rgba, measured["overlaps"], measured["box"]
+
+
+def _pixel_span(box: Bbox, height: int) -> tuple[slice, slice]:
+    """Rows and columns of a canvas `height` pixels high that cover `box` (inches from its
+    lower left corner, at PNG_DPI): columns floor(x0 dpi) .. ceil(x1 dpi), rows
+    height - ceil(y1 dpi) .. height - floor(y0 dpi) (row 0 on top)."""
+    x0, y0 = np.floor(box.p0 * PNG_DPI).astype(int)
+    x1, y1 = np.ceil(box.p1 * PNG_DPI).astype(int)
+    return slice(height - y1, height - y0), slice(x0, x1)
 
 
 def _save_palette_png(rgba: np.ndarray, buffer) -> None:
@@ -201,7 +282,7 @@ def rss_vs_distance(rss: pd.DataFrame, fit: dict, configured: dict, title: str, 
     ax.set_ylabel("RSS [dBm]")
     ax.set_title(title)
     ax.legend(fontsize=7, loc="lower left")
-    return to_png(fig)
+    return to_png(fig, palette=False)
 
 
 def imu_resampling(raw: pd.DataFrame, resampled: pd.DataFrame, title: str, window_s: float = 20.0) -> bytes:
