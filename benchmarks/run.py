@@ -1,16 +1,19 @@
 """Performance measurements of wsnloc on this machine, as ratios measured in one run; writes
 benchmarks/RESULTS.md.
 
-    python benchmarks/run.py --previous REV [--repeats 3] [--mc-runs 5 10 20] [--small]
+    python benchmarks/run.py --previous REV [--repeats 3] [--mc-runs 5 10 20] [--mc-repeats 2] [--small]
 
 REV is the commit to compare against (e.g. the last commit before a performance change). It is
 exported with `git archive` into benchmarks/out/previous/ (no worktree, no checkout) and its
 workflow runs there with its own PYTHONPATH, beside the current code, in the same run.
 Absolute times differ 2x and more between machines, so the acceptance figures are ratios:
-- import floor: minimum over 5 runs of `python -c "import numpy, pandas, ..."` (IMPORT_FLOOR);
-- cold build (wall, and CPU = user + system of snakemake and every job it started) / floor;
+- import floor: minimum over 5 runs of `python -c "import numpy, pandas, ..."` (IMPORT_FLOOR),
+  measured right before each cold build (the speed of a shared machine drifts over minutes);
+- cold build (wall, and CPU = user + system of snakemake and every job it started) / the floor
+  measured before it; the median over the builds;
 - Monte Carlo cost per added run: slope of a least-squares line through cold-build times at
-  several run counts, current / previous;
+  several run counts, current / previous; the builds of both revisions alternate, each point
+  is the fastest of `--mc-repeats` builds (a build slowed by a busy neighbour is not kept);
 - estimators per step against filterpy on identical inputs.
 `--small` uses one scenario per dataset (a test of this script, not a benchmark). All builds
 run in scratch copies under benchmarks/out/ (git-ignored), never in the working tree.
@@ -170,13 +173,16 @@ def last_job_alone_s(log: str) -> float:
 
 
 def bench_workflow(repeats: int, small: bool) -> dict:
+    """Cold builds, each after an import floor of its own; the build with the median ratio."""
     builds, noops = [], []
     for k in range(repeats):
+        floor = import_floor()
         work = workflow_copy(ROOT, f"cold-{k}", None, small)
-        builds.append(snakemake(work, ROOT / "src"))
+        builds.append({**snakemake(work, ROOT / "src"), "floor": floor})
         noops.append(min(snakemake(work, ROOT / "src")["wall"] for _ in range(3)))
-    median = sorted(builds, key=lambda b: b["wall"])[len(builds) // 2]
-    return {"cold_s": median["wall"], "cold_all": [b["wall"] for b in builds], "cpu_s": median["cpu"],
+    median = sorted(builds, key=lambda b: b["wall"] / b["floor"])[len(builds) // 2]
+    return {"cold_s": median["wall"], "floor_s": median["floor"], "cpu_s": median["cpu"],
+            "cold_all": [(b["wall"], b["floor"]) for b in builds],
             "jobs": len(median["jobs"]), "per_rule": seconds_per_rule(median["log"]),
             "alone_s": last_job_alone_s(median["log"]), "noop_s": statistics.median(noops)}
 
@@ -227,15 +233,20 @@ def bench_simulator(trees: dict[str, Path]) -> dict[str, float]:
     return {label: min(t) for label, t in times.items()}
 
 
-def bench_scaling(tree: Path, label: str, sizes: list[int], small: bool) -> list[tuple[int, float, float]]:
-    """(runs, wall s, CPU s) of cold builds of `tree`'s workflow at several run counts."""
-    out = []
-    for runs in sizes:
-        work = workflow_copy(tree, f"scaling-{label}-{runs}", runs, small)
-        build = snakemake(work, tree / "src")
-        out.append((runs, build["wall"], build["cpu"]))
-        shutil.rmtree(work)
-    return out
+def bench_scaling(trees: dict[str, Path], sizes: list[int], repeats: int, small: bool
+                  ) -> dict[str, list[tuple[int, float, float]]]:
+    """{label: [(runs, wall s, CPU s)]}: cold builds of each tree's workflow at several run
+    counts, the trees alternating build by build, each point the fastest of `repeats` builds."""
+    best: dict[tuple[str, int], tuple[int, float, float]] = {}
+    for _ in range(repeats):
+        for runs in sizes:
+            for label, tree in trees.items():
+                work = workflow_copy(tree, f"scaling-{label}-{runs}", runs, small)
+                build = snakemake(work, tree / "src")
+                shutil.rmtree(work)
+                if (label, runs) not in best or build["wall"] < best[label, runs][1]:
+                    best[label, runs] = (runs, build["wall"], build["cpu"])
+    return {label: [best[label, runs] for runs in sizes] for label in trees}
 
 
 def slope(points: list[tuple[int, float, float]], column: int) -> float:
@@ -385,8 +396,8 @@ def _met(ok: bool) -> str:
 
 
 def write(r: dict, path: Path, command: str) -> None:
-    w, floor = r["workflow"], r["floor_s"]
-    cur, prev = r["scaling_current"], r["scaling_previous"]
+    w, floor = r["workflow"], r["workflow"]["floor_s"]
+    cur, prev = r["scaling"]["current"], r["scaling"]["previous"]
     slopes = {k: (slope(cur, c), slope(prev, c)) for k, c in (("wall", 1), ("cpu", 2))}
     imports_now, imports_before = r["imports"]["current"], r["imports"]["previous"]
     sim_now, sim_before = r["sim"]["current"], r["sim"]["previous"]
@@ -398,9 +409,11 @@ def write(r: dict, path: Path, command: str) -> None:
         *(["**`--small`: one scenario per dataset, a test of this script, not the acceptance measurement "
             "(run it without `--small`).**", ""] if r["small"] else []),
         "## Cold build against the import floor", "",
-        f"Import floor: {floor:.2f} s, the minimum of 5 runs of `python -c \"{IMPORT_FLOOR}\"`.", "",
+        f"Import floor: the minimum of 5 runs of `python -c \"{IMPORT_FLOOR}\"`, measured right before each "
+        f"cold build; the ratios are those of the median build (floor {floor:.2f} s).", "",
         "| measure | value | ratio to the import floor | target | met |", "|---|---|---|---|---|",
-        f"| cold `snakemake --cores 2`, wall ({w['jobs']} jobs; {', '.join(f'{x:.1f}' for x in w['cold_all'])}) "
+        f"| cold `snakemake --cores 2`, wall ({w['jobs']} jobs; builds / floors "
+        f"{', '.join(f'{c:.1f} / {f:.2f}' for c, f in w['cold_all'])} s) "
         f"| {w['cold_s']:.1f} s | {w['cold_s'] / floor:.1f} | <= 25 | {_met(w['cold_s'] / floor <= 25)} |",
         f"| cold build CPU (user + system, snakemake and its jobs) | {w['cpu_s']:.1f} s | {w['cpu_s'] / floor:.1f} "
         f"| <= 48 (half of ~96) | {_met(w['cpu_s'] / floor <= 48)} |",
@@ -419,6 +432,7 @@ def write(r: dict, path: Path, command: str) -> None:
         f"previous {sim_before:.3f}, ratio {sim_now / sim_before:.2f} "
         f"(target <= 0.5: {_met(sim_now / sim_before <= 0.5)}).",
         "", "## Monte Carlo cost per added run (cold builds at several run counts)", "",
+        f"Builds of the two revisions alternate; each point is the fastest of {r['mc_repeats']} builds.", "",
         "| runs | current wall [s] | current CPU [s] | previous wall [s] | previous CPU [s] |",
         "|---|---|---|---|---|",
         *[f"| {a[0]} | {a[1]:.1f} | {a[2]:.1f} | {b[1]:.1f} | {b[2]:.1f} |" for a, b in zip(cur, prev)], "",
@@ -448,6 +462,8 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=3, help="cold builds of the current code")
     parser.add_argument("--mc-runs", type=int, nargs="+", default=[5, 10, 20],
                         help="run counts of the Monte Carlo cost fit (at least two)")
+    parser.add_argument("--mc-repeats", type=int, default=2,
+                        help="builds per run count and revision of the Monte Carlo cost fit (the fastest is kept)")
     parser.add_argument("--small", action="store_true", help="one scenario per dataset: a quick test of this script")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "RESULTS.md")
     args = parser.parse_args()
@@ -460,14 +476,13 @@ def main() -> int:
         "small": args.small,
         "previous": subprocess.run(["git", "rev-parse", "--short", args.previous], cwd=ROOT, capture_output=True,
                                    text=True, check=True).stdout.strip(),
-        "floor_s": import_floor(),
         "filters": bench_filters(args.repeats),
         "estimators": bench_estimators(args.repeats),
         "imports": bench_job_imports({"current": ROOT, "previous": previous}),
         "sim": bench_simulator({"current": ROOT, "previous": previous}),
         "workflow": bench_workflow(args.repeats, args.small),
-        "scaling_current": bench_scaling(ROOT, "current", args.mc_runs, args.small),
-        "scaling_previous": bench_scaling(previous, "previous", args.mc_runs, args.small),
+        "mc_repeats": args.mc_repeats,
+        "scaling": bench_scaling({"current": ROOT, "previous": previous}, args.mc_runs, args.mc_repeats, args.small),
     }
     command = "python benchmarks/run.py " + " ".join(sys.argv[1:])
     write(results, args.out, command.strip())
