@@ -20,9 +20,6 @@ from wsnloc.metrics.data_quality import SUMMARY_TABLES, imu_files, load_inventor
 from wsnloc.metrics.ranging import fit_path_loss
 from wsnloc.signal.resample import resample_imu
 
-SUMMARY_OUTPUTS = ("summary", "results", "range_error", "rss", "imu")
-
-
 def ingest_shard(fmt: str, raw_dirs: dict[str, str], campaign: Campaign, tables_dir, imu_dir,
                  limits: QuarantineLimits, resample: dict, keep_dir, log) -> dict:
     """Ingest the runs {run: raw folder} into tables_dir/<run>/*.parquet and write each run's IMU
@@ -50,7 +47,7 @@ def ingest_shard(fmt: str, raw_dirs: dict[str, str], campaign: Campaign, tables_
 def summarize_scenario(tables_dirs, imu_dirs, campaign: Campaign, label: str, outputs, log) -> None:
     """Data summary of every run of a scenario (all its shards' folders): the JSON summary, the
     results rows and three figures (range error, RSS against distance, IMU resampling), written
-    to outputs.summary, .results, .range_error, .rss and .imu (see SUMMARY_OUTPUTS)."""
+    to outputs.summary, .results, .range_error, .rss and .imu (SUMMARY_FILES of the rules)."""
     from wsnloc.report import figures    # here: only the job that summarizes loads matplotlib
 
     folders = run_folders(tables_dirs)

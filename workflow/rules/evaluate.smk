@@ -13,6 +13,7 @@ if not SUMMARY_IN_INGEST:
             **SUMMARY_FILES,
         params:
             label="{dataset}/{scenario}",
+        priority: PRIORITY["ingest"]
         log:
             "logs/summarize_data/{dataset}-{scenario}.log",
         conda:

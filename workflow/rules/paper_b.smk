@@ -2,7 +2,8 @@
 
 
 PAPER_B = config["experiments"].get("paper_b")
-PAPER_B_PAIRS = experiment_pairs(PAPER_B) + experiment_pairs(PAPER_B, "simulation_scenarios")
+# A scenario listed both as measured and as simulated is run once (as simulated).
+PAPER_B_PAIRS = list(dict.fromkeys(experiment_pairs(PAPER_B) + experiment_pairs(PAPER_B, "simulation_scenarios")))
 
 
 # Paper B's scenarios are short (a few seconds each, about half of it job start-up): one job

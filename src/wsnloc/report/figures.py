@@ -98,8 +98,9 @@ def to_png(fig, tight: bool = True, palette: bool = True) -> bytes:
     overlap on that draw in OVERLAPS_KEY (a tEXt chunk inserted after the PNG header).
 
     tight False: the caller laid the figure out (fitted_png, bound_figures._fit_slots); the
-    canvas is saved as is. tight True: the figure's tight bounding box padded by
-    savefig.pad_inches, as savefig(bbox_inches="tight") saves it (_tight_render).
+    canvas is saved as is. tight True: the box savefig(bbox_inches="tight") would save (the
+    tight bounding box padded by savefig.pad_inches), its corners moved out to whole pixels
+    (_tight_render).
     palette: an indexed PNG (_save_palette_png); False for continuous colour maps, which
     256 colours would band: 24-bit RGB."""
     fig.set_dpi(PNG_DPI)

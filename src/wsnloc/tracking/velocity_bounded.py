@@ -54,7 +54,9 @@ class VelocityBoundedTracker:
         elapsed = self._times[-1] - self._times[0]
         if elapsed <= 0:
             return float("nan")
-        path = sum(math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in zip(self._points, islice(self._points, 1, None)))
+        path = 0.0
+        for a, b in zip(self._points, islice(self._points, 1, None)):    # in order (sum() compensates on 3.12+)
+            path += math.hypot(b[0] - a[0], b[1] - a[1])
         return path / elapsed
 
     def update(self, t: float, x: float, y: float) -> tuple[float, float]:
