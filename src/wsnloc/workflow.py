@@ -72,6 +72,17 @@ def scenario_pairs(config: dict) -> list[tuple[str, str]]:
     return [(d, s) for d, spec in config["datasets"].items() for s in spec["scenarios"]]
 
 
+def each_scenario(sources: dict, outputs, names: tuple[str, ...]):
+    """(label, campaign, {name: path}) for each scenario of a job over several scenarios, in
+    order: `sources` is the rule's params built by scenario_sources (common.smk), `outputs`
+    the rule's output with one list per name (scenario_files), scenario i's files at index i."""
+    from wsnloc.campaign import Campaign    # here: the Snakefile imports this module before any job
+
+    campaigns = {path: Campaign.load(path) for path in set(sources["campaign_of"].values())}
+    for i, label in enumerate(sources["labels"]):
+        yield label, campaigns[sources["campaign_of"][label]], {name: getattr(outputs, name)[i] for name in names}
+
+
 def script_logger(log_path: str, name: str):
     """A logger writing to the rule's log file (Snakemake's `log:`)."""
     import logging

@@ -97,6 +97,22 @@ def all_tables(pairs):
     return [p for d, s in pairs for p in tables_of(d, s)]
 
 
+def scenario_files(pairs, experiment, files):
+    """{name: [data/processed/<dataset>/<scenario>/<experiment>/<name>.<ext> per pair]} for
+    files = ((name, ext), ...): the per-scenario outputs of a job over several scenarios."""
+    return {name: [f"data/processed/{d}/{s}/{experiment}/{name}.{ext}" for d, s in pairs] for name, ext in files}
+
+
+def scenario_sources(pairs):
+    """Params of a job over several scenarios (read by wsnloc.workflow.each_scenario): the
+    labels in order and, per label, its table and 5 Hz IMU folders and its campaign file."""
+    labels = [f"{d}/{s}" for d, s in pairs]
+    return {"labels": labels,
+            "tables_of": dict(zip(labels, (tables_of(d, s) for d, s in pairs))),
+            "imu_of": dict(zip(labels, (imu_of(d, s) for d, s in pairs))),
+            "campaign_of": dict(zip(labels, (config["datasets"][d]["campaign"] for d, s in pairs)))}
+
+
 # ---- studies ----
 STUDIES = config.get("studies") or {}
 STUDY_CELLS = study_cells(config)   # study: [(dataset, scenario, cell)]

@@ -8,8 +8,8 @@ PAPER_B_PAIRS = list(dict.fromkeys(experiment_pairs(PAPER_B) + experiment_pairs(
 
 # Paper B's scenarios are short (a few seconds each, about half of it job start-up): one job
 # runs them all, scenario after scenario, with each scenario's files as before.
-PAPER_B_FILES = {name: [f"data/processed/{d}/{s}/paper_b/{name}.{ext}" for d, s in PAPER_B_PAIRS]
-                 for name, ext in (("estimates", "parquet"), ("metrics", "csv"), ("sensitivity", "csv"))}
+PAPER_B_FILES = scenario_files(PAPER_B_PAIRS, "paper_b", (("estimates", "parquet"), ("metrics", "csv"),
+                                                         ("sensitivity", "csv")))
 
 
 rule paper_b:
@@ -21,11 +21,8 @@ rule paper_b:
         **PAPER_B_FILES,
     params:
         settings=PAPER_B,
-        labels=[f"{d}/{s}" for d, s in PAPER_B_PAIRS],
         simulated=[f"{d}/{s}" for d, s in experiment_pairs(PAPER_B, "simulation_scenarios")],
-        tables_of={f"{d}/{s}": tables_of(d, s) for d, s in PAPER_B_PAIRS},
-        imu_of={f"{d}/{s}": imu_of(d, s) for d, s in PAPER_B_PAIRS},
-        campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in PAPER_B_PAIRS},
+        sources=scenario_sources(PAPER_B_PAIRS),
     priority: PRIORITY["paper"]
     log:
         "logs/paper_b/scenarios.log",

@@ -61,9 +61,8 @@ rule paper_a_summary:
 
 # Paper C's scenarios are short (a few seconds each, about half of it job start-up): one job
 # runs them all, scenario after scenario, with each scenario's files as before.
-PAPER_C_FILES = {name: [f"data/processed/{d}/{s}/paper_c/{name}.{ext}" for d, s in PAPER_C_PAIRS]
-                 for name, ext in (("estimates", "parquet"), ("metrics", "csv"), ("quality", "parquet"),
-                                   ("sensitivity", "csv"))}
+PAPER_C_FILES = scenario_files(PAPER_C_PAIRS, "paper_c", (("estimates", "parquet"), ("metrics", "csv"),
+                                                         ("quality", "parquet"), ("sensitivity", "csv")))
 
 
 rule paper_c:
@@ -75,10 +74,7 @@ rule paper_c:
         **PAPER_C_FILES,
     params:
         settings=PAPER_C,
-        labels=[f"{d}/{s}" for d, s in PAPER_C_PAIRS],
-        tables_of={f"{d}/{s}": tables_of(d, s) for d, s in PAPER_C_PAIRS},
-        imu_of={f"{d}/{s}": imu_of(d, s) for d, s in PAPER_C_PAIRS},
-        campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in PAPER_C_PAIRS},
+        sources=scenario_sources(PAPER_C_PAIRS),
     priority: PRIORITY["paper"]
     log:
         "logs/paper_c/scenarios.log",

@@ -7,7 +7,7 @@ from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import paper_b, sensitivity
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
-from wsnloc.workflow import script_logger
+from wsnloc.workflow import each_scenario, script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "paper_b")
@@ -20,7 +20,7 @@ def run_scenario(label: str, campaign: Campaign, out: dict) -> None:
     settings = paper_b.Settings.from_config(spec)
     settings.check_against(campaign)
     estimates, metrics, data = [], [], {}
-    runs = load_runs(sm.params.tables_of[label], paper_b.INPUT_TABLES, sm.params.imu_of[label])
+    runs = load_runs(sm.params.sources["tables_of"][label], paper_b.INPUT_TABLES, sm.params.sources["imu_of"][label])
     for name, run_tables in runs.items():
         data[name] = RunData(run_tables, campaign, None, name)
         est = paper_b.run(data[name], settings).assign(run=name)
@@ -40,7 +40,5 @@ def run_scenario(label: str, campaign: Campaign, out: dict) -> None:
     log.info("%s: %d runs done", label, len(runs))
 
 
-campaigns = {path: Campaign.load(path) for path in set(sm.params.campaign_of.values())}
-for i, label in enumerate(sm.params.labels):
-    run_scenario(label, campaigns[sm.params.campaign_of[label]],
-                 {name: getattr(sm.output, name)[i] for name in ("estimates", "metrics", "sensitivity")})
+for label, campaign, out in each_scenario(sm.params.sources, sm.output, ("estimates", "metrics", "sensitivity")):
+    run_scenario(label, campaign, out)

@@ -9,7 +9,7 @@ from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import paper_c, sensitivity
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
-from wsnloc.workflow import script_logger
+from wsnloc.workflow import each_scenario, script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "paper_c")
@@ -21,7 +21,7 @@ def run_scenario(label: str, campaign: Campaign, out: dict) -> None:
     written to out['estimates'], out['metrics'], out['quality'], out['sensitivity']."""
     settings.check_against(campaign)
     subsets = paper_c.subsets_of(settings, label)
-    runs = load_runs(sm.params.tables_of[label], paper_c.INPUT_TABLES, sm.params.imu_of[label])
+    runs = load_runs(sm.params.sources["tables_of"][label], paper_c.INPUT_TABLES, sm.params.sources["imu_of"][label])
     data = {name: RunData(run_tables, campaign, None, name) for name, run_tables in runs.items()}
     estimates = [est.assign(run=name) for name, est in zip(runs, paper_c.run_all(list(data.values()), settings,
                                                                                   subsets))]
@@ -52,7 +52,6 @@ def run_scenario(label: str, campaign: Campaign, out: dict) -> None:
     log.info("%s: %d runs done", label, len(runs))
 
 
-campaigns = {path: Campaign.load(path) for path in set(sm.params.campaign_of.values())}
-for i, label in enumerate(sm.params.labels):
-    run_scenario(label, campaigns[sm.params.campaign_of[label]],
-                 {name: getattr(sm.output, name)[i] for name in ("estimates", "metrics", "quality", "sensitivity")})
+for label, campaign, out in each_scenario(sm.params.sources, sm.output,
+                                          ("estimates", "metrics", "quality", "sensitivity")):
+    run_scenario(label, campaign, out)
