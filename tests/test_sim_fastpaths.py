@@ -89,6 +89,17 @@ def test_constant_acceleration_states_follow_the_recurrence():
         s_k, v_k = s_k + v_k * trajectory.STEP_S + -0.3 * (0.5 * trajectory.STEP_S**2), v_k + -0.3 * trajectory.STEP_S
 
 
+def test_array_controller_equals_the_step_controller():
+    """_accelerations (the steady-run check) and _acceleration (single steps) are one rule: the
+    same float on every state, including the braking and clipped cases and the stop point."""
+    rng = np.random.default_rng(3)
+    stop, a_max, target = 12.0, 0.5, 0.8
+    s = np.concatenate([rng.uniform(0.0, stop + 0.5, 3000), stop - np.logspace(-9, 0, 200), [stop, stop + 1e-9]])
+    v = np.concatenate([rng.uniform(0.0, 1.5, 3000), rng.uniform(0.0, 0.2, 200), [0.0, 0.3]])
+    expected = np.array([trajectory._acceleration(si, vi, target, stop, a_max) for si, vi in zip(s.tolist(), v.tolist())])
+    assert np.array_equal(trajectory._accelerations(s, v, target, stop, a_max), expected)
+
+
 def _hard_floats(rng):
     """Values at, beside and between decimal ties, signed zeros, tiny and large magnitudes."""
     x = np.concatenate([rng.normal(0, 1e5, 2000), rng.normal(0, 1, 2000), np.arange(-400, 400) / 16,
