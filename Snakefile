@@ -3,8 +3,10 @@
 from snakemake.utils import min_version
 
 from wsnloc.validation import validate_config
+from wsnloc.workflow import compile_bytecode
 
 min_version("8.20")
+compile_bytecode()   # each job imports wsnloc's modules: compiled once here, not in every job
 
 
 configfile: "config/config.yaml"

@@ -8,6 +8,7 @@ and a bad config value stops the run before any job with the key named.
 import re
 import subprocess
 import sys
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -181,3 +182,21 @@ def test_real_data_study_runs_by_uncommenting_the_config(tmp_path):
     study = results[results["experiment"] == "study:realdata"]
     assert study["row"].nunique() >= 6 and set(study["scenario"]) == {"cucudasluv/los", "cucudasluv/nlos"}
     assert 'id="study-realdata"' in (work / "reports" / "index.html").read_text()
+
+
+def test_compile_bytecode_writes_each_module_once(tmp_path):
+    import importlib.util
+
+    from wsnloc.workflow import compile_bytecode
+
+    package = tmp_path / "pkg"
+    (package / "sub").mkdir(parents=True)
+    modules = [package / "__init__.py", package / "a.py", package / "sub" / "b.py"]
+    for module in modules:
+        module.write_text("VALUE = 1\n")
+    compile_bytecode(package)
+    caches = [Path(importlib.util.cache_from_source(str(m))) for m in modules]
+    assert all(c.is_file() for c in caches)
+    written = [c.stat().st_mtime_ns for c in caches]
+    compile_bytecode(package)                      # up to date: nothing rewritten
+    assert [c.stat().st_mtime_ns for c in caches] == written
