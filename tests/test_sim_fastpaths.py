@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from wsnloc.sim import imu, newcom, trajectory, uwb_channel
+from wsnloc.sim import imu, newcom, rss, trajectory, uwb_channel
 from wsnloc.sim.logs import format_text
 
 
@@ -212,3 +212,32 @@ def test_wall_counts_equal_the_full_count(campaign):
             got = newcom._walls_crossed(campaign, subset, anchor)
             expected = campaign.walls_between(subset, anchor)
             assert got.dtype == expected.dtype and np.array_equal(got, expected)
+
+
+def test_broadcast_lines_are_the_per_pair_formatting():
+    rng = np.random.default_rng(6)
+    ids = [f"Z{k:02d}" for k in range(1, 22)]
+    times_ms = np.arange(50.0, 9000.0, 50.0)
+    rssi = rng.integers(-110, 5, (len(times_ms), len(ids)))
+    heard = rng.random(rssi.shape) < np.linspace(0.0, 0.9, len(times_ms))[:, None]   # first broadcast: none heard
+    expected = []
+    for b in range(len(times_ms)):
+        pairs = ["%s:%d" % (ids[a], rssi[b, a]) for a in np.flatnonzero(heard[b]).tolist()]
+        if pairs:
+            expected.append(f"{int(times_ms[b]) + 10000} {(b + 1) % 256} {len(pairs)} " + " ".join(pairs))
+    assert newcom._broadcast_lines(times_ms, heard, rssi, ids, 10000) == expected
+    assert newcom._broadcast_lines(times_ms, heard & False, rssi, ids, 10000) == []
+
+
+def test_correlated_shadowing_is_the_recursion_bit_for_bit():
+    """X_0 = sigma e_0, X_k = rho_k X_{k-1} + sqrt(1 - rho_k^2) sigma e_k, with rests (rho = 1)."""
+    rng = np.random.default_rng(7)
+    s = np.concatenate([np.zeros(50), np.cumsum(rng.uniform(0.0, 0.05, 400)), np.full(30, 9.0)])
+    got = rss.correlated_shadowing(s, 5, 4.0, 2.0, np.random.default_rng(8))
+    innovations = np.random.default_rng(8).normal(0.0, 4.0, (len(s), 5))
+    rho = np.exp(-np.abs(np.diff(s, prepend=s[:1])) / 2.0)
+    scale = np.sqrt(1.0 - rho**2)
+    expected = [innovations[0]]
+    for k in range(1, len(s)):                   # the former loop
+        expected.append(rho[k] * expected[-1] + scale[k] * innovations[k])
+    assert got.tobytes() == np.array(expected).tobytes()

@@ -145,15 +145,35 @@ def _zigbee_lines(campaign: Campaign, traj, rng, clock_ms: int) -> list[str]:
         + shadow + rng.normal(0.0, spec["fast_fading_sigma_db"], dist.shape)
     rssi = np.round(power).astype(int)
     heard = (rssi >= spec["sensitivity_dbm"]) & (rng.random(dist.shape) >= spec["reply_loss"])
+    return ["# newcom-zigbee v1", "# t_ms seq n anchor:rssi_dbm ..."] + _broadcast_lines(
+        times_ms, heard, rssi, anchors["anchor_id"].tolist(), clock_ms)
+
+
+def _pair_texts(anchor: np.ndarray, rssi: np.ndarray, ids: list[str]) -> list[str]:
+    """'<id>:<rssi>' of each (anchor index, integer RSSI in dBm) pair, each distinct pair
+    formatted once (a run repeats a few hundred distinct pairs tens of thousands of times)."""
+    if len(rssi) == 0:
+        return []
+    low = int(rssi.min())
+    span = int(rssi.max()) - low + 1
+    distinct, index = np.unique(anchor * span + (rssi - low), return_inverse=True)
+    texts = np.array([f"{ids[code // span]}:{code % span + low}" for code in distinct.tolist()], dtype=object)
+    return texts[index].tolist()
+
+
+def _broadcast_lines(times_ms: np.ndarray, heard: np.ndarray, rssi: np.ndarray, ids: list[str],
+                     clock_ms: int) -> list[str]:
+    """`zigbee.log` data lines 't_ms seq n id:rssi ...', one per broadcast heard by at least
+    one anchor (none heard: a gap in seq), pairs in anchor order; times_ms (N,) broadcast
+    times, heard and rssi (N, anchors), t_ms = int(time) + clock_ms, seq = (b + 1) mod 256."""
     k, j = np.nonzero(heard)                                  # row-major: per broadcast, anchor order
-    pairs = list(map("%s:%d".__mod__, zip(anchors["anchor_id"].to_numpy(object)[j].tolist(), rssi[k, j].tolist())))
+    pairs = _pair_texts(j, rssi[k, j], ids)
     counts = heard.sum(axis=1)
     ends = np.cumsum(counts)
-    lines = ["# newcom-zigbee v1", "# t_ms seq n anchor:rssi_dbm ..."]
-    for b in np.flatnonzero(counts).tolist():                 # none heard: a gap in seq
-        lines.append(f"{int(times_ms[b]) + clock_ms} {(b + 1) % 256} {counts[b]} "
-                     + " ".join(pairs[ends[b] - counts[b]:ends[b]]))
-    return lines
+    rows = np.flatnonzero(counts)
+    return [f"{t} {(b + 1) % 256} {n} " + " ".join(pairs[end - n:end]) for b, t, n, end in zip(
+        rows.tolist(), (times_ms[rows].astype(np.int64) + clock_ms).tolist(), counts[rows].tolist(),
+        ends[rows].tolist())]
 
 
 def simulate_run(campaign: Campaign, scenario: str, seeds: np.random.SeedSequence, out_dir: Path,
