@@ -241,3 +241,13 @@ def test_correlated_shadowing_is_the_recursion_bit_for_bit():
     for k in range(1, len(s)):                   # the former loop
         expected.append(rho[k] * expected[-1] + scale[k] * innovations[k])
     assert got.tobytes() == np.array(expected).tobytes()
+
+
+def test_sorted_is_np_sort():
+    from wsnloc.sim.logs import _sorted
+
+    rng = np.random.default_rng(10)
+    jittered = np.arange(0.0, 2000.0, 2.0) + rng.normal(0.0, 0.02, 1000)
+    reordered = np.arange(0.0, 20.0, 2.0) + rng.normal(0.0, 3.0, 10)
+    for values in (jittered, reordered, np.repeat(reordered, 3), reordered[:1], reordered[:0]):
+        assert _sorted(values).tobytes() == np.sort(values).tobytes()
