@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from wsnloc.sim import imu, newcom, rss, trajectory, uwb_channel
-from wsnloc.sim.logs import format_text
+from wsnloc.sim.logs import _sorted, format_text
 
 
 def _reference_variable_speed(length, rng, static_start_s, ramp_interval_s, speed_range_mps,
@@ -244,8 +244,6 @@ def test_correlated_shadowing_is_the_recursion_bit_for_bit():
 
 
 def test_sorted_is_np_sort():
-    from wsnloc.sim.logs import _sorted
-
     rng = np.random.default_rng(10)
     jittered = np.arange(0.0, 2000.0, 2.0) + rng.normal(0.0, 0.02, 1000)
     reordered = np.arange(0.0, 20.0, 2.0) + rng.normal(0.0, 3.0, 10)
