@@ -222,7 +222,7 @@ def test_broadcast_lines_are_the_per_pair_formatting():
     heard = rng.random(rssi.shape) < np.linspace(0.0, 0.9, len(times_ms))[:, None]   # first broadcast: none heard
     expected = []
     for b in range(len(times_ms)):
-        pairs = ["%s:%d" % (ids[a], rssi[b, a]) for a in np.flatnonzero(heard[b]).tolist()]
+        pairs = [f"{ids[a]}:{rssi[b, a]:d}" for a in np.flatnonzero(heard[b]).tolist()]
         if pairs:
             expected.append(f"{int(times_ms[b]) + 10000} {(b + 1) % 256} {len(pairs)} " + " ".join(pairs))
     assert newcom._broadcast_lines(times_ms, heard, rssi, ids, 10000) == expected
