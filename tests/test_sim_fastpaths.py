@@ -116,6 +116,9 @@ def test_format_text_writes_what_percent_formatting_writes(decimals):
     expected = "".join(f"%.{decimals}f %d %.3f\n" % row for row in zip(x.tolist(), counts.tolist(), x[::-1].tolist()))
     assert format_text([(x, decimals), (counts, 0), (x[::-1], 3)]) == expected
     assert format_text([(counts[:1], 0)]) == f"{counts[0]}\n"
+    small = np.array([0.0004, -0.0, 0.5, -0.0015, 0.0])                # every value narrower than the decimals
+    assert format_text([(small, decimals), (np.zeros(5, dtype=np.int64), 0)]) == \
+        "".join(f"%.{decimals}f 0\n" % value for value in small.tolist())
     assert format_text([(x[:0], decimals)]) == ""
 
 
