@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from wsnloc.sim import trajectory
-from wsnloc.sim.logs import format_rows
+from wsnloc.sim import imu, newcom, rss, trajectory, uwb_channel
+from wsnloc.sim.logs import _sorted, format_text
 
 
 def _reference_variable_speed(length, rng, static_start_s, ramp_interval_s, speed_range_mps,
@@ -109,15 +109,146 @@ def _hard_floats(rng):
 
 
 @pytest.mark.parametrize("decimals", [0, 1, 2, 3, 6])
-def test_format_rows_writes_what_percent_formatting_writes(decimals):
+def test_format_text_writes_what_percent_formatting_writes(decimals):
     rng = np.random.default_rng(decimals)
     x = _hard_floats(rng)
-    counts = rng.integers(-10**12, 10**12, len(x))
-    expected = [f"%.{decimals}f %d %.3f" % row for row in zip(x.tolist(), counts.tolist(), x[::-1].tolist())]
-    assert format_rows([(x, decimals), (counts, 0), (x[::-1], 3)]) == expected
-    assert format_rows([(x[:0], decimals)]) == []
+    counts = np.concatenate([rng.integers(-10**12, 10**12, len(x) - 4), [0, -1, 2**63 - 1, -(2**63 - 1)]])
+    expected = "".join(f"%.{decimals}f %d %.3f\n" % row for row in zip(x.tolist(), counts.tolist(), x[::-1].tolist()))
+    assert format_text([(x, decimals), (counts, 0), (x[::-1], 3)]) == expected
+    assert format_text([(counts[:1], 0)]) == f"{counts[0]}\n"
+    small = np.array([0.0004, -0.0, 0.5, -0.0015, 0.0])                # every value narrower than the decimals
+    assert format_text([(small, decimals), (np.zeros(5, dtype=np.int64), 0)]) == \
+        "".join(f"%.{decimals}f 0\n" % value for value in small.tolist())
+    assert format_text([(x[:0], decimals)]) == ""
 
 
-def test_format_rows_refuses_values_it_cannot_round_exactly():
+def test_format_text_refuses_values_it_cannot_write_exactly():
     with pytest.raises(ValueError):
-        format_rows([(np.array([2.0**50]), 3)])
+        format_text([(np.array([2.0**50]), 3)])
+    with pytest.raises(ValueError):
+        format_text([(np.array([-(2**63)]), 0)])
+
+
+def _reference_impulse_responses(model, rng, n_links):
+    """The channel model as first written (rate array, nonzero, complex product)."""
+    n_clusters = np.maximum(1, rng.poisson(model["mean_clusters"], n_links))
+    width = int(n_clusters.max())
+    gaps = rng.exponential(1.0 / model["cluster_rate_per_ns"], (n_links, width - 1))
+    cluster_t = np.concatenate([np.zeros((n_links, 1)), np.cumsum(gaps, axis=1)], axis=1)
+    clusters = (np.arange(width)[None, :] < n_clusters[:, None]) \
+        & (cluster_t < uwb_channel.CLUSTER_SPAN * model["cluster_decay_ns"])
+    energy_db = -10 * np.log10(np.e) * cluster_t / model["cluster_decay_ns"] \
+        + rng.normal(0.0, model["cluster_sigma_db"], (n_links, width))
+    omega = 10 ** (energy_db / 10)
+    link, cluster = np.nonzero(clusters)
+    beta, l1, l2 = model["ray_mixture_beta"], model["ray_rate_1_per_ns"], model["ray_rate_2_per_ns"]
+    diffuse = bool(model.get("diffuse_first_cluster", False))
+    decay = np.full(len(link), float(model["ray_decay_ns"]))
+    if diffuse:
+        decay[cluster == 0] = model["first_cluster_decay_ns"]
+    shape = (len(link), int(uwb_channel.RAY_SPAN * decay.max() * max(l1, l2) * 1.3) + 10)
+    rate = np.where(rng.random(shape) < beta, l1, l2)
+    inter = rng.exponential(1.0, shape) / rate
+    inter[:, 0] = 0.0
+    tau = np.cumsum(inter, axis=1)
+    row, ray = np.nonzero(tau < uwb_channel.RAY_SPAN * decay[:, None])
+    tau, decay = tau[row, ray], decay[row]
+    omega_ray = omega[link, cluster][row]
+    mean_power = omega_ray / (decay * ((1 - beta) * l1 + beta * l2 + 1)) * np.exp(-tau / decay)
+    if diffuse:
+        rise, g1, chi = model["rise_ns"], model["first_cluster_decay_ns"], model["diffuse_chi"]
+        first = cluster[row] == 0
+        mean_power[first] = omega_ray[first] * (1 - chi * np.exp(-tau[first] / rise)) * np.exp(-tau[first] / g1) \
+            * (g1 + rise) / (g1 * (g1 + rise * (1 - chi)))
+    m = np.maximum(np.exp(rng.normal(model["nakagami_m0"], model["nakagami_sigma_m0"], len(row))), 0.5)
+    if model.get("first_ray_m") is not None:
+        m[ray == 0] = model["first_ray_m"]
+    power = rng.gamma(m, mean_power / m)
+    phase = rng.uniform(0.0, 2 * np.pi, len(row))
+    magnitude = np.sqrt(power)
+    return link[row], cluster_t[link, cluster][row] + tau, magnitude * np.cos(phase) + 1j * (magnitude * np.sin(phase))
+
+
+@pytest.mark.parametrize("name", ["CM3", "CM4"])
+def test_impulse_responses_and_taps_are_the_reference_bit_for_bit(campaign, name):
+    """Same rays, same draws: the rng ends in the same state and the tap powers (what the
+    detectors read) are the same floats; amplitudes equal up to the sign of a zero part."""
+    spec = campaign.section("radio", "uwb")
+    model = dict(spec["channel_models"][name])
+    for seed, n_links in ((0, 1), (1, 37), (2, 512)):
+        rng_fast, rng_reference = np.random.default_rng(seed), np.random.default_rng(seed)
+        fast = uwb_channel.impulse_responses(model, rng_fast, n_links)
+        reference = _reference_impulse_responses(model, rng_reference, n_links)
+        assert rng_fast.bit_generator.state == rng_reference.bit_generator.state
+        for got, expected in zip(fast[:2], reference[:2]):
+            assert got.dtype == expected.dtype and got.tobytes() == expected.tobytes()
+        assert np.array_equal(fast[2], reference[2])
+        taps = [uwb_channel.tap_powers(*rays, spec["cir_tap_ns"], n_links) for rays in (fast, reference)]
+        assert taps[0].tobytes() == taps[1].tobytes()
+
+
+def test_vibration_is_the_per_axis_formula_bit_for_bit(campaign):
+    spec = campaign.section("imu")
+    rng = np.random.default_rng(4)
+    t = np.sort(rng.uniform(0.0, 120.0, 5000))
+    v = np.where(rng.random(5000) < 0.2, 0.0, rng.uniform(0.0, 0.6, 5000))
+    got = imu.vibration(t, v, spec, np.random.default_rng(9))
+    tones = np.asarray(spec["vibration_tones_hz"], dtype=float)
+    amplitude = spec["vibration_mps2_at_ref_speed"] * np.sqrt(2.0 / len(tones)) * (v / spec["vibration_ref_speed_mps"])
+    phases = np.random.default_rng(9).uniform(0.0, 2 * np.pi, (3, len(tones)))
+    for axis, weight in enumerate(spec["vibration_axis_weights"]):
+        waves = np.sin(2 * np.pi * tones[None, :] * t[:, None] + phases[axis][None, :]).sum(axis=1)
+        assert got[:, axis].tobytes() == (weight * amplitude * waves).tobytes()
+
+
+def test_wall_counts_equal_the_full_count(campaign):
+    """Points in and beside the rooms, on wall lines and at door edges, repeated (the cart at
+    rest), against anchors inside, outside and on wall lines: the same integers as
+    campaign.walls_between (every piece, every point)."""
+    rng = np.random.default_rng(5)
+    grid = np.array([(x, y) for x in (0.0, 2.5, 6.0, 8.5, 12.0, 22.5, 30.0) for y in (0.0, 6.0, 7.5, 9.0, 15.0)])
+    moving = np.column_stack([rng.uniform(-1.0, 31.0, 600), rng.uniform(-1.0, 16.0, 600)])
+    points = np.repeat(np.concatenate([grid, moving]), rng.integers(1, 4, len(grid) + len(moving)), axis=0)
+    anchors = np.concatenate([campaign.anchors[["x", "y"]].to_numpy(float), grid[::3], [[15.0, 9.0], [-2.0, 7.0]]])
+    for subset in (points, points[:1], points[points[:, 1] > 7.0], points[:0]):
+        for anchor in anchors:
+            got = newcom._walls_crossed(campaign, subset, anchor)
+            expected = campaign.walls_between(subset, anchor)
+            assert got.dtype == expected.dtype and np.array_equal(got, expected)
+
+
+def test_broadcast_lines_are_the_per_pair_formatting():
+    rng = np.random.default_rng(6)
+    ids = [f"Z{k:02d}" for k in range(1, 22)]
+    times_ms = np.arange(50.0, 9000.0, 50.0)
+    rssi = rng.integers(-110, 5, (len(times_ms), len(ids)))
+    heard = rng.random(rssi.shape) < np.linspace(0.0, 0.9, len(times_ms))[:, None]   # first broadcast: none heard
+    expected = []
+    for b in range(len(times_ms)):
+        pairs = [f"{ids[a]}:{rssi[b, a]:d}" for a in np.flatnonzero(heard[b]).tolist()]
+        if pairs:
+            expected.append(f"{int(times_ms[b]) + 10000} {(b + 1) % 256} {len(pairs)} " + " ".join(pairs))
+    assert newcom._broadcast_lines(times_ms, heard, rssi, ids, 10000) == expected
+    assert newcom._broadcast_lines(times_ms, heard & False, rssi, ids, 10000) == []
+
+
+def test_correlated_shadowing_is_the_recursion_bit_for_bit():
+    """X_0 = sigma e_0, X_k = rho_k X_{k-1} + sqrt(1 - rho_k^2) sigma e_k, with rests (rho = 1)."""
+    rng = np.random.default_rng(7)
+    s = np.concatenate([np.zeros(50), np.cumsum(rng.uniform(0.0, 0.05, 400)), np.full(30, 9.0)])
+    got = rss.correlated_shadowing(s, 5, 4.0, 2.0, np.random.default_rng(8))
+    innovations = np.random.default_rng(8).normal(0.0, 4.0, (len(s), 5))
+    rho = np.exp(-np.abs(np.diff(s, prepend=s[:1])) / 2.0)
+    scale = np.sqrt(1.0 - rho**2)
+    expected = [innovations[0]]
+    for k in range(1, len(s)):                   # the former loop
+        expected.append(rho[k] * expected[-1] + scale[k] * innovations[k])
+    assert got.tobytes() == np.array(expected).tobytes()
+
+
+def test_sorted_is_np_sort():
+    rng = np.random.default_rng(10)
+    jittered = np.arange(0.0, 2000.0, 2.0) + rng.normal(0.0, 0.02, 1000)
+    reordered = np.arange(0.0, 20.0, 2.0) + rng.normal(0.0, 3.0, 10)
+    for values in (jittered, reordered, np.repeat(reordered, 3), reordered[:1], reordered[:0]):
+        assert _sorted(values).tobytes() == np.sort(values).tobytes()

@@ -21,7 +21,7 @@ import numpy as np
 
 from wsnloc.campaign import Campaign
 from wsnloc.sim import trajectory as motion
-from wsnloc.sim.logs import imu_lines, positions, truth_lines, write_run
+from wsnloc.sim.logs import imu_text, lines_text, positions, truth_text, write_run
 from wsnloc.sim.seeding import model_rng
 
 
@@ -92,9 +92,9 @@ def simulate_run(campaign: Campaign, scenario: str, seeds: np.random.SeedSequenc
     clock_ms = int(campaign.spec.get("clock_start_ms", 0))
     traj = motion.for_scenario(scenario_spec, campaign.path.length, model_rng(seeds, "motion"))
     files = {
-        "listener.log": _listener_lines(campaign, traj, model_rng(seeds, "beacons"), model_rng(seeds, "timing"),
-                                        model_rng(seeds, "ranging"), clock_ms),
-        "imu.log": imu_lines(campaign, traj, model_rng(seeds, "imu"), imu_noise, clock_ms),
-        "truth.log": truth_lines(campaign, traj, clock_ms, "path_m"),
+        "listener.log": lines_text(_listener_lines(campaign, traj, model_rng(seeds, "beacons"),
+                                                   model_rng(seeds, "timing"), model_rng(seeds, "ranging"), clock_ms)),
+        "imu.log": imu_text(campaign, traj, model_rng(seeds, "imu"), imu_noise, clock_ms),
+        "truth.log": truth_text(campaign, traj, clock_ms, "path_m"),
     }
     return write_run(out_dir, files, campaign, scenario, seeds, {"imu_noise_model": imu_noise, **(meta or {})})

@@ -43,16 +43,22 @@ def body_motion(v, a, curvature, gravity: float) -> tuple[np.ndarray, np.ndarray
 
 
 def vibration(t, v, spec: dict, rng: np.random.Generator) -> np.ndarray:
-    """(N, 3) drive vibration in m/s^2: sum of tones, RMS = ref_rms * v / ref_speed."""
+    """(N, 3) drive vibration in m/s^2: sum of tones, RMS = ref_rms * v / ref_speed.
+
+    axis i: w_i A(v) sum_j sin(2 pi f_j t + phi_ij), A(v) = ref_rms sqrt(2 / n_tones) v / ref_speed;
+    the angle 2 pi f_j t (rad) is computed once for the three axes.
+    """
     tones = np.asarray(spec["vibration_tones_hz"], dtype=float)
     weights = np.asarray(spec.get("vibration_axis_weights", [0.5, 0.5, 1.0]), dtype=float)
     amplitude = spec["vibration_mps2_at_ref_speed"] * np.sqrt(2.0 / len(tones)) \
         * (v / spec["vibration_ref_speed_mps"])
     phases = rng.uniform(0.0, 2 * np.pi, (3, len(tones)))
+    angle = 2 * np.pi * tones[None, :] * t[:, None]
     out = np.empty((len(t), 3))
+    waves = np.empty_like(angle)
     for axis in range(3):
-        waves = np.sin(2 * np.pi * tones[None, :] * t[:, None] + phases[axis][None, :]).sum(axis=1)
-        out[:, axis] = weights[axis] * amplitude * waves
+        np.add(angle, phases[axis][None, :], out=waves)
+        out[:, axis] = weights[axis] * amplitude * np.sin(waves).sum(axis=1)
     return out
 
 

@@ -5,8 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.compute as pc
 import yaml
 
 from wsnloc import __version__
@@ -41,27 +39,64 @@ def _scaled_integers(values: np.ndarray, decimals: int) -> np.ndarray:
     return out
 
 
-def _text(values: np.ndarray, decimals: int) -> pa.Array:
-    """Strings of `values` as '%d' (integer array) or '%.{decimals}f' (float array) writes them:
-    sign (of a float: its sign bit, as Python writes '-0.000'), whole part, '.', decimals."""
+def _magnitudes(values: np.ndarray, decimals: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """(|x| as int64, sign, decimals) of a column: |x| itself for an integer array (decimals
+    becomes 0, sign x < 0), round(|x| 10^decimals) for a float array (sign: the sign bit, as
+    Python writes '-0.000')."""
     if np.issubdtype(values.dtype, np.integer):
-        return pc.cast(pa.array(values), pa.string())
-    whole, fraction = np.divmod(_scaled_integers(values, decimals), 10**decimals)
-    text = pc.cast(pa.array(whole), pa.string())
-    if decimals:
-        text = pc.binary_join_element_wise(text, pc.utf8_lpad(pc.cast(pa.array(fraction), pa.string()), decimals, "0"),
-                                           ".")
-    return pc.if_else(pa.array(np.signbit(values)), pc.binary_join_element_wise("-", text, ""), text)
+        magnitude = np.abs(values.astype(np.int64))
+        if magnitude.size and magnitude.min() < 0:
+            raise ValueError("the int64 minimum has no int64 magnitude")
+        return magnitude, values < 0, 0
+    return _scaled_integers(values, decimals), np.signbit(values), decimals
 
 
-def format_rows(columns: list[tuple[np.ndarray, int]]) -> list[str]:
-    """Lines of space-separated numbers, column = (values, decimals): byte for byte what
-    '%d' (integer array) or '%.{decimals}f' (float array) writes, built with Arrow's
-    vectorised string kernels instead of one Python format call per line."""
-    return pc.binary_join_element_wise(*(_text(np.asarray(v), d) for v, d in columns), " ").to_pylist()
+def format_text(columns: list[tuple[np.ndarray, int]]) -> str:
+    """Text of lines of space-separated numbers, each line ending in '\\n', column = (values,
+    decimals): byte for byte what '%d' (integer array) or '%.{decimals}f' (float array) writes.
+
+    Each row is laid out in a fixed-width character matrix (sign, digits of the magnitude
+    m = sum_i d_i 10^i written from d_0 leftwards, '.' before the last `decimals` digits,
+    separator); a leading zero d_i (i > decimals and m < 10^i) and an absent sign are masked,
+    and the kept characters, read row by row, are the text.
+    """
+    fields = [_magnitudes(np.asarray(values), decimals) for values, decimals in columns]
+    n = len(fields[0][0])
+    widths = [max(len(str(int(magnitude.max()))) if n else 1, decimals + 1) for magnitude, _, decimals in fields]
+    chars = np.empty((n, sum(w + 2 + (d > 0) for w, (_, _, d) in zip(widths, fields))), dtype=np.uint8)
+    kept = np.ones(chars.shape, dtype=bool)
+    column = 0
+    for index, ((magnitude, negative, decimals), width) in enumerate(zip(fields, widths)):
+        chars[:, column], kept[:, column] = ord("-"), negative
+        separator = column + 1 + width + (decimals > 0)
+        rest = magnitude
+        for i in range(width):                      # digit d_i of m, i = 0 the last one written
+            at = separator - 1 - i - (0 < decimals <= i)
+            quotient = rest // 10
+            chars[:, at] = rest - 10 * quotient + ord("0")
+            if i > decimals:
+                kept[:, at] = rest > 0
+            rest = quotient
+        if decimals:
+            chars[:, separator - 1 - decimals] = ord(".")
+        chars[:, separator] = ord("\n") if index == len(fields) - 1 else ord(" ")
+        column = separator + 1
+    return chars[kept].tobytes().decode("ascii")
 
 
-def imu_lines(campaign: Campaign, traj: Trajectory, rng, noise_model: str, clock_ms: int) -> list[str]:
+def lines_text(lines: list[str]) -> str:
+    """A log file's text from its lines: each line followed by '\\n'."""
+    return "\n".join(lines) + "\n"
+
+
+def _sorted(values: np.ndarray) -> np.ndarray:
+    """np.sort(values) for finite floats without -0.0, skipping the sort when they are already in
+    order (a jitter much smaller than the sampling period almost never reorders samples): equal
+    finite values other than +-0 have equal bits, so both give the same array."""
+    return values if np.all(values[1:] >= values[:-1]) else np.sort(values)
+
+
+def imu_text(campaign: Campaign, traj: Trajectory, rng, noise_model: str, clock_ms: int) -> str:
     """`imu.log`: sensor-clock time (3 decimals, jittered, some samples dropped) and raw counts."""
     spec = dict(campaign.section("imu"), noise_model=noise_model)
     g = campaign.spec["gravity_mps2"]
@@ -69,7 +104,7 @@ def imu_lines(campaign: Campaign, traj: Trajectory, rng, noise_model: str, clock
     nominal = np.arange(0.0, traj.duration * 1000, period_ms)
     t_ms = nominal + rng.normal(0.0, spec["timestamp_jitter_ms"], len(nominal))
     kept = rng.random(len(t_ms)) >= spec["drop_rate"]
-    t_ms = np.sort(t_ms[kept])
+    t_ms = _sorted(t_ms[kept])
     state = positions(campaign, traj, t_ms / 1000.0)
     force, yaw_rate = imu_model.body_motion(state["v"], state["a"], state["curvature"], g)
     accel, gyro = imu_model.sensor_readings(t_ms / 1000.0, force, yaw_rate, state["v"], spec, g, rng)
@@ -78,28 +113,33 @@ def imu_lines(campaign: Campaign, traj: Trajectory, rng, noise_model: str, clock
               f"# accel_lsb_per_g={spec['accel_lsb_per_g']:g} gyro_lsb_per_dps={spec['gyro_lsb_per_dps']:g}",
               "# t_ms ax ay az gz"]
     acc_counts = np.asarray(acc_counts)
-    return header + format_rows([(t_ms + clock_ms, 3), *((column, 0) for column in acc_counts.T),
-                                 (np.asarray(gyro_counts), 0)])
+    return lines_text(header) + format_text([(t_ms + clock_ms, 3), *((column, 0) for column in acc_counts.T),
+                                             (np.asarray(gyro_counts), 0)])
 
 
-def truth_lines(campaign: Campaign, traj: Trajectory, clock_ms: int, column: str) -> list[str]:
+def imu_lines(campaign: Campaign, traj: Trajectory, rng, noise_model: str, clock_ms: int) -> list[str]:
+    """The lines of `imu.log` (imu_text), without line ends."""
+    return imu_text(campaign, traj, rng, noise_model, clock_ms).splitlines()
+
+
+def truth_text(campaign: Campaign, traj: Trajectory, clock_ms: int, column: str) -> str:
     """`truth.log`: position along the path (`rail_m` or `path_m`) at the truth rate."""
     spec = campaign.section("truth")
     period_ms = 1000.0 / spec["rate_hz"]
     t_ms = np.arange(0.0, traj.duration * 1000 + 1e-9, period_ms)
     s = np.round(traj.at(t_ms / 1000.0)["s"] / spec["resolution_m"]) * spec["resolution_m"]
     decimals = max(0, int(round(-np.log10(spec["resolution_m"]))))
-    lines = [f"# {campaign.format}-truth v1", f"# t_ms {column}"]
-    return lines + format_rows([(np.rint(t_ms).astype(np.int64) + clock_ms, 0), (s, decimals)])
+    header = [f"# {campaign.format}-truth v1", f"# t_ms {column}"]
+    return lines_text(header) + format_text([(np.rint(t_ms).astype(np.int64) + clock_ms, 0), (s, decimals)])
 
 
-def write_run(out_dir: Path, files: dict[str, list[str]], campaign: Campaign, scenario: str,
+def write_run(out_dir: Path, files: dict[str, str], campaign: Campaign, scenario: str,
               seeds: np.random.SeedSequence, meta: dict) -> Path:
-    """Write the log files and meta.yaml (no wall-clock date, so reruns are byte-identical)."""
+    """Write the log files (name: text) and meta.yaml (no wall-clock date, so reruns are byte-identical)."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    for name, lines in files.items():
-        (out_dir / name).write_text("\n".join(lines) + "\n", encoding="ascii")
+    for name, text in files.items():
+        (out_dir / name).write_text(text, encoding="ascii")
     record = {
         "generator": f"{GENERATOR} {__version__}",
         "campaign": campaign.name,

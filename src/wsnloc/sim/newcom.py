@@ -11,10 +11,11 @@ from pathlib import Path
 
 import numpy as np
 from wsnloc.campaign import Campaign
+from wsnloc.geometry.walls import count_crossings
 from wsnloc.sim import rss as rss_model
 from wsnloc.sim import trajectory as motion
 from wsnloc.sim import uwb_channel
-from wsnloc.sim.logs import imu_lines, positions as _positions, truth_lines, write_run
+from wsnloc.sim.logs import imu_text, lines_text, positions as _positions, truth_text, write_run
 from wsnloc.sim.seeding import model_rng
 
 
@@ -32,6 +33,39 @@ def uwb_settings(campaign: Campaign, overrides: dict) -> dict:
     if overrides.get("uwb_channel_only", False):
         spec.update(IMPAIRMENTS_BESIDES_CHANNEL)
     return spec
+
+
+def _crossable_pieces(pieces: np.ndarray, points: np.ndarray, anchor: np.ndarray) -> np.ndarray:
+    """The wall pieces (M, 4) that a link from one of `points` (N, 2) to `anchor` (2,) may cross.
+
+    A horizontal piece (y1 == y2 = c) is crossed only if the link's end points lie strictly on
+    opposite sides of y = c; for such a piece count_crossings' side test of the link's end points
+    is wx (y - c) - 0 (x - x1), whose float sign is that of y - c or 0 (a float subtraction is
+    zero only for equal operands), so a piece with the anchor on y = c, or every point on the
+    anchor's side or on the line, counts 0 for every point and is left out; likewise a vertical
+    piece (x1 == x2) with x. Other pieces are kept. Counts are therefore unchanged, exactly.
+    """
+    x1, y1, x2, y2 = pieces.T
+    keep = np.ones(len(pieces), dtype=bool)
+    for aligned, line, coordinate, a in ((y1 == y2, y1, points[:, 1], anchor[1]),
+                                         (x1 == x2, x1, points[:, 0], anchor[0])):
+        opposite = ((a > line) & (coordinate.min() < line)) | ((a < line) & (coordinate.max() > line))
+        keep &= ~aligned | opposite
+    return pieces[keep]
+
+
+def _walls_crossed(campaign: Campaign, points: np.ndarray, anchor: np.ndarray) -> np.ndarray:
+    """campaign.walls_between(points, anchor), the same integers at less cost: repeated
+    consecutive points (the cart at rest) are counted once, and only the pieces a link can
+    cross (_crossable_pieces) are tested. points (N, 2) and anchor (2,) in m."""
+    points = np.asarray(points, dtype=float)
+    if len(points) == 0:
+        return campaign.walls_between(points, anchor)
+    moved = np.ones(len(points), dtype=bool)
+    moved[1:] = np.any(points[1:] != points[:-1], axis=1)
+    distinct = points[moved]
+    counts = count_crossings(distinct, anchor, _crossable_pieces(campaign.walls, distinct, anchor))
+    return counts[np.cumsum(moved) - 1]
 
 
 def twr_clock_bias_m(spec: dict, rng: np.random.Generator, n_anchors: int, c: float) -> np.ndarray:
@@ -65,7 +99,7 @@ def _uwb_lines(campaign: Campaign, spec: dict, traj, rng_time, rng_channel, rng_
     round_ms = rounds + rng_time.uniform(-jitter, jitter, len(rounds))
     times_ms = np.round(round_ms[:, None] + np.arange(len(anchors))[None, :] * spec["anchor_spacing_ms"])
     pos = _positions(campaign, traj, times_ms.ravel() / 1000.0)["xy"].reshape(len(rounds), len(anchors), 2)
-    walls = np.column_stack([campaign.walls_between(pos[:, j], a) for j, a in
+    walls = np.column_stack([_walls_crossed(campaign, pos[:, j], a) for j, a in
                              enumerate(anchors[["x", "y"]].to_numpy(float))])
     dist = np.hypot(pos[..., 0] - anchors["x"].to_numpy()[None, :], pos[..., 1] - anchors["y"].to_numpy()[None, :])
     linked = ((walls == 0) & (dist <= spec["los_max_range_m"])) | \
@@ -103,7 +137,7 @@ def _zigbee_lines(campaign: Campaign, traj, rng, clock_ms: int) -> list[str]:
     xy = state["xy"]
     axy = anchors[["x", "y"]].to_numpy(float)
     dist = np.hypot(xy[:, None, 0] - axy[None, :, 0], xy[:, None, 1] - axy[None, :, 1])
-    walls = np.column_stack([campaign.walls_between(xy, a) for a in axy])
+    walls = np.column_stack([_walls_crossed(campaign, xy, a) for a in axy])
     shadow = rss_model.correlated_shadowing(state["s"], len(anchors), spec["shadowing_sigma_db"],
                                             spec["shadowing_decorrelation_m"], rng)
     power = rss_model.mean_rss_dbm(dist, walls, spec["p0_dbm"], spec["d0_m"],
@@ -111,15 +145,35 @@ def _zigbee_lines(campaign: Campaign, traj, rng, clock_ms: int) -> list[str]:
         + shadow + rng.normal(0.0, spec["fast_fading_sigma_db"], dist.shape)
     rssi = np.round(power).astype(int)
     heard = (rssi >= spec["sensitivity_dbm"]) & (rng.random(dist.shape) >= spec["reply_loss"])
+    return ["# newcom-zigbee v1", "# t_ms seq n anchor:rssi_dbm ..."] + _broadcast_lines(
+        times_ms, heard, rssi, anchors["anchor_id"].tolist(), clock_ms)
+
+
+def _pair_texts(anchor: np.ndarray, rssi: np.ndarray, ids: list[str]) -> list[str]:
+    """'<id>:<rssi>' of each (anchor index, integer RSSI in dBm) pair, each distinct pair
+    formatted once (a run repeats a few hundred distinct pairs tens of thousands of times)."""
+    if len(rssi) == 0:
+        return []
+    low = int(rssi.min())
+    span = int(rssi.max()) - low + 1
+    distinct, index = np.unique(anchor * span + (rssi - low), return_inverse=True)
+    texts = np.array([f"{ids[code // span]}:{code % span + low}" for code in distinct.tolist()], dtype=object)
+    return texts[index].tolist()
+
+
+def _broadcast_lines(times_ms: np.ndarray, heard: np.ndarray, rssi: np.ndarray, ids: list[str],
+                     clock_ms: int) -> list[str]:
+    """`zigbee.log` data lines 't_ms seq n id:rssi ...', one per broadcast heard by at least
+    one anchor (none heard: a gap in seq), pairs in anchor order; times_ms (N,) broadcast
+    times, heard and rssi (N, anchors), t_ms = int(time) + clock_ms, seq = (b + 1) mod 256."""
     k, j = np.nonzero(heard)                                  # row-major: per broadcast, anchor order
-    pairs = list(map("%s:%d".__mod__, zip(anchors["anchor_id"].to_numpy(object)[j].tolist(), rssi[k, j].tolist())))
+    pairs = _pair_texts(j, rssi[k, j], ids)
     counts = heard.sum(axis=1)
     ends = np.cumsum(counts)
-    lines = ["# newcom-zigbee v1", "# t_ms seq n anchor:rssi_dbm ..."]
-    for b in np.flatnonzero(counts).tolist():                 # none heard: a gap in seq
-        lines.append(f"{int(times_ms[b]) + clock_ms} {(b + 1) % 256} {counts[b]} "
-                     + " ".join(pairs[ends[b] - counts[b]:ends[b]]))
-    return lines
+    rows = np.flatnonzero(counts)
+    return [f"{t} {(b + 1) % 256} {n} " + " ".join(pairs[end - n:end]) for b, t, n, end in zip(
+        rows.tolist(), (times_ms[rows].astype(np.int64) + clock_ms).tolist(), counts[rows].tolist(),
+        ends[rows].tolist())]
 
 
 def simulate_run(campaign: Campaign, scenario: str, seeds: np.random.SeedSequence, out_dir: Path,
@@ -138,12 +192,13 @@ def simulate_run(campaign: Campaign, scenario: str, seeds: np.random.SeedSequenc
 
     traj = motion.for_scenario(scenario_spec, campaign.path.length, model_rng(seeds, "motion"))
     files = {
-        "uwb.log": _uwb_lines(campaign, uwb_settings(campaign, overrides), traj, model_rng(seeds, "uwb-timing"),
-                              model_rng(seeds, "uwb-channel"), model_rng(seeds, "uwb-faults"), model_rng(seeds, "uwb-clock"),
-                              detector, clock_ms),
-        "zigbee.log": _zigbee_lines(campaign, traj, model_rng(seeds, "zigbee"), clock_ms),
-        "imu.log": imu_lines(campaign, traj, model_rng(seeds, "imu"), imu_noise, clock_ms),
-        "truth.log": truth_lines(campaign, traj, clock_ms, "rail_m"),
+        "uwb.log": lines_text(_uwb_lines(campaign, uwb_settings(campaign, overrides), traj,
+                                         model_rng(seeds, "uwb-timing"), model_rng(seeds, "uwb-channel"),
+                                         model_rng(seeds, "uwb-faults"), model_rng(seeds, "uwb-clock"),
+                                         detector, clock_ms)),
+        "zigbee.log": lines_text(_zigbee_lines(campaign, traj, model_rng(seeds, "zigbee"), clock_ms)),
+        "imu.log": imu_text(campaign, traj, model_rng(seeds, "imu"), imu_noise, clock_ms),
+        "truth.log": truth_text(campaign, traj, clock_ms, "rail_m"),
     }
     return write_run(out_dir, files, campaign, scenario, seeds,
                      {"uwb_detector": detector, "imu_noise_model": imu_noise, **(meta or {})})

@@ -21,11 +21,10 @@ def correlated_shadowing(arc_length: np.ndarray, n_anchors: int, sigma_db: float
     step = np.abs(np.diff(arc_length, prepend=arc_length[:1]))
     rho = np.exp(-step / decorrelation_m)
     innovations = rng.normal(0.0, sigma_db, (len(arc_length), n_anchors))
-    out = np.empty_like(innovations)
+    out = np.sqrt(1.0 - rho**2)[:, None] * innovations         # sqrt(1 - rho_k^2) sigma e_k, all k at once
     out[0] = innovations[0]
-    scale = np.sqrt(1.0 - rho**2)
-    for k in range(1, len(arc_length)):
-        out[k] = rho[k] * out[k - 1] + scale[k] * innovations[k]
+    for k in range(1, len(arc_length)):                       # + rho_k X_{k-1} (a + b == b + a in floats)
+        out[k] += rho[k] * out[k - 1]
     return out
 
 

@@ -37,6 +37,55 @@ def check_detector(detector: str) -> None:
         raise ValueError(f"unknown UWB detector {detector!r} (expected first_path or strongest_path)")
 
 
+def _ray_delays(rng: np.random.Generator, n_clusters: int, n_rays: int, beta: float, l1: float, l2: float,
+                limit: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Ray arrival times (ns after their cluster's arrival) of `n_clusters` clusters, flat, and
+    the number of rays kept per cluster (those with tau < limit, limit in ns per cluster).
+
+    Draws u ~ U(0, 1) and e ~ Exp(1), both (n_clusters, n_rays), in that order; the inter-arrival
+    time is e / l1 where u < beta, else e / l2 (two-process mixture, rates in 1/ns), 0 for the
+    first ray, and tau_k = sum_{i <= k} inter_i (sequential cumsum). tau never decreases along
+    a row, so the kept rays are a prefix of each row (at least the first, tau = 0 < limit).
+    """
+    shape = (n_clusters, n_rays)
+    slow = rng.random(shape) < beta
+    draws = rng.exponential(1.0, shape)
+    inter = draws / l2
+    np.divide(draws, l1, out=inter, where=slow)
+    inter[:, 0] = 0.0                                      # first ray at the cluster arrival
+    tau = np.cumsum(inter, axis=1, out=inter)
+    kept = tau < limit[:, None]
+    return tau[kept], np.count_nonzero(kept, axis=1)
+
+
+def _mean_ray_power(model: dict, omega: np.ndarray, decay: np.ndarray, first_cluster: np.ndarray,
+                    tau: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Mean ray power E|a|^2 of every ray (flat, `counts` rays per cluster; omega, decay (ns)
+    and first_cluster per cluster, tau in ns):
+
+        Omega_l / (gamma (1 - beta) l1 + beta l2 + 1)) exp(-tau / gamma), and for the rays of a
+        diffuse first cluster (CM4) Omega_1 (1 - chi exp(-tau/gamma_rise)) exp(-tau/gamma_1)
+        (gamma_1 + gamma_rise) / (gamma_1 (gamma_1 + gamma_rise (1 - chi))).
+
+    The per-cluster factor Omega_l / (gamma ...) is computed once per cluster and repeated over
+    its rays (the same floats as per ray).
+    """
+    beta, l1, l2 = model["ray_mixture_beta"], model["ray_rate_1_per_ns"], model["ray_rate_2_per_ns"]
+    scale = np.repeat(omega / (decay * ((1 - beta) * l1 + beta * l2 + 1)), counts)
+    decay_ray = np.repeat(decay, counts)
+    if not model.get("diffuse_first_cluster", False):
+        return scale * np.exp(-tau / decay_ray)
+    first = np.repeat(first_cluster, counts)
+    later = ~first
+    power = np.empty(len(tau))
+    power[later] = scale[later] * np.exp(-tau[later] / decay_ray[later])
+    rise, g1, chi = model["rise_ns"], model["first_cluster_decay_ns"], model["diffuse_chi"]
+    tau_1 = tau[first]
+    power[first] = np.repeat(omega[first_cluster], counts[first_cluster]) * (1 - chi * np.exp(-tau_1 / rise)) \
+        * np.exp(-tau_1 / g1) * (g1 + rise) / (g1 * (g1 + rise * (1 - chi)))
+    return power
+
+
 def impulse_responses(model: dict, rng: np.random.Generator, n_links: int
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """`n_links` independent channel realisations, as flat arrays over all their rays:
@@ -52,35 +101,27 @@ def impulse_responses(model: dict, rng: np.random.Generator, n_links: int
     omega = 10 ** (energy_db / 10)
 
     link, cluster = np.nonzero(clusters)               # the drawn clusters, flat
-    beta, l1, l2 = model["ray_mixture_beta"], model["ray_rate_1_per_ns"], model["ray_rate_2_per_ns"]
-    diffuse = bool(model.get("diffuse_first_cluster", False))
+    first_cluster = cluster == 0
     decay = np.full(len(link), float(model["ray_decay_ns"]))
-    if diffuse:
-        decay[cluster == 0] = model["first_cluster_decay_ns"]
+    if model.get("diffuse_first_cluster", False):
+        decay[first_cluster] = model["first_cluster_decay_ns"]
+    l1, l2 = model["ray_rate_1_per_ns"], model["ray_rate_2_per_ns"]
     n_rays = int(RAY_SPAN * decay.max() * max(l1, l2) * 1.3) + 10
-    shape = (len(link), n_rays)
-    rate = np.where(rng.random(shape) < beta, l1, l2)     # two-process mixture of arrival rates
-    inter = rng.exponential(1.0, shape) / rate
-    inter[:, 0] = 0.0                                      # first ray at the cluster arrival
-    tau = np.cumsum(inter, axis=1)
-    row, ray = np.nonzero(tau < RAY_SPAN * decay[:, None])
-    tau, decay = tau[row, ray], decay[row]
+    tau, counts = _ray_delays(rng, len(link), n_rays, model["ray_mixture_beta"], l1, l2, RAY_SPAN * decay)
+    mean_power = _mean_ray_power(model, omega[link, cluster], decay, first_cluster, tau, counts)
 
-    omega_ray = omega[link, cluster][row]
-    mean_power = omega_ray / (decay * ((1 - beta) * l1 + beta * l2 + 1)) * np.exp(-tau / decay)
-    if diffuse:
-        rise, g1, chi = model["rise_ns"], model["first_cluster_decay_ns"], model["diffuse_chi"]
-        first = cluster[row] == 0
-        mean_power[first] = omega_ray[first] * (1 - chi * np.exp(-tau[first] / rise)) * np.exp(-tau[first] / g1) \
-            * (g1 + rise) / (g1 * (g1 + rise * (1 - chi)))
-    m = np.maximum(np.exp(rng.normal(model["nakagami_m0"], model["nakagami_sigma_m0"], len(row))), 0.5)
+    m = np.exp(rng.normal(model["nakagami_m0"], model["nakagami_sigma_m0"], len(tau)))
+    np.maximum(m, 0.5, out=m)
     if model.get("first_ray_m") is not None:
-        m[ray == 0] = model["first_ray_m"]
-    power = rng.gamma(m, mean_power / m)
-    phase = rng.uniform(0.0, 2 * np.pi, len(row))
-    magnitude = np.sqrt(power)
-    delays = cluster_t[link, cluster][row] + tau
-    return link[row], delays, magnitude * np.cos(phase) + 1j * (magnitude * np.sin(phase))
+        m[np.cumsum(counts) - counts] = model["first_ray_m"]   # the first ray of each cluster
+    power = rng.gamma(m, np.divide(mean_power, m, out=mean_power))
+    phase = rng.uniform(0.0, 2 * np.pi, len(tau))
+    magnitude = np.sqrt(power, out=power)
+    amplitudes = np.empty(len(tau), dtype=complex)
+    amplitudes.real = magnitude * np.cos(phase)
+    amplitudes.imag = magnitude * np.sin(phase)
+    delays = np.repeat(cluster_t[link, cluster], counts) + tau
+    return np.repeat(link, counts), delays, amplitudes
 
 
 def tap_powers(link: np.ndarray, delays: np.ndarray, amplitudes: np.ndarray, tap_ns: float,
