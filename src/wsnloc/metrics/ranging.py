@@ -82,13 +82,24 @@ def fit_path_loss(rss_dbm, distance_m, d0_m: float = 1.0) -> dict[str, float]:
             "samples": int(keep.sum())}
 
 
+RANGE_FIT_TOLERANCE_M = 1e-11     # IRLS stops when no fitted range moves by more than this (m)
+RANGE_FIT_MAX_ITERATIONS = 1000
+
+
 def fit_range_bias(range_m, true_distance_m, anchor_id) -> dict:
     """Robust fit of r = s d + b_a + e: a common scale s and one offset b_a (m) per anchor.
 
-    Linear least squares in (s, b_1 .. b_m) with the soft-L1 loss (scipy least_squares),
-    its scale f the normalised MAD of the ordinary least-squares residual, so that
-    reflections and NLOS ranges (a few, large, one-sided) do not pull the fit; sigma_m is
-    the normalised MAD of the robust residual. Needs two distinct distances per anchor.
+    Minimises the soft-L1 (pseudo-Huber) cost sum_i f^2 (sqrt(1 + (e_i / f)^2) - 1) of the
+    residuals e_i = r_i - s d_i - b_a(i), its scale f the normalised MAD of the ordinary
+    least-squares residual (at least 1 mm), so that reflections and NLOS ranges (a few, large,
+    one-sided) do not pull the fit; sigma_m is the normalised MAD of the robust residual.
+    Needs two distinct distances for at least one anchor.
+
+    The cost is convex and its minimiser solves sum_i w_i e_i (d_i, 1_a(i)) = 0 with
+    w_i = 1 / sqrt(1 + (e_i / f)^2): iteratively reweighted least squares (_weighted_line
+    with the weights of the previous fit, from the ordinary fit w = 1) lowers the cost at
+    every step and stops when no fitted range s d_i + b_a(i) moves by more than
+    RANGE_FIT_TOLERANCE_M; the minimiser is scipy.optimize.least_squares(loss="soft_l1")'s.
     """
     r = np.asarray(range_m, dtype=float)
     d = np.asarray(true_distance_m, dtype=float)
@@ -98,14 +109,32 @@ def fit_range_bias(range_m, true_distance_m, anchor_id) -> dict:
     anchors, column = np.unique(ids, return_inverse=True)
     if len(r) < len(anchors) + 2:
         raise ValueError(f"range calibration needs more samples than unknowns ({len(r)} for {len(anchors) + 1})")
-    design = np.zeros((len(r), 1 + len(anchors)))
-    design[:, 0] = d
-    design[np.arange(len(r)), 1 + column] = 1.0
-    start, *_ = np.linalg.lstsq(design, r, rcond=None)
-    f_scale = max(1.4826 * np.median(np.abs(r - design @ start)), 1e-3)
-    from scipy.optimize import least_squares    # here: ingest and estimator jobs load no scipy
-
-    fit = least_squares(lambda q: design @ q - r, start, loss="soft_l1", f_scale=f_scale)
-    residual = r - design @ fit.x
-    return {"scale": float(fit.x[0]), "offsets_m": {str(a): float(b) for a, b in zip(anchors, fit.x[1:])},
+    scale, offsets = _weighted_line(r, d, column, np.ones(len(r)))
+    f_scale = max(1.4826 * np.median(np.abs(r - scale * d - offsets[column])), 1e-3)
+    for _ in range(RANGE_FIT_MAX_ITERATIONS):
+        residual = r - scale * d - offsets[column]
+        new_scale, new_offsets = _weighted_line(r, d, column, 1.0 / np.sqrt(1.0 + (residual / f_scale) ** 2))
+        moved = np.max(np.abs((new_scale - scale) * d + (new_offsets - offsets)[column]))
+        scale, offsets = new_scale, new_offsets
+        if moved <= RANGE_FIT_TOLERANCE_M:
+            break
+    else:
+        raise ValueError(f"range calibration: no convergence in {RANGE_FIT_MAX_ITERATIONS} iterations")
+    residual = r - scale * d - offsets[column]
+    return {"scale": float(scale), "offsets_m": {str(a): float(b) for a, b in zip(anchors, offsets)},
             "sigma_m": float(1.4826 * np.median(np.abs(residual - np.median(residual)))), "samples": int(len(r))}
+
+
+def _weighted_line(r: np.ndarray, d: np.ndarray, column: np.ndarray, w: np.ndarray) -> tuple[float, np.ndarray]:
+    """Weighted least squares of r = s d + b_a (a = column, weights w): the scale from the
+    per-anchor centred samples, s = sum w (d - dbar_a)(r - rbar_a) / sum w (d - dbar_a)^2, and
+    b_a = rbar_a - s dbar_a, with dbar_a, rbar_a the weighted means of anchor a's samples."""
+    total = np.bincount(column, w)
+    d_mean = np.bincount(column, w * d) / total
+    r_mean = np.bincount(column, w * r) / total
+    dc = d - d_mean[column]
+    spread = np.sum(w * dc * dc)
+    if not spread > 0:
+        raise ValueError("range calibration needs two distinct distances to one anchor")
+    scale = np.sum(w * dc * (r - r_mean[column])) / spread
+    return scale, r_mean - scale * d_mean
