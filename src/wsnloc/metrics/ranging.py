@@ -21,33 +21,51 @@ def truth_at(truth: pd.DataFrame, t: np.ndarray) -> np.ndarray:
 
 def _with_geometry(frame: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign,
                    anchors: pd.DataFrame | None = None) -> pd.DataFrame:
-    """Add true distance (m) and walls crossed between the true position and the anchor.
+    """The rows of frame inside the truth span with the true position (true_x, true_y, m), the
+    true distance (m) and the walls crossed between the true position and the anchor (los: none).
 
     The distance is 3-D, sqrt(dx^2 + dy^2 + (z_anchor - h_tag)^2), when the anchor has a
     height and the campaign gives the tag height; otherwise 2-D.
     """
-    frame = frame.copy()
     position = truth_at(truth, frame["t"].to_numpy())
-    frame["true_x"], frame["true_y"] = position[:, 0], position[:, 1]
-    frame = frame[np.isfinite(frame["true_x"])]
+    inside = np.flatnonzero(np.isfinite(position[:, 0]))
+    frame, position = frame.take(inside), position[inside]
     anchors = campaign.anchors if anchors is None else anchors
-    heights = anchors["z"] if "z" in anchors else np.full(len(anchors), np.nan)
-    position_of = {a: (np.array([x, y], dtype=float), float(z))
-                   for a, x, y, z in zip(anchors["anchor_id"], anchors["x"], anchors["y"], heights)}
-    tag_height = campaign.tag_height_m
-    points = frame[["true_x", "true_y"]].to_numpy()
-    distance = np.full(len(frame), np.nan)
-    walls = np.full(len(frame), -1)
-    for anchor_id, rows in frame.groupby("anchor_id").indices.items():
-        a, z = position_of[anchor_id]
-        dz = z - tag_height if tag_height is not None and np.isfinite(z) else 0.0
-        pts = points[rows]
-        distance[rows] = np.sqrt((pts[:, 0] - a[0]) ** 2 + (pts[:, 1] - a[1]) ** 2 + dz**2)
-        walls[rows] = campaign.walls_between(pts, a)
-    frame["true_distance_m"] = distance
-    frame["walls"] = walls
-    frame["los"] = frame["walls"] == 0
-    return frame
+    slot = anchor_slots(frame["anchor_id"], anchors["anchor_id"])
+    if (slot < 0).any():
+        raise KeyError(f"anchors not in the anchor table: {sorted(set(frame['anchor_id'][slot < 0]))}")
+    anchor_xy = anchors[["x", "y"]].to_numpy(dtype=float)
+    distance = np.sqrt((position[:, 0] - anchor_xy[slot, 0]) ** 2 + (position[:, 1] - anchor_xy[slot, 1]) ** 2
+                       + _height_difference(anchors, campaign.tag_height_m)[slot] ** 2)
+    new = {"true_x": position[:, 0], "true_y": position[:, 1], "true_distance_m": distance,
+           "walls": _walls_per_anchor(position, slot, anchor_xy, campaign)}
+    new["los"] = new["walls"] == 0
+    return pd.concat([frame, pd.DataFrame(new, index=frame.index)], axis=1)
+
+
+def anchor_slots(anchor_of_rows: pd.Series, anchor_ids) -> np.ndarray:
+    """Position in anchor_ids of each row's anchor, -1 when not listed (or missing): the rows'
+    few distinct ids are looked up once (factorize), not every row."""
+    codes, uniques = pd.factorize(anchor_of_rows)
+    return np.append(pd.Index(anchor_ids).get_indexer(uniques), -1)[codes]
+
+
+def _height_difference(anchors: pd.DataFrame, tag_height: float | None) -> np.ndarray:
+    """Per anchor, z_anchor - h_tag (m); 0 when the anchor has no height or the tag none (2-D)."""
+    z = anchors["z"].to_numpy(dtype=float) if "z" in anchors else np.full(len(anchors), np.nan)
+    return np.where(np.isfinite(z), z - tag_height, 0.0) if tag_height is not None else np.zeros(len(anchors))
+
+
+def _walls_per_anchor(position: np.ndarray, slot: np.ndarray, anchor_xy: np.ndarray, campaign: Campaign) -> np.ndarray:
+    """Walls crossed by the link from each position (N, 2, m) to its anchor (row slot of
+    anchor_xy), counted one anchor at a time (its rows' (n, walls) arrays stay small)."""
+    walls = np.full(len(slot), -1)
+    order = np.argsort(slot, kind="stable")
+    starts = np.flatnonzero(np.diff(slot[order], prepend=-1))
+    for rows in np.split(order, starts[1:]):
+        if len(rows):
+            walls[rows] = campaign.walls_between(position[rows], anchor_xy[slot[rows[0]]])
+    return walls
 
 
 def range_errors(ranges: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign,

@@ -241,7 +241,7 @@ def range_error_figure(errors: pd.DataFrame, title: str, max_points: int = 6000)
     for los, color, name in ((True, "tab:green", "LOS"), (False, "tab:purple", "NLOS")):
         e = errors.loc[errors["los"] == los, "error_m"].clip(bins[0], bins[-1]) if len(errors) else []
         if len(e):
-            hist.hist(e, bins=bins, color=color, alpha=0.6, density=True,
+            hist.hist(e, bins=bins, histtype="stepfilled", color=color, alpha=0.6, density=True,
                       label=f"{name}: n={len(e)}, median {np.median(e):.3f} m")
     hist.set_xlabel("range error [m] (clipped to [-1, 5])")
     hist.set_ylabel("density")
