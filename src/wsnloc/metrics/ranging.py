@@ -47,7 +47,8 @@ def anchor_slots(anchor_of_rows: pd.Series, anchor_ids) -> np.ndarray:
     """Position in anchor_ids of each row's anchor, -1 when not listed (or missing): the rows'
     few distinct ids are looked up once (factorize), not every row."""
     codes, uniques = pd.factorize(anchor_of_rows)
-    return np.append(pd.Index(anchor_ids).get_indexer(uniques), -1)[codes]
+    slot_of = {anchor: k for k, anchor in enumerate(anchor_ids)}
+    return np.array([slot_of.get(anchor, -1) for anchor in uniques] + [-1])[codes]
 
 
 def _height_difference(anchors: pd.DataFrame, tag_height: float | None) -> np.ndarray:
