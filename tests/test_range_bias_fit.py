@@ -66,3 +66,18 @@ def test_fit_needs_more_samples_than_unknowns_and_two_distances():
         fit_range_bias([1.0, 2.0, 3.0], [1.0, 2.0, 3.0], ["A", "B", "C"])
     with pytest.raises(ValueError):
         fit_range_bias([1.0, 1.1, 0.9, 1.0], [1.0, 1.0, 1.0, 1.0], ["A", "A", "A", "A"])
+
+
+@pytest.mark.parametrize("seed, outlier_share", [(6, 0.05), (7, 0.4)])
+def test_fit_is_a_stationary_point_of_the_soft_l1_cost(seed, outlier_share):
+    """sum_i w_i e_i (d_i, 1_a(i)) = 0 with w_i = 1 / sqrt(1 + (e_i / f)^2), to rounding: the
+    IRLS fit is the minimiser itself (scipy's stops when the cost stalls, ~1e-8 m away)."""
+    r, d, ids, _ = ranges(n=20000, anchors=10, scale=1.01, outlier_share=outlier_share, seed=seed)
+    fit = fit_range_bias(r, d, ids)
+    anchors, column = np.unique(ids, return_inverse=True)
+    design = np.column_stack([d, (column[:, None] == np.arange(len(anchors))).astype(float)])
+    start, *_ = np.linalg.lstsq(design, r, rcond=None)
+    f_scale = 1.4826 * np.median(np.abs(r - design @ start))
+    residual = r - design @ np.r_[fit["scale"], [fit["offsets_m"][a] for a in anchors]]
+    gradient = design.T @ (residual / np.sqrt(1.0 + (residual / f_scale) ** 2))
+    assert np.abs(gradient).max() < 1e-11 * np.abs(design).sum(axis=0).max()   # scipy: 4e-10 at seed 7

@@ -235,7 +235,9 @@ def floor_plan(campaign: Campaign, track: pd.DataFrame | None = None, anchors: p
 def range_error_figure(errors: pd.DataFrame, title: str, max_points: int = 6000) -> bytes:
     """Range error (measured - true, m): histogram of LOS and NLOS links (left) and error against
     the true distance (right): a sample of the ranges, grey, and each anchor's median per 1 m bin,
-    so a per-anchor offset shows as a shifted line and a scale error as a slope."""
+    so a per-anchor offset shows as a shifted line and a scale error as a slope. Each histogram
+    is one filled step outline (histtype "stepfilled"), not 120 bar patches: the same pixels,
+    drawn and laid out at a fraction of the cost."""
     fig, (hist, dist) = plt.subplots(1, 2, figsize=(11, 3.8))
     bins = np.linspace(-1.0, 5.0, 121)
     for los, color, name in ((True, "tab:green", "LOS"), (False, "tab:purple", "NLOS")):
