@@ -12,12 +12,13 @@ import json
 import re
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from wsnloc import results
 from wsnloc.campaign import Campaign
 from wsnloc.io import tables
-from wsnloc.metrics.ranging import fit_path_loss, fit_range_bias, range_errors, rss_with_distance
+from wsnloc.metrics.ranging import anchor_slots, fit_path_loss, fit_range_bias, range_errors, rss_with_distance
 from wsnloc.metrics.stats import error_summary
 
 EXPERIMENT = "data"
@@ -161,23 +162,29 @@ def _range_error_stats(errors: pd.DataFrame, prefix: str, mask) -> dict[str, flo
 
 
 def _per_anchor_counts(runs: dict[str, dict[str, pd.DataFrame]]) -> pd.DataFrame:
-    """Mean number of measurements per run for each anchor (valid and flagged ranges, RSS)."""
+    """Mean number of measurements per run for each anchor (valid and flagged ranges, RSS),
+    over the runs whose anchor table lists it (0 in a run without its measurements)."""
     frames = []
-    for run, data in runs.items():
-        r = data["ranges"]
-        counts = pd.DataFrame({
-            "ranges_valid": r[r["status"] == 0].groupby("anchor_id").size(),
-            "ranges_flagged": r[r["status"] != 0].groupby("anchor_id").size(),
-            "rss": data["rss"].groupby("anchor_id").size(),
-        })
-        anchors = data["anchors"].set_index("anchor_id")
-        counts = counts.reindex(anchors.index).fillna(0).assign(tech=anchors["tech"], run=run)
-        frames.append(counts.reset_index())
+    for data in runs.values():
+        r, anchors = data["ranges"], data["anchors"]
+        valid = (r["status"] == 0).to_numpy()
+        frames.append(pd.DataFrame({
+            "anchor_id": anchors["anchor_id"], "tech": anchors["tech"],
+            "ranges_valid": _count_per_anchor(r["anchor_id"][valid], anchors["anchor_id"]),
+            "ranges_flagged": _count_per_anchor(r["anchor_id"][~valid], anchors["anchor_id"]),
+            "rss": _count_per_anchor(data["rss"]["anchor_id"], anchors["anchor_id"]),
+        }))
     if not frames:
         return pd.DataFrame(columns=["anchor_id", "tech", "ranges_valid", "ranges_flagged", "rss"])
     all_runs = pd.concat(frames)
     mean = all_runs.groupby(["anchor_id", "tech"], sort=False)[["ranges_valid", "ranges_flagged", "rss"]].mean()
     return mean.round(1).reset_index()
+
+
+def _count_per_anchor(anchor_of_rows: pd.Series, anchor_ids: pd.Series) -> np.ndarray:
+    """Number of rows (float) of each of anchor_ids; rows of anchors not listed are not counted."""
+    slot = anchor_slots(anchor_of_rows, anchor_ids)
+    return np.bincount(slot[slot >= 0], minlength=len(anchor_ids)).astype(float)
 
 
 def per_anchor_range_quality(errors: pd.DataFrame) -> pd.DataFrame:

@@ -21,33 +21,52 @@ def truth_at(truth: pd.DataFrame, t: np.ndarray) -> np.ndarray:
 
 def _with_geometry(frame: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign,
                    anchors: pd.DataFrame | None = None) -> pd.DataFrame:
-    """Add true distance (m) and walls crossed between the true position and the anchor.
+    """The rows of frame inside the truth span with the true position (true_x, true_y, m), the
+    true distance (m) and the walls crossed between the true position and the anchor (los: none).
 
     The distance is 3-D, sqrt(dx^2 + dy^2 + (z_anchor - h_tag)^2), when the anchor has a
     height and the campaign gives the tag height; otherwise 2-D.
     """
-    frame = frame.copy()
     position = truth_at(truth, frame["t"].to_numpy())
-    frame["true_x"], frame["true_y"] = position[:, 0], position[:, 1]
-    frame = frame[np.isfinite(frame["true_x"])]
+    inside = np.flatnonzero(np.isfinite(position[:, 0]))
+    frame, position = frame.take(inside), position[inside]
     anchors = campaign.anchors if anchors is None else anchors
-    heights = anchors["z"] if "z" in anchors else np.full(len(anchors), np.nan)
-    position_of = {a: (np.array([x, y], dtype=float), float(z))
-                   for a, x, y, z in zip(anchors["anchor_id"], anchors["x"], anchors["y"], heights)}
-    tag_height = campaign.tag_height_m
-    points = frame[["true_x", "true_y"]].to_numpy()
-    distance = np.full(len(frame), np.nan)
-    walls = np.full(len(frame), -1)
-    for anchor_id, rows in frame.groupby("anchor_id").indices.items():
-        a, z = position_of[anchor_id]
-        dz = z - tag_height if tag_height is not None and np.isfinite(z) else 0.0
-        pts = points[rows]
-        distance[rows] = np.sqrt((pts[:, 0] - a[0]) ** 2 + (pts[:, 1] - a[1]) ** 2 + dz**2)
-        walls[rows] = campaign.walls_between(pts, a)
-    frame["true_distance_m"] = distance
-    frame["walls"] = walls
-    frame["los"] = frame["walls"] == 0
-    return frame
+    slot = anchor_slots(frame["anchor_id"], anchors["anchor_id"])
+    if (slot < 0).any():
+        raise KeyError(f"anchors not in the anchor table: {sorted(set(frame['anchor_id'][slot < 0]))}")
+    anchor_xy = anchors[["x", "y"]].to_numpy(dtype=float)
+    distance = np.sqrt((position[:, 0] - anchor_xy[slot, 0]) ** 2 + (position[:, 1] - anchor_xy[slot, 1]) ** 2
+                       + _height_difference(anchors, campaign.tag_height_m)[slot] ** 2)
+    new = {"true_x": position[:, 0], "true_y": position[:, 1], "true_distance_m": distance,
+           "walls": _walls_per_anchor(position, slot, anchor_xy, campaign)}
+    new["los"] = new["walls"] == 0
+    return pd.concat([frame, pd.DataFrame(new, index=frame.index)], axis=1)
+
+
+def anchor_slots(anchor_of_rows: pd.Series, anchor_ids) -> np.ndarray:
+    """Position in anchor_ids of each row's anchor, -1 when not listed (or missing): the rows'
+    few distinct ids are looked up once (factorize), not every row."""
+    codes, uniques = pd.factorize(anchor_of_rows)
+    slot_of = {anchor: k for k, anchor in enumerate(anchor_ids)}
+    return np.array([slot_of.get(anchor, -1) for anchor in uniques] + [-1])[codes]
+
+
+def _height_difference(anchors: pd.DataFrame, tag_height: float | None) -> np.ndarray:
+    """Per anchor, z_anchor - h_tag (m); 0 when the anchor has no height or the tag none (2-D)."""
+    z = anchors["z"].to_numpy(dtype=float) if "z" in anchors else np.full(len(anchors), np.nan)
+    return np.where(np.isfinite(z), z - tag_height, 0.0) if tag_height is not None else np.zeros(len(anchors))
+
+
+def _walls_per_anchor(position: np.ndarray, slot: np.ndarray, anchor_xy: np.ndarray, campaign: Campaign) -> np.ndarray:
+    """Walls crossed by the link from each position (N, 2, m) to its anchor (row slot of
+    anchor_xy), counted one anchor at a time (its rows' (n, walls) arrays stay small)."""
+    walls = np.full(len(slot), -1)
+    order = np.argsort(slot, kind="stable")
+    starts = np.flatnonzero(np.diff(slot[order], prepend=-1))
+    for rows in np.split(order, starts[1:]):
+        if len(rows):
+            walls[rows] = campaign.walls_between(position[rows], anchor_xy[slot[rows[0]]])
+    return walls
 
 
 def range_errors(ranges: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign,
@@ -82,13 +101,24 @@ def fit_path_loss(rss_dbm, distance_m, d0_m: float = 1.0) -> dict[str, float]:
             "samples": int(keep.sum())}
 
 
+RANGE_FIT_TOLERANCE_M = 1e-11     # IRLS stops when no fitted range moves by more than this (m)
+RANGE_FIT_MAX_ITERATIONS = 1000
+
+
 def fit_range_bias(range_m, true_distance_m, anchor_id) -> dict:
     """Robust fit of r = s d + b_a + e: a common scale s and one offset b_a (m) per anchor.
 
-    Linear least squares in (s, b_1 .. b_m) with the soft-L1 loss (scipy least_squares),
-    its scale f the normalised MAD of the ordinary least-squares residual, so that
-    reflections and NLOS ranges (a few, large, one-sided) do not pull the fit; sigma_m is
-    the normalised MAD of the robust residual. Needs two distinct distances per anchor.
+    Minimises the soft-L1 (pseudo-Huber) cost sum_i f^2 (sqrt(1 + (e_i / f)^2) - 1) of the
+    residuals e_i = r_i - s d_i - b_a(i), its scale f the normalised MAD of the ordinary
+    least-squares residual (at least 1 mm), so that reflections and NLOS ranges (a few, large,
+    one-sided) do not pull the fit; sigma_m is the normalised MAD of the robust residual.
+    Needs two distinct distances for at least one anchor.
+
+    The cost is convex and its minimiser solves sum_i w_i e_i (d_i, 1_a(i)) = 0 with
+    w_i = 1 / sqrt(1 + (e_i / f)^2): iteratively reweighted least squares (_weighted_line
+    with the weights of the previous fit, from the ordinary fit w = 1) lowers the cost at
+    every step and stops when no fitted range s d_i + b_a(i) moves by more than
+    RANGE_FIT_TOLERANCE_M; the minimiser is scipy.optimize.least_squares(loss="soft_l1")'s.
     """
     r = np.asarray(range_m, dtype=float)
     d = np.asarray(true_distance_m, dtype=float)
@@ -98,14 +128,32 @@ def fit_range_bias(range_m, true_distance_m, anchor_id) -> dict:
     anchors, column = np.unique(ids, return_inverse=True)
     if len(r) < len(anchors) + 2:
         raise ValueError(f"range calibration needs more samples than unknowns ({len(r)} for {len(anchors) + 1})")
-    design = np.zeros((len(r), 1 + len(anchors)))
-    design[:, 0] = d
-    design[np.arange(len(r)), 1 + column] = 1.0
-    start, *_ = np.linalg.lstsq(design, r, rcond=None)
-    f_scale = max(1.4826 * np.median(np.abs(r - design @ start)), 1e-3)
-    from scipy.optimize import least_squares    # here: ingest and estimator jobs load no scipy
-
-    fit = least_squares(lambda q: design @ q - r, start, loss="soft_l1", f_scale=f_scale)
-    residual = r - design @ fit.x
-    return {"scale": float(fit.x[0]), "offsets_m": {str(a): float(b) for a, b in zip(anchors, fit.x[1:])},
+    scale, offsets = _weighted_line(r, d, column, np.ones(len(r)))
+    f_scale = max(1.4826 * np.median(np.abs(r - scale * d - offsets[column])), 1e-3)
+    for _ in range(RANGE_FIT_MAX_ITERATIONS):
+        residual = r - scale * d - offsets[column]
+        new_scale, new_offsets = _weighted_line(r, d, column, 1.0 / np.sqrt(1.0 + (residual / f_scale) ** 2))
+        moved = np.max(np.abs((new_scale - scale) * d + (new_offsets - offsets)[column]))
+        scale, offsets = new_scale, new_offsets
+        if moved <= RANGE_FIT_TOLERANCE_M:
+            break
+    else:
+        raise ValueError(f"range calibration: no convergence in {RANGE_FIT_MAX_ITERATIONS} iterations")
+    residual = r - scale * d - offsets[column]
+    return {"scale": float(scale), "offsets_m": {str(a): float(b) for a, b in zip(anchors, offsets)},
             "sigma_m": float(1.4826 * np.median(np.abs(residual - np.median(residual)))), "samples": int(len(r))}
+
+
+def _weighted_line(r: np.ndarray, d: np.ndarray, column: np.ndarray, w: np.ndarray) -> tuple[float, np.ndarray]:
+    """Weighted least squares of r = s d + b_a (a = column, weights w): the scale from the
+    per-anchor centred samples, s = sum w (d - dbar_a)(r - rbar_a) / sum w (d - dbar_a)^2, and
+    b_a = rbar_a - s dbar_a, with dbar_a, rbar_a the weighted means of anchor a's samples."""
+    total = np.bincount(column, w)
+    d_mean = np.bincount(column, w * d) / total
+    r_mean = np.bincount(column, w * r) / total
+    dc = d - d_mean[column]
+    spread = np.sum(w * dc * dc)
+    if not spread > 0:
+        raise ValueError("range calibration needs two distinct distances to one anchor")
+    scale = np.sum(w * dc * (r - r_mean[column])) / spread
+    return scale, r_mean - scale * d_mean

@@ -235,13 +235,15 @@ def floor_plan(campaign: Campaign, track: pd.DataFrame | None = None, anchors: p
 def range_error_figure(errors: pd.DataFrame, title: str, max_points: int = 6000) -> bytes:
     """Range error (measured - true, m): histogram of LOS and NLOS links (left) and error against
     the true distance (right): a sample of the ranges, grey, and each anchor's median per 1 m bin,
-    so a per-anchor offset shows as a shifted line and a scale error as a slope."""
+    so a per-anchor offset shows as a shifted line and a scale error as a slope. Each histogram
+    is one filled step outline (histtype "stepfilled"), not 120 bar patches: the same pixels,
+    drawn and laid out at a fraction of the cost."""
     fig, (hist, dist) = plt.subplots(1, 2, figsize=(11, 3.8))
     bins = np.linspace(-1.0, 5.0, 121)
     for los, color, name in ((True, "tab:green", "LOS"), (False, "tab:purple", "NLOS")):
         e = errors.loc[errors["los"] == los, "error_m"].clip(bins[0], bins[-1]) if len(errors) else []
         if len(e):
-            hist.hist(e, bins=bins, color=color, alpha=0.6, density=True,
+            hist.hist(e, bins=bins, histtype="stepfilled", color=color, alpha=0.6, density=True,
                       label=f"{name}: n={len(e)}, median {np.median(e):.3f} m")
     hist.set_xlabel("range error [m] (clipped to [-1, 5])")
     hist.set_ylabel("density")
