@@ -141,41 +141,57 @@ class _Run:
 
 
 def pack(runs: list[_Run], period: float) -> Measurements:
-    """The epochs of every run (MeasurementSource.epochs: per-anchor means; ranges first,
-    then RSS, as in MeasurementSource.model) in one padded Measurements; cells sharing a
-    measurement source (e.g. a row with and without motion detection) are packed once."""
-    epochs = [r.source.epochs(r.times, period) for r in runs]
-    width = max([len(e.ranges) + len(e.rss) for es in epochs for e in es] + [1])
+    """The epochs of every run (MeasurementSource.epoch_means: per-anchor means; ranges first,
+    then RSS, each by anchor id, as in MeasurementSource.epochs and .model) in one padded
+    Measurements; cells sharing a measurement source and grid (e.g. a row with and without
+    motion detection) are packed once."""
+    flat = {}
+    for run in runs:
+        key = (id(run.source), id(run.times))
+        if key not in flat:
+            flat[key] = _flatten(run, period)
+    width = max([int(counts.max(initial=0)) for _, counts, _ in flat.values()] + [1])
     out = Measurements.empty(len(runs), max([len(r.times) for r in runs] + [0]), width)
     packed: dict[tuple, int] = {}
-    for i, (run, run_epochs) in enumerate(zip(runs, epochs)):
-        same = packed.setdefault((id(run.source), id(run_epochs)), i)
+    for i, run in enumerate(runs):
+        key = (id(run.source), id(run.times))
+        same = packed.setdefault(key, i)
         if same != i:
             for field in fields(out):
                 getattr(out, field.name)[i] = getattr(out, field.name)[same]
-        elif run_epochs:
-            _fill(out, i, run, run_epochs)
+        else:
+            _fill(out, i, run, *flat[key])
     return out
 
 
-def _fill(out: Measurements, i: int, run: _Run, run_epochs: list) -> None:
-    """Row i of `out`: the (non-empty list of) epochs of one run."""
-    data, rss = run.source.data, run.source.rss_params
-    n_ranges = np.array([len(e.ranges) for e in run_epochs])
-    counts = n_ranges + np.array([len(e.rss) for e in run_epochs])
-    ids = np.concatenate([a for e in run_epochs for a in (e.range_ids, e.rss_ids)])
-    values = np.concatenate([a for e in run_epochs for a in (e.ranges, e.rss)])
-    code, distinct = pd.factorize(ids)          # anchor lookups once per distinct id
-    epoch = np.repeat(np.arange(len(counts)), counts)
-    slot = np.arange(len(ids)) - np.repeat(np.cumsum(counts) - counts, counts)   # index within the epoch
-    is_rss = slot >= n_ranges[epoch]
+def _flatten(run: _Run, period: float) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """(epoch of each measurement, count per epoch, per-measurement columns (is_rss, anchor
+    x y (m), dz (m), value)) of one run's epochs, ordered by epoch, then ranges before RSS."""
+    source, data = run.source, run.source.data
+    parts = source.epoch_means(run.times, period)
+    epoch = np.concatenate([m.epoch for m in parts])
+    is_rss = np.concatenate([np.full(len(m.epoch), kind == 1) for kind, m in enumerate(parts)])
+    ids = [source.anchor_ids(kind) for kind in range(2)]
+    xy = np.concatenate([data.positions(ids[kind])[m.code] for kind, m in enumerate(parts)])
+    dz = np.concatenate([data.height_offsets(ids[0])[parts[0].code] if data.three_d else np.zeros(len(parts[0].code)),
+                         np.zeros(len(parts[1].code))])
+    value = np.concatenate([m.mean for m in parts])
+    order = np.argsort(epoch, kind="stable")
+    counts = np.bincount(epoch, minlength=len(run.times))
+    return epoch[order], counts, (is_rss[order], xy[order], dz[order], value[order])
+
+
+def _fill(out: Measurements, i: int, run: _Run, epoch: np.ndarray, counts: np.ndarray, columns: tuple) -> None:
+    """Row i of `out`: one run's flattened epochs (_flatten)."""
+    is_rss, xy, dz, value = columns
+    rss = run.source.rss_params
+    slot = np.arange(len(epoch)) - np.repeat(np.cumsum(counts) - counts, counts)   # index within the epoch
     out.count[i, :len(counts)] = counts
     out.kind[i, epoch, slot] = np.where(is_rss, RSS, RANGE)
-    out.anchors[i, epoch, slot] = data.positions(distinct)[code]
-    out.z[i, epoch, slot] = values
+    out.anchors[i, epoch, slot] = xy
+    out.dz[i, epoch, slot] = dz
+    out.z[i, epoch, slot] = value
     out.variance[i, epoch, slot] = run.source.range_sigma_m**2
-    if data.three_d:
-        out.dz[i, epoch[~is_rss], slot[~is_rss]] = data.height_offsets(distinct)[code[~is_rss]]
     if is_rss.any():
         at = (i, epoch[is_rss], slot[is_rss])
         out.p0[at], out.exponent[at], out.d0[at] = rss.p0_dbm, rss.path_loss_exponent, rss.d0_m
@@ -197,28 +213,60 @@ def _shared(p: dict) -> tuple:
     return bayes.motion_model(p), p["epoch_s"], p["max_coast_s"], p["init_window_s"] or p["epoch_s"]
 
 
+@dataclass
+class Track:
+    """One cell's estimates as bayes.run_filter gives them, without a frame: `rows`
+    (estimates, bayes.COLUMNS) as floats (n_meas a count) and the frame's `attrs`."""
+
+    rows: np.ndarray
+    attrs: dict
+
+    @classmethod
+    def of(cls, estimates: pd.DataFrame) -> "Track":
+        """The Track of an estimator's (registry.finish-ed) frame."""
+        return cls(estimates[bayes.COLUMNS].to_numpy(float), dict(estimates.attrs))
+
+    def frame(self) -> pd.DataFrame:
+        """bayes.run_filter's frame (n_meas as int, attrs)."""
+        frame = _frame(self.rows)
+        frame.attrs.update(self.attrs)
+        return frame
+
+    def finished(self) -> pd.DataFrame:
+        """registry.finish(self.frame()) built at once: every column float, in time order already."""
+        frame = pd.DataFrame({name: self.rows[:, j] for j, name in enumerate(bayes.COLUMNS)})
+        frame.attrs = dict(self.attrs)
+        return frame
+
+
 def run_epoch_ekf(cells: list[tuple[RunData, dict]]) -> list[pd.DataFrame]:
     """bayes.run_filter(data, p) for every (run, resolved parameters) cell with filter ekf and
-    update epoch; the cells that share _shared(p) are stepped together (different runs, RSS
-    models and motion detection). One frame
-    (bayes.COLUMNS; attrs as bayes.run_filter's: resets, the gate counters, all zero for the
-    bare filter, and the identity range correction) per cell, in order."""
+    update epoch (epoch_ekf_tracks as frames)."""
+    return [track.frame() for track in epoch_ekf_tracks(cells)]
+
+
+def epoch_ekf_tracks(cells: list[tuple[RunData, dict]]) -> list[Track]:
+    """bayes.run_filter(data, p) as a Track for every (run, resolved parameters) cell with
+    filter ekf and update epoch; the cells that share _shared(p) are stepped together
+    (different runs, RSS models and motion detection). attrs as bayes.run_filter's: resets,
+    the gate counters (all zero for the bare filter) and the identity range correction."""
     if not all(supports(p) for _, p in cells):
         raise ValueError("run_epoch_ekf steps the epoch-mode EKF only (filter: ekf, update: epoch)")
     groups: dict[tuple, list[int]] = {}
     for i, (_, p) in enumerate(cells):
         groups.setdefault(_shared(p), []).append(i)
-    frames: list[pd.DataFrame] = [pd.DataFrame()] * len(cells)
+    tracks: list[Track | None] = [None] * len(cells)
     for shared, members in groups.items():
-        for i, frame in zip(members, _step_together([cells[i] for i in members], *shared)):
-            frame.attrs.update(filter_options.UpdateCounts().attrs())
-            frame.attrs.update(range_calibration.correction(*cells[i]).describe())
-            frames[i] = frame
-    return frames
+        for i, (rows, resets) in zip(members, _step_together([cells[i] for i in members], *shared)):
+            attrs = {"resets": resets, **filter_options.UpdateCounts().attrs(),
+                     **range_calibration.correction(*cells[i]).describe()}
+            tracks[i] = Track(rows, attrs)
+    return tracks
 
 
 def _step_together(cells: list[tuple[RunData, dict]], motion, period: float, max_coast_s: float,
-                   window: float) -> list[pd.DataFrame]:
+                   window: float) -> list[tuple[np.ndarray, int]]:
+    """(estimate rows (bayes.COLUMNS), resets) of every cell, stepped together."""
     runs = [_Run.of(data, p, motion) for data, p in cells]
     meas = pack(runs, period)
     F, Q, B = motion.matrices(period)
@@ -238,7 +286,7 @@ def _step_together(cells: list[tuple[RunData, dict]], motion, period: float, max
         live = k < lengths
         t = times[:, k]
         for i in np.flatnonzero(live & ~started):        # the initiator, per run
-            fix = bayes.window_fix(runs[i].source, runs[i].source.records(), t[i], window)
+            fix = runs[i].source.window_fix(t[i], window)
             if fix is not None:
                 x[i], P[i] = 0.0, motion.initial_covariance()
                 x[i, :2] = fix
@@ -263,12 +311,7 @@ def _step_together(cells: list[tuple[RunData, dict]], motion, period: float, max
         emitted[kept, k] = True
         out[kept, k] = np.column_stack([t[kept], x[kept, 0], x[kept, 1], P[kept, 0, 0], P[kept, 0, 1], P[kept, 1, 1],
                                         np.where(measured[kept], meas.count[kept, k], 0), nis[kept]])
-    frames = []
-    for i in range(n_runs):
-        frame = _frame(out[i, emitted[i]])
-        frame.attrs["resets"] = int(resets[i])
-        frames.append(frame)
-    return frames
+    return [(out[i, emitted[i]], int(resets[i])) for i in range(n_runs)]
 
 
 def _frame(rows: np.ndarray) -> pd.DataFrame:
@@ -315,13 +358,26 @@ def run_cells(name: str, cells: list[tuple[RunData, dict]], where: str = "") -> 
     cells sharing a motion model or KF matrices); other estimators run one cell at a time."""
     estimator = registry.get(name)
     params = [estimator.resolve(overrides, where) for _, overrides in cells]
-    if estimator.function is bayes.run_filter and all(supports(p) for p in params):
-        frames = run_epoch_ekf([(data, p) for (data, _), p in zip(cells, params)])
-    elif name == "kf_tracker":
-        frames = _kalman_cells([data for data, _ in cells], params)
-    else:
-        return [registry.run(name, data, overrides, where) for data, overrides in cells]
-    return [registry.finish(frame) for frame in frames]
+    if _epoch_ekf(estimator, params):
+        return [track.finished() for track in epoch_ekf_tracks([(data, p) for (data, _), p in zip(cells, params)])]
+    if name == "kf_tracker":
+        return [registry.finish(frame) for frame in _kalman_cells([data for data, _ in cells], params)]
+    return [registry.run(name, data, overrides, where) for data, overrides in cells]
+
+
+def cell_tracks(name: str, cells: list[tuple[RunData, dict]], where: str = "") -> list[Track]:
+    """run_cells(name, cells, where) as Tracks (the bayes.COLUMNS arrays and attrs of each
+    cell): the epoch-mode EKF builds no frame per cell."""
+    estimator = registry.get(name)
+    params = [estimator.resolve(overrides, where) for _, overrides in cells]
+    if _epoch_ekf(estimator, params):
+        return epoch_ekf_tracks([(data, p) for (data, _), p in zip(cells, params)])
+    return [Track.of(frame) for frame in run_cells(name, cells, where)]
+
+
+def _epoch_ekf(estimator: registry.Estimator, params: list[dict]) -> bool:
+    """Whether every cell is the epoch-mode EKF that epoch_ekf_tracks steps."""
+    return estimator.function is bayes.run_filter and all(supports(p) for p in params)
 
 
 def _kalman_cells(datas: list[RunData], params: list[dict]) -> list[pd.DataFrame]:
