@@ -223,8 +223,14 @@ class Track:
 
     @classmethod
     def of(cls, estimates: pd.DataFrame) -> "Track":
-        """The Track of an estimator's (registry.finish-ed) frame."""
-        return cls(estimates[bayes.COLUMNS].to_numpy(float), dict(estimates.attrs))
+        """The Track of an estimator's frame, as registry.finish would leave it: the columns
+        it lacks NaN, rows sorted by time (stable) when they are not."""
+        n = len(estimates)
+        rows = np.column_stack([estimates[c].to_numpy(float) if c in estimates else np.full(n, np.nan)
+                                for c in bayes.COLUMNS])
+        if not estimates["t"].is_monotonic_increasing:
+            rows = rows[np.argsort(rows[:, 0], kind="stable")]
+        return cls(rows, dict(estimates.attrs))
 
     def frame(self) -> pd.DataFrame:
         """bayes.run_filter's frame (n_meas as int, attrs)."""
@@ -367,12 +373,15 @@ def run_cells(name: str, cells: list[tuple[RunData, dict]], where: str = "") -> 
 
 def cell_tracks(name: str, cells: list[tuple[RunData, dict]], where: str = "") -> list[Track]:
     """run_cells(name, cells, where) as Tracks (the bayes.COLUMNS arrays and attrs of each
-    cell): the epoch-mode EKF builds no frame per cell."""
+    cell), stepped together as there; no registry.finish frame is built per cell (the
+    epoch-mode EKF builds no frame at all)."""
     estimator = registry.get(name)
     params = [estimator.resolve(overrides, where) for _, overrides in cells]
     if _epoch_ekf(estimator, params):
         return epoch_ekf_tracks([(data, p) for (data, _), p in zip(cells, params)])
-    return [Track.of(frame) for frame in run_cells(name, cells, where)]
+    if name == "kf_tracker":
+        return [Track.of(frame) for frame in _kalman_cells([data for data, _ in cells], params)]
+    return [Track.of(estimator.function(data, p)) for (data, _), p in zip(cells, params)]
 
 
 def _epoch_ekf(estimator: registry.Estimator, params: list[dict]) -> bool:
