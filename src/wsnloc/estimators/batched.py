@@ -24,7 +24,7 @@ Only the initiator's multilateration runs per run (once per track start).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -140,28 +140,20 @@ class _Run:
         return cls(times, source, static, inputs)
 
 
-def pack(runs: list[_Run], period: float) -> Measurements:
+def pack(runs: list[_Run], period: float) -> tuple[Measurements, np.ndarray]:
     """The epochs of every run (MeasurementSource.epoch_means: per-anchor means; ranges first,
     then RSS, each by anchor id, as in MeasurementSource.epochs and .model) in one padded
-    Measurements; cells sharing a measurement source and grid (e.g. a row with and without
-    motion detection) are packed once."""
-    flat = {}
-    for run in runs:
-        key = (id(run.source), id(run.times))
-        if key not in flat:
-            flat[key] = _flatten(run, period)
-    width = max([int(counts.max(initial=0)) for _, counts, _ in flat.values()] + [1])
-    out = Measurements.empty(len(runs), max([len(r.times) for r in runs] + [0]), width)
-    packed: dict[tuple, int] = {}
-    for i, run in enumerate(runs):
-        key = (id(run.source), id(run.times))
-        same = packed.setdefault(key, i)
-        if same != i:
-            for field in fields(out):
-                getattr(out, field.name)[i] = getattr(out, field.name)[same]
-        else:
-            _fill(out, i, run, *flat[key])
-    return out
+    Measurements, and the row of each run in it: cells sharing a measurement source and grid
+    (e.g. a row with and without motion detection) share one row."""
+    rows: dict[tuple, int] = {}
+    row_of = np.array([rows.setdefault((id(run.source), id(run.times)), len(rows)) for run in runs], dtype=np.intp)
+    first = np.unique(row_of, return_index=True)[1]                       # the first run of each row
+    flat = [_flatten(runs[first[row]], period) for row in range(len(rows))]
+    width = max([int(counts.max(initial=0)) for _, counts, _ in flat] + [1])
+    out = Measurements.empty(len(rows), max([len(r.times) for r in runs] + [0]), width)
+    for row, parts in enumerate(flat):
+        _fill(out, row, runs[first[row]], *parts)
+    return out, row_of
 
 
 def _flatten(run: _Run, period: float) -> tuple[np.ndarray, np.ndarray, tuple]:
@@ -274,9 +266,10 @@ def _step_together(cells: list[tuple[RunData, dict]], motion, period: float, max
                    window: float) -> list[tuple[np.ndarray, int]]:
     """(estimate rows (bayes.COLUMNS), resets) of every cell, stepped together."""
     runs = [_Run.of(data, p, motion) for data, p in cells]
-    meas = pack(runs, period)
+    meas, row_of = pack(runs, period)
+    count = meas.count[row_of]                   # (runs, epochs)
     F, Q, B = motion.matrices(period)
-    n_runs, n_epochs = meas.count.shape
+    n_runs, n_epochs = count.shape
     x, P = np.zeros((n_runs, motion.dim)), np.zeros((n_runs, motion.dim, motion.dim))
     started, last_update, resets = np.zeros(n_runs, bool), np.full(n_runs, -np.inf), np.zeros(n_runs, int)
     out = np.full((n_runs, n_epochs, len(bayes.COLUMNS)), np.nan)
@@ -304,11 +297,11 @@ def _step_together(cells: list[tuple[RunData, dict]], motion, period: float, max
             u = inputs[moving, k]           # a non-finite input: predict without it, as bayes does
             Bu = None if B is None else np.where(np.isfinite(u).all(axis=1)[:, None], np.nan_to_num(u) @ B.T, 0.0)
             x[moving], P[moving] = predict(x[moving], P[moving], F, Q, Bu)
-        measured = tracking & (meas.count[:, k] > 0)
+        measured = tracking & (count[:, k] > 0)
         nis = np.full(n_runs, np.nan)
         if measured.any():
             rows = np.flatnonzero(measured)
-            x[rows], P[rows], nis[rows] = update(x[rows], P[rows], meas.at(k, rows))
+            x[rows], P[rows], nis[rows] = update(x[rows], P[rows], meas.at(k, row_of[rows]))
             last_update[rows] = t[rows]
         lost = tracking & ~measured & (t - last_update > max_coast_s)
         started[lost] = False
@@ -316,7 +309,7 @@ def _step_together(cells: list[tuple[RunData, dict]], motion, period: float, max
         kept = tracking & ~lost
         emitted[kept, k] = True
         out[kept, k] = np.column_stack([t[kept], x[kept, 0], x[kept, 1], P[kept, 0, 0], P[kept, 0, 1], P[kept, 1, 1],
-                                        np.where(measured[kept], meas.count[kept, k], 0), nis[kept]])
+                                        np.where(measured[kept], count[kept, k], 0), nis[kept]])
     return [(out[i, emitted[i]], int(resets[i])) for i in range(n_runs)]
 
 
