@@ -163,7 +163,7 @@ class MeasurementSource:
         keep = coded.among(self._members)[means.code] if kind in self.kinds else np.zeros(len(means.code), bool)
         return means.select(keep)
 
-    def anchor_ids(self, kind: str) -> np.ndarray:
+    def anchor_ids(self, kind: int) -> np.ndarray:
         """The ids (object) the codes of epoch_means(...)[kind] index: 0 ranges, 1 RSS."""
         return self._coded(("ranges", "rss")[kind]).ids
 
