@@ -12,6 +12,7 @@ from wsnloc.estimators import batched, registry
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import paper_a, paper_c
 from wsnloc.io.cricket import ingest_run as ingest_cricket
+from wsnloc.metrics.tracking import score
 from wsnloc.io.newcom import ingest_run
 from wsnloc.sim.cricket import simulate_run as simulate_cricket
 from wsnloc.signal.resample import resample_imu
@@ -192,6 +193,40 @@ def test_paper_a_runs_and_rows_stepped_together_equal_registry_run(campaign, sim
     scored = paper_a.run_all(datas, settings)
     n = len(params)
     assert [len(s) for s in scored] == [sum(len(f) for f in single[:n]), sum(len(f) for f in single[n:])]
+
+
+def test_paper_a_run_all_equals_its_cells_frames_labelled_and_concatenated(campaign, simulated_runs):
+    """run_all stacks each run's cell arrays into one frame: the same frame (values exactly,
+    dtypes, column order, attrs) as the former pd.concat of every cell's run_cells frame with
+    its row and table assigned, then scored; and registry.run's cells to 1e-9."""
+    settings = paper_a.Settings.from_config(SETTINGS_A)
+    cells = [(row, table, md) for row in settings.rows for table, md in (("Table I", False), ("Table II", True))]
+    params = [paper_a.estimator_params(settings, row, md) for row, _, md in cells]
+    for datas in (_datas(simulated_runs, campaign), _datas(simulated_runs, campaign)[1:]):
+        frames = batched.run_cells("ekf", [(d, q) for d in datas for q in params], where="experiments.paper_a")
+        single = [registry.run("ekf", d, q, where="experiments.paper_a") for d in datas for q in params]
+        for i, (data, got) in enumerate(zip(datas, paper_a.run_all(datas, settings))):
+            for tracks, exact in ((frames, True), (single, False)):
+                mine = tracks[i * len(cells):(i + 1) * len(cells)]
+                expected = score(pd.concat([f.assign(row=paper_a.row_label(row), table=table)
+                                            for f, (row, table, _) in zip(mine, cells)], ignore_index=True),
+                                 data.table("truth"))
+                pd.testing.assert_frame_equal(got, expected, check_exact=exact, rtol=0, atol=1e-9)
+                assert got.attrs == expected.attrs
+
+
+def test_track_frames_equal_registry_finish_of_the_filter_frame(campaign, simulated_runs):
+    """Track.finished() is registry.finish(Track.frame()); Track.of reads a frame back."""
+    data = _datas(simulated_runs, campaign)[0]
+    p = registry.get("ekf").resolve({"update": "epoch", "motion_detection": True}, "")
+    track = batched.epoch_ekf_tracks([(data, p)])[0]
+    assert track.frame()["n_meas"].dtype == int
+    finished = registry.finish(track.frame())
+    pd.testing.assert_frame_equal(track.finished(), finished, check_exact=True)
+    assert track.finished().attrs == finished.attrs == track.attrs
+    again = batched.Track.of(finished)
+    np.testing.assert_array_equal(again.rows, track.rows)
+    assert again.attrs == track.attrs
 
 
 def test_paper_c_models_and_subsets_of_one_run_equal_registry_run(tmp_path):

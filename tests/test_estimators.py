@@ -239,3 +239,45 @@ def test_pva_filter_with_the_measured_acceleration_converges():
     pva = registry.run("ekf_pva", data, {"static_start_s": 0.0, "update": "sequential", "range_sigma_m": 0.05})
     final = pva[["x", "y"]].to_numpy()[-1]
     assert np.hypot(*(final - position([pva["t"].iloc[-1]])[0])) < 1e-3
+
+
+def _frame_records(ranges: pd.DataFrame, rss: pd.DataFrame) -> tuple:
+    """Records of a source's frames as built from the frames (anchor ids read per row)."""
+    t = np.concatenate([ranges["t"].to_numpy(float), rss["t"].to_numpy(float)])
+    order = np.argsort(t, kind="stable")
+    anchor = np.concatenate([ranges["anchor_id"].to_numpy(object), rss["anchor_id"].to_numpy(object)])
+    value = np.concatenate([ranges["range_m"].to_numpy(float), rss["rss_dbm"].to_numpy(float)])
+    return t[order], np.r_[np.zeros(len(ranges)), np.ones(len(rss))][order], anchor[order], value[order]
+
+
+@pytest.mark.parametrize("kinds", ["toa", "rss", "hybrid"])
+def test_coded_sources_equal_their_frames_epochs_and_records(kinds):
+    """A source's epochs and records (from the run's coded measurements, per-anchor means over
+    all anchors selected per subset) equal build_epochs and records of its own frames, exactly;
+    sources differing only in their noise share epochs, records and fixes, not models."""
+    from wsnloc.estimators.epochs import build_epochs
+    from wsnloc.estimators.range_calibration import RangeCorrection
+    rng = np.random.default_rng(3)
+    times = np.sort(rng.uniform(0.0, 30.0, 400))
+    ids = rng.choice(list(SQUARE), len(times))
+    data = run_data(tables_for(times, ids, walk, SQUARE, noise_m=0.2, rng=rng, rss_times=np.arange(0.1, 30.0, 0.3)))
+    data.campaign = type("C", (), {"spec": {"subsets": {"three": ["A1", "A2", "A4"]}}, "source": "test"})()
+    correction = RangeCorrection(1.01, 0.05, (("A2", 0.1),), "configured")
+    rss = RssParams(-40.0, 2.5, 3.0, 1.0) if kinds != "toa" else None
+    source = MeasurementSource(data, kinds, "three", 0.3, True, 100.0, rss, correction)
+    assert set(source.ranges["anchor_id"]) <= {"A1", "A2", "A4"} and set(source.rss["anchor_id"]) <= {"A1", "A2", "A4"}
+    assert (len(source.ranges) > 0) == (kinds != "rss") and (len(source.rss) > 0) == (kinds != "toa")
+    grid = data.grid(0.5, True, 100.0)
+    for got, want in zip(source.epochs(grid, 0.5), build_epochs(source.ranges, source.rss, 0.5, grid)):
+        assert got.t == want.t
+        for name in ("range_ids", "ranges", "rss_ids", "rss"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
+    records = source.records()
+    for got, want in zip((records.t, records.kind, records.anchor, records.value),
+                         _frame_records(source.ranges, source.rss)):
+        np.testing.assert_array_equal(got, want)
+    noisier = MeasurementSource(data, kinds, "three", 0.6, True, 100.0, rss, correction)
+    assert noisier.epochs(grid, 0.5) is source.epochs(grid, 0.5) and noisier.records() is source.records()
+    fix = source.window_fix(grid[5], 1.0)
+    assert fix is not None and noisier.window_fix(grid[5], 1.0) is fix
+    assert noisier.epoch_models(grid, 0.5) is not source.epoch_models(grid, 0.5)

@@ -260,3 +260,36 @@ def test_unknown_subset_names_the_config_key(campaign):
     settings = paper_d.Settings.from_config({**SETTINGS, "subsets": {"uwb": "UWB=7", "narrowband": "ZigBee=21"}})
     with pytest.raises(Exception, match=r"experiments.paper_d.subsets.uwb"):
         settings.check_against(campaign)
+
+
+def test_paper_d_run_all_equals_its_cells_registry_frames_stacked(campaign, simulated_run):
+    """run_all stacks each cell's arrays (batched.cell_tracks, no registry.finish frame per
+    cell): the same t, x, y, labels and scores, exactly, as stacking every cell's
+    registry.run frame."""
+    from wsnloc.estimators import registry
+    from wsnloc.io.newcom import ingest_run
+    from wsnloc.metrics.tracking import score
+
+    tables, _ = ingest_run(simulated_run, campaign)
+    settings = paper_d.Settings.from_config(SETTINGS)
+    got = paper_d.run(RunData(tables, campaign, SETTINGS["rss_model"]), settings)
+    data = RunData(tables, campaign, SETTINGS["rss_model"])
+    frames = [registry.run(name, data, p, where="experiments.paper_d") for *_, name, p in paper_d.cells(settings)]
+    labels = {key: np.repeat([cell[k] for cell in paper_d.cells(settings)], [len(f) for f in frames])
+              for k, key in enumerate(("localizer", "technique", "stage"))}
+    expected = score(pd.concat([f[["t", "x", "y"]] for f in frames], ignore_index=True).assign(**labels),
+                     tables["truth"])
+    pd.testing.assert_frame_equal(got, expected, check_exact=True)
+
+
+def test_track_of_an_estimator_frame_is_registry_finish():
+    """batched.Track.of: the columns a frame lacks NaN, rows sorted by time (stable)."""
+    from wsnloc.estimators import batched, registry
+
+    frame = pd.DataFrame({"t": [2.0, 1.0, 1.0, 3.0], "x": [0.0, 1.0, 2.0, 3.0], "y": [4.0, 5.0, 6.0, 7.0],
+                          "n_meas": [1, 2, 3, 4]})
+    frame.attrs["resets"] = 2
+    track = batched.Track.of(frame)
+    finished = registry.finish(frame)
+    np.testing.assert_array_equal(track.rows, finished[registry.OUTPUT_COLUMNS].to_numpy(float))
+    assert track.rows[:, 1].tolist() == [1.0, 2.0, 0.0, 3.0] and track.attrs == {"resets": 2}

@@ -24,7 +24,7 @@ Only the initiator's multilateration runs per run (once per track start).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -140,42 +140,50 @@ class _Run:
         return cls(times, source, static, inputs)
 
 
-def pack(runs: list[_Run], period: float) -> Measurements:
-    """The epochs of every run (MeasurementSource.epochs: per-anchor means; ranges first,
-    then RSS, as in MeasurementSource.model) in one padded Measurements; cells sharing a
-    measurement source (e.g. a row with and without motion detection) are packed once."""
-    epochs = [r.source.epochs(r.times, period) for r in runs]
-    width = max([len(e.ranges) + len(e.rss) for es in epochs for e in es] + [1])
-    out = Measurements.empty(len(runs), max([len(r.times) for r in runs] + [0]), width)
-    packed: dict[tuple, int] = {}
-    for i, (run, run_epochs) in enumerate(zip(runs, epochs)):
-        same = packed.setdefault((id(run.source), id(run_epochs)), i)
-        if same != i:
-            for field in fields(out):
-                getattr(out, field.name)[i] = getattr(out, field.name)[same]
-        elif run_epochs:
-            _fill(out, i, run, run_epochs)
-    return out
+def pack(runs: list[_Run], period: float) -> tuple[Measurements, np.ndarray]:
+    """The epochs of every run (MeasurementSource.epoch_means: per-anchor means; ranges first,
+    then RSS, each by anchor id, as in MeasurementSource.epochs and .model) in one padded
+    Measurements, and the row of each run in it: cells sharing a measurement source and grid
+    (e.g. a row with and without motion detection) share one row."""
+    rows: dict[tuple, int] = {}
+    row_of = np.array([rows.setdefault((id(run.source), id(run.times)), len(rows)) for run in runs], dtype=np.intp)
+    first = np.unique(row_of, return_index=True)[1]                       # the first run of each row
+    flat = [_flatten(runs[first[row]], period) for row in range(len(rows))]
+    width = max([int(counts.max(initial=0)) for _, counts, _ in flat] + [1])
+    out = Measurements.empty(len(rows), max([len(r.times) for r in runs] + [0]), width)
+    for row, parts in enumerate(flat):
+        _fill(out, row, runs[first[row]], *parts)
+    return out, row_of
 
 
-def _fill(out: Measurements, i: int, run: _Run, run_epochs: list) -> None:
-    """Row i of `out`: the (non-empty list of) epochs of one run."""
-    data, rss = run.source.data, run.source.rss_params
-    n_ranges = np.array([len(e.ranges) for e in run_epochs])
-    counts = n_ranges + np.array([len(e.rss) for e in run_epochs])
-    ids = np.concatenate([a for e in run_epochs for a in (e.range_ids, e.rss_ids)])
-    values = np.concatenate([a for e in run_epochs for a in (e.ranges, e.rss)])
-    code, distinct = pd.factorize(ids)          # anchor lookups once per distinct id
-    epoch = np.repeat(np.arange(len(counts)), counts)
-    slot = np.arange(len(ids)) - np.repeat(np.cumsum(counts) - counts, counts)   # index within the epoch
-    is_rss = slot >= n_ranges[epoch]
+def _flatten(run: _Run, period: float) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """(epoch of each measurement, count per epoch, per-measurement columns (is_rss, anchor
+    x y (m), dz (m), value)) of one run's epochs, ordered by epoch, then ranges before RSS."""
+    source, data = run.source, run.source.data
+    parts = source.epoch_means(run.times, period)
+    epoch = np.concatenate([m.epoch for m in parts])
+    is_rss = np.concatenate([np.full(len(m.epoch), kind == 1) for kind, m in enumerate(parts)])
+    ids = [source.anchor_ids(kind) for kind in range(2)]
+    xy = np.concatenate([data.positions(ids[kind])[m.code] for kind, m in enumerate(parts)])
+    dz = np.concatenate([data.height_offsets(ids[0])[parts[0].code] if data.three_d else np.zeros(len(parts[0].code)),
+                         np.zeros(len(parts[1].code))])
+    value = np.concatenate([m.mean for m in parts])
+    order = np.argsort(epoch, kind="stable")
+    counts = np.bincount(epoch, minlength=len(run.times))
+    return epoch[order], counts, (is_rss[order], xy[order], dz[order], value[order])
+
+
+def _fill(out: Measurements, i: int, run: _Run, epoch: np.ndarray, counts: np.ndarray, columns: tuple) -> None:
+    """Row i of `out`: one run's flattened epochs (_flatten)."""
+    is_rss, xy, dz, value = columns
+    rss = run.source.rss_params
+    slot = np.arange(len(epoch)) - np.repeat(np.cumsum(counts) - counts, counts)   # index within the epoch
     out.count[i, :len(counts)] = counts
     out.kind[i, epoch, slot] = np.where(is_rss, RSS, RANGE)
-    out.anchors[i, epoch, slot] = data.positions(distinct)[code]
-    out.z[i, epoch, slot] = values
+    out.anchors[i, epoch, slot] = xy
+    out.dz[i, epoch, slot] = dz
+    out.z[i, epoch, slot] = value
     out.variance[i, epoch, slot] = run.source.range_sigma_m**2
-    if data.three_d:
-        out.dz[i, epoch[~is_rss], slot[~is_rss]] = data.height_offsets(distinct)[code[~is_rss]]
     if is_rss.any():
         at = (i, epoch[is_rss], slot[is_rss])
         out.p0[at], out.exponent[at], out.d0[at] = rss.p0_dbm, rss.path_loss_exponent, rss.d0_m
@@ -197,32 +205,71 @@ def _shared(p: dict) -> tuple:
     return bayes.motion_model(p), p["epoch_s"], p["max_coast_s"], p["init_window_s"] or p["epoch_s"]
 
 
+@dataclass
+class Track:
+    """One cell's estimates as bayes.run_filter gives them, without a frame: `rows`
+    (estimates, bayes.COLUMNS) as floats (n_meas a count) and the frame's `attrs`."""
+
+    rows: np.ndarray
+    attrs: dict
+
+    @classmethod
+    def of(cls, estimates: pd.DataFrame) -> "Track":
+        """The Track of an estimator's frame, as registry.finish would leave it: the columns
+        it lacks NaN, rows sorted by time (stable) when they are not."""
+        n = len(estimates)
+        rows = np.column_stack([estimates[c].to_numpy(float) if c in estimates else np.full(n, np.nan)
+                                for c in bayes.COLUMNS])
+        if not estimates["t"].is_monotonic_increasing:
+            rows = rows[np.argsort(rows[:, 0], kind="stable")]
+        return cls(rows, dict(estimates.attrs))
+
+    def frame(self) -> pd.DataFrame:
+        """bayes.run_filter's frame (n_meas as int, attrs)."""
+        frame = _frame(self.rows)
+        frame.attrs.update(self.attrs)
+        return frame
+
+    def finished(self) -> pd.DataFrame:
+        """registry.finish(self.frame()) built at once: every column float, in time order already."""
+        frame = pd.DataFrame({name: self.rows[:, j] for j, name in enumerate(bayes.COLUMNS)})
+        frame.attrs = dict(self.attrs)
+        return frame
+
+
 def run_epoch_ekf(cells: list[tuple[RunData, dict]]) -> list[pd.DataFrame]:
     """bayes.run_filter(data, p) for every (run, resolved parameters) cell with filter ekf and
-    update epoch; the cells that share _shared(p) are stepped together (different runs, RSS
-    models and motion detection). One frame
-    (bayes.COLUMNS; attrs as bayes.run_filter's: resets, the gate counters, all zero for the
-    bare filter, and the identity range correction) per cell, in order."""
+    update epoch (epoch_ekf_tracks as frames)."""
+    return [track.frame() for track in epoch_ekf_tracks(cells)]
+
+
+def epoch_ekf_tracks(cells: list[tuple[RunData, dict]]) -> list[Track]:
+    """bayes.run_filter(data, p) as a Track for every (run, resolved parameters) cell with
+    filter ekf and update epoch; the cells that share _shared(p) are stepped together
+    (different runs, RSS models and motion detection). attrs as bayes.run_filter's: resets,
+    the gate counters (all zero for the bare filter) and the identity range correction."""
     if not all(supports(p) for _, p in cells):
         raise ValueError("run_epoch_ekf steps the epoch-mode EKF only (filter: ekf, update: epoch)")
     groups: dict[tuple, list[int]] = {}
     for i, (_, p) in enumerate(cells):
         groups.setdefault(_shared(p), []).append(i)
-    frames: list[pd.DataFrame] = [pd.DataFrame()] * len(cells)
+    tracks: list[Track | None] = [None] * len(cells)
     for shared, members in groups.items():
-        for i, frame in zip(members, _step_together([cells[i] for i in members], *shared)):
-            frame.attrs.update(filter_options.UpdateCounts().attrs())
-            frame.attrs.update(range_calibration.correction(*cells[i]).describe())
-            frames[i] = frame
-    return frames
+        for i, (rows, resets) in zip(members, _step_together([cells[i] for i in members], *shared)):
+            attrs = {"resets": resets, **filter_options.UpdateCounts().attrs(),
+                     **range_calibration.correction(*cells[i]).describe()}
+            tracks[i] = Track(rows, attrs)
+    return tracks
 
 
 def _step_together(cells: list[tuple[RunData, dict]], motion, period: float, max_coast_s: float,
-                   window: float) -> list[pd.DataFrame]:
+                   window: float) -> list[tuple[np.ndarray, int]]:
+    """(estimate rows (bayes.COLUMNS), resets) of every cell, stepped together."""
     runs = [_Run.of(data, p, motion) for data, p in cells]
-    meas = pack(runs, period)
+    meas, row_of = pack(runs, period)
+    count = meas.count[row_of]                   # (runs, epochs)
     F, Q, B = motion.matrices(period)
-    n_runs, n_epochs = meas.count.shape
+    n_runs, n_epochs = count.shape
     x, P = np.zeros((n_runs, motion.dim)), np.zeros((n_runs, motion.dim, motion.dim))
     started, last_update, resets = np.zeros(n_runs, bool), np.full(n_runs, -np.inf), np.zeros(n_runs, int)
     out = np.full((n_runs, n_epochs, len(bayes.COLUMNS)), np.nan)
@@ -238,7 +285,7 @@ def _step_together(cells: list[tuple[RunData, dict]], motion, period: float, max
         live = k < lengths
         t = times[:, k]
         for i in np.flatnonzero(live & ~started):        # the initiator, per run
-            fix = bayes.window_fix(runs[i].source, runs[i].source.records(), t[i], window)
+            fix = runs[i].source.window_fix(t[i], window)
             if fix is not None:
                 x[i], P[i] = 0.0, motion.initial_covariance()
                 x[i, :2] = fix
@@ -250,11 +297,11 @@ def _step_together(cells: list[tuple[RunData, dict]], motion, period: float, max
             u = inputs[moving, k]           # a non-finite input: predict without it, as bayes does
             Bu = None if B is None else np.where(np.isfinite(u).all(axis=1)[:, None], np.nan_to_num(u) @ B.T, 0.0)
             x[moving], P[moving] = predict(x[moving], P[moving], F, Q, Bu)
-        measured = tracking & (meas.count[:, k] > 0)
+        measured = tracking & (count[:, k] > 0)
         nis = np.full(n_runs, np.nan)
         if measured.any():
             rows = np.flatnonzero(measured)
-            x[rows], P[rows], nis[rows] = update(x[rows], P[rows], meas.at(k, rows))
+            x[rows], P[rows], nis[rows] = update(x[rows], P[rows], meas.at(k, row_of[rows]))
             last_update[rows] = t[rows]
         lost = tracking & ~measured & (t - last_update > max_coast_s)
         started[lost] = False
@@ -262,13 +309,8 @@ def _step_together(cells: list[tuple[RunData, dict]], motion, period: float, max
         kept = tracking & ~lost
         emitted[kept, k] = True
         out[kept, k] = np.column_stack([t[kept], x[kept, 0], x[kept, 1], P[kept, 0, 0], P[kept, 0, 1], P[kept, 1, 1],
-                                        np.where(measured[kept], meas.count[kept, k], 0), nis[kept]])
-    frames = []
-    for i in range(n_runs):
-        frame = _frame(out[i, emitted[i]])
-        frame.attrs["resets"] = int(resets[i])
-        frames.append(frame)
-    return frames
+                                        np.where(measured[kept], count[kept, k], 0), nis[kept]])
+    return [(out[i, emitted[i]], int(resets[i])) for i in range(n_runs)]
 
 
 def _frame(rows: np.ndarray) -> pd.DataFrame:
@@ -315,13 +357,29 @@ def run_cells(name: str, cells: list[tuple[RunData, dict]], where: str = "") -> 
     cells sharing a motion model or KF matrices); other estimators run one cell at a time."""
     estimator = registry.get(name)
     params = [estimator.resolve(overrides, where) for _, overrides in cells]
-    if estimator.function is bayes.run_filter and all(supports(p) for p in params):
-        frames = run_epoch_ekf([(data, p) for (data, _), p in zip(cells, params)])
-    elif name == "kf_tracker":
-        frames = _kalman_cells([data for data, _ in cells], params)
-    else:
-        return [registry.run(name, data, overrides, where) for data, overrides in cells]
-    return [registry.finish(frame) for frame in frames]
+    if _epoch_ekf(estimator, params):
+        return [track.finished() for track in epoch_ekf_tracks([(data, p) for (data, _), p in zip(cells, params)])]
+    if name == "kf_tracker":
+        return [registry.finish(frame) for frame in _kalman_cells([data for data, _ in cells], params)]
+    return [registry.run(name, data, overrides, where) for data, overrides in cells]
+
+
+def cell_tracks(name: str, cells: list[tuple[RunData, dict]], where: str = "") -> list[Track]:
+    """run_cells(name, cells, where) as Tracks (the bayes.COLUMNS arrays and attrs of each
+    cell), stepped together as there; no registry.finish frame is built per cell (the
+    epoch-mode EKF builds no frame at all)."""
+    estimator = registry.get(name)
+    params = [estimator.resolve(overrides, where) for _, overrides in cells]
+    if _epoch_ekf(estimator, params):
+        return epoch_ekf_tracks([(data, p) for (data, _), p in zip(cells, params)])
+    if name == "kf_tracker":
+        return [Track.of(frame) for frame in _kalman_cells([data for data, _ in cells], params)]
+    return [Track.of(estimator.function(data, p)) for (data, _), p in zip(cells, params)]
+
+
+def _epoch_ekf(estimator: registry.Estimator, params: list[dict]) -> bool:
+    """Whether every cell is the epoch-mode EKF that epoch_ekf_tracks steps."""
+    return estimator.function is bayes.run_filter and all(supports(p) for p in params)
 
 
 def _kalman_cells(datas: list[RunData], params: list[dict]) -> list[pd.DataFrame]:

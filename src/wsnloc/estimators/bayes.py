@@ -202,11 +202,10 @@ def _predict(filt, motion: MotionModel, dt: float, u: np.ndarray | None) -> tupl
 def _epoch_loop(source, times, p, motion, static, inputs, make, forward) -> pd.DataFrame:
     period, window = p["epoch_s"], p["init_window_s"] or p["epoch_s"]
     models = source.epoch_models(times, period)
-    records = source.records()
     track, filt, last_update = Track(), None, -np.inf
     for k, (t, model) in enumerate(zip(times, models)):
         if filt is None:
-            fix = window_fix(source, records, t, window)
+            fix = source.window_fix(t, window)
             if fix is None:
                 continue
             filt, last_update = _start(fix, motion, make, forward), t
@@ -229,14 +228,6 @@ def _epoch_loop(source, times, p, motion, static, inputs, make, forward) -> pd.D
     return track.frame()
 
 
-def window_fix(source: MeasurementSource, records, t: float, window: float) -> np.ndarray | None:
-    """Multilateration on the per-anchor means of the measurements in (t - window, t]."""
-    a, b = np.searchsorted(records.t, [t - window, t], side="right")
-    if b - a < 3:
-        return None
-    return source.fix(*records.window_means(a, b))
-
-
 def _sequential_loop(source, times, p, motion, static, inputs, make, forward) -> pd.DataFrame:
     records = source.records()
     bounds = records.groups()
@@ -254,7 +245,7 @@ def _sequential_loop(source, times, p, motion, static, inputs, make, forward) ->
                 filt = None
                 track.resets += 1
             if filt is None:
-                fix = window_fix(source, records, t, window)
+                fix = source.window_fix(t, window)
                 if fix is not None:
                     filt, t_filter, last_update = _start(fix, motion, make, forward), t, t
                 continue

@@ -38,28 +38,58 @@ def _assign(t: np.ndarray, times: np.ndarray, period: float) -> np.ndarray:
     return np.where(valid, index, -1)
 
 
-def _per_anchor_mean(frame: pd.DataFrame, value: str, times, period) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Per epoch ending at `times`: (anchor ids in sorted order, mean of `value` per anchor)."""
-    out = [(np.array([], dtype=object), np.array([]))] * len(times)      # one shared empty pair
-    epoch = _assign(frame["t"].to_numpy(float), times, period)
+@dataclass
+class AnchorMeans:
+    """Per (epoch, anchor) means of one kind of measurement, ordered by epoch, then anchor:
+    `epoch` (index into the epoch end times), `code` (index of the anchor id in the sorted
+    distinct ids it was coded with, sorted_codes) and `mean` (m or dB)."""
+
+    epoch: np.ndarray
+    code: np.ndarray
+    mean: np.ndarray
+
+    def select(self, keep: np.ndarray) -> "AnchorMeans":
+        """The (epoch, anchor) means where `keep` (bool, per row) holds."""
+        return AnchorMeans(self.epoch[keep], self.code[keep], self.mean[keep])
+
+
+def anchor_means(t: np.ndarray, code: np.ndarray, values: np.ndarray, times: np.ndarray,
+                 period: float) -> AnchorMeans:
+    """Per epoch (t_k - period, t_k] ending at `times` and per anchor code: the mean of the
+    `values` at times t (s) in it, sum(values) / count in the order given (samples outside
+    every epoch are dropped)."""
+    epoch = _assign(t, times, period)
     inside = epoch >= 0
-    if not inside.any():
-        return out
-    epoch, values = epoch[inside], frame[value].to_numpy(float)[inside]
-    ids, code = _sorted_codes(frame["anchor_id"])
-    code = code[inside]
+    epoch, code, values = epoch[inside], code[inside], values[inside]
+    if len(epoch) == 0:
+        return AnchorMeans(epoch, code, values)
     order = np.lexsort((code, epoch))                   # by epoch, then anchor id
     epoch, code, values = epoch[order], code[order], values[order]
     first = np.flatnonzero(np.r_[True, (epoch[1:] != epoch[:-1]) | (code[1:] != code[:-1])])   # one per (epoch, anchor)
     means = np.add.reduceat(values, first) / np.diff(np.r_[first, len(values)])
-    group_epoch, group_ids = epoch[first], ids[code[first]].astype(object)
-    starts = np.flatnonzero(np.r_[True, group_epoch[1:] != group_epoch[:-1]])      # first group of each epoch
-    for k, a, b in zip(group_epoch[starts], starts, np.r_[starts[1:], len(group_epoch)]):
-        out[k] = (group_ids[a:b], means[a:b])
+    return AnchorMeans(epoch[first], code[first], means)
+
+
+def per_epoch(means: AnchorMeans, ids: np.ndarray, n_epochs: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per epoch of n_epochs: (anchor ids (object, ids[code]), means), empty where none."""
+    out = [(np.array([], dtype=object), np.array([]))] * n_epochs      # one shared empty pair
+    if len(means.epoch) == 0:
+        return out
+    group_ids = ids[means.code]
+    starts = np.flatnonzero(np.r_[True, means.epoch[1:] != means.epoch[:-1]])      # first group of each epoch
+    for k, a, b in zip(means.epoch[starts], starts, np.r_[starts[1:], len(means.epoch)]):
+        out[k] = (group_ids[a:b], means.mean[a:b])
     return out
 
 
-def _sorted_codes(anchor_ids: pd.Series) -> tuple[np.ndarray, np.ndarray]:
+def _per_anchor_mean(frame: pd.DataFrame, value: str, times, period) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per epoch ending at `times`: (anchor ids in sorted order, mean of `value` per anchor)."""
+    ids, code = sorted_codes(frame["anchor_id"])
+    means = anchor_means(frame["t"].to_numpy(float), code, frame[value].to_numpy(float), times, period)
+    return per_epoch(means, ids.astype(object), len(times))
+
+
+def sorted_codes(anchor_ids: pd.Series) -> tuple[np.ndarray, np.ndarray]:
     """np.unique(anchor_ids as str, return_inverse=True), by hashing (pd.factorize) and sorting
     only the distinct ids: (ids in sorted order, index of each row's id in them)."""
     code, distinct = pd.factorize(anchor_ids, use_na_sentinel=False)

@@ -39,7 +39,7 @@ def epoch_fixes(data: RunData, p: dict, technique: str) -> pd.DataFrame:
 def _pmix(toa: pd.DataFrame, rss: pd.DataFrame, w: float) -> pd.DataFrame:
     """P-mix: (w p_toa + (1 - w) p_rss) / (w + (1 - w)) per epoch over the fixes that exist
     (one alone when the other technique has no fix; NaN when neither has)."""
-    fixes = np.stack([rss[["x", "y"]].to_numpy(), toa[["x", "y"]].to_numpy()])        # (2, epochs, 2)
+    fixes = np.stack([np.column_stack([f["x"].to_numpy(), f["y"].to_numpy()]) for f in (rss, toa)])   # (2, epochs, 2)
     weights = np.where(np.isfinite(fixes[..., 0]), np.array([[1.0 - w], [w]]), 0.0)   # (2, epochs)
     total = weights.sum(axis=0)
     with np.errstate(invalid="ignore"):
@@ -59,13 +59,11 @@ def _padded(epoch: np.ndarray, xy: np.ndarray, distances: np.ndarray, epochs: in
     return padded_xy, padded
 
 
-def _flat(epochs: list, ids: str, values: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(epoch index, anchor ids, values) of one measurement kind over all epochs, in order."""
-    lengths = [len(getattr(e, values)) for e in epochs]
-    empty = [np.array([], dtype=object)]
-    return (np.repeat(np.arange(len(epochs)), lengths),
-            np.concatenate([getattr(e, ids) for e in epochs] + empty).astype(object),
-            np.concatenate([getattr(e, values) for e in epochs] + [np.array([])]).astype(float))
+def _flat(source: MeasurementSource, times: np.ndarray, period: float, kind: int):
+    """(epoch index, anchor ids (object), per-anchor epoch means) of one measurement kind
+    (0 ranges, 1 RSS) over all epochs, by epoch, then anchor id (MeasurementSource.epochs' order)."""
+    means = source.epoch_means(times, period)[kind]
+    return means.epoch, source.anchor_ids(kind)[means.code], means.mean
 
 
 def _epoch_fixes(data: RunData, p: dict, technique: str, rss) -> pd.DataFrame:
@@ -74,18 +72,17 @@ def _epoch_fixes(data: RunData, p: dict, technique: str, rss) -> pd.DataFrame:
     kinds = {"toa": "toa", "rss": "rss"}.get(technique, "hybrid")
     source = MeasurementSource(data, kinds, p["anchors"], 1.0, p["preliminary_filter"], p["max_range_m"], rss)
     times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
-    epochs = source.epochs(times, p["epoch_s"])
     empty = np.array([], dtype=object)
     parts = []
     if technique != "toa":
-        index, ids, values = _flat(epochs, "rss_ids", "rss")
+        index, ids, values = _flat(source, times, p["epoch_s"], 1)
         parts.append((index, *source.horizontal_distances(empty, np.array([]), ids, values)))
     if technique != "rss":
-        index, ids, values = _flat(epochs, "range_ids", "ranges")
+        index, ids, values = _flat(source, times, p["epoch_s"], 0)
         parts.append((index, *source.horizontal_distances(ids, values, empty, np.array([]))))
     index, xy, distances = (np.concatenate(column) for column in zip(*parts))
     order = np.argsort(index, kind="stable")
-    padded = _padded(index[order], xy[order], distances[order], len(epochs))
+    padded = _padded(index[order], xy[order], distances[order], len(times))
     out = LOCALIZERS[p["solver"]](*smallest_per_epoch(*padded, p["k_smallest"]))
     out[~np.all(np.isfinite(out), axis=1)] = np.nan
     return pd.DataFrame({"t": times, "x": out[:, 0], "y": out[:, 1]})

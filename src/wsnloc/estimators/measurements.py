@@ -12,11 +12,12 @@ height (h = sqrt(d^2 + dz^2)); RSS by the log-distance model P0 - 10 n log10(d /
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import pandas as pd
 
-from wsnloc.estimators.epochs import Epoch, build_epochs
+from wsnloc.estimators.epochs import AnchorMeans, Epoch, anchor_means, per_epoch, sorted_codes
 from wsnloc.estimators.range_calibration import RangeCorrection
 from wsnloc.estimators.run_data import RunData
 from wsnloc.filters.measurement_models import RangeModel, RssModel, Stacked
@@ -48,22 +49,75 @@ def rss_params(data: RunData, p: dict) -> RssParams:
     return RssParams(p["p0_dbm"], p["path_loss_exponent"], p["sigma_db"], p["d0_m"])
 
 
+@dataclass
+class Coded:
+    """One kind of measurement of a run (its usable ranges or RSS) as arrays: t (s), value
+    (m or dBm) and the anchor as a code, the index of its id in `ids` (the distinct ids,
+    sorted, object). Sources of any anchor subset select their rows from it."""
+
+    t: np.ndarray
+    value: np.ndarray
+    code: np.ndarray
+    ids: np.ndarray
+
+    @classmethod
+    def of(cls, frame: pd.DataFrame, value: str) -> "Coded":
+        ids, code = sorted_codes(frame["anchor_id"])
+        return cls(frame["t"].to_numpy(float), frame[value].to_numpy(float), code, ids.astype(object))
+
+    def among(self, members: set[str]) -> np.ndarray:
+        """Per distinct id (code): whether it is one of `members`."""
+        return np.array([a in members for a in self.ids], dtype=bool)
+
+
 class MeasurementSource:
     """Ranges and/or RSS of one anchor subset of a run, filtered as configured; the ranges
-    corrected by the range calibration (estimators.range_calibration) when one is given."""
+    corrected by the range calibration (estimators.range_calibration) when one is given.
+
+    The run's usable ranges and RSS are coded once per run (Coded, shared by every source);
+    the per-anchor epoch means are computed once per run and kind over all anchors and
+    selected per subset (a mean over one anchor's samples does not depend on the others).
+    Epochs, records and initiator fixes are cached per run under the measurement set's key
+    (kinds, anchors, filter, correction), so sources that differ only in their noise
+    settings share them."""
 
     def __init__(self, data: RunData, kinds: str, anchors: str, range_sigma_m: float, apply_filter: bool,
                  max_range_m: float, rss: RssParams | None, correction: RangeCorrection = RangeCorrection()):
         self.data, self.kinds, self.range_sigma_m, self.rss_params = data, KINDS[kinds], range_sigma_m, rss
         self.correction = correction
-        members = data.members(anchors)
-        ranges = correction.apply(data.usable_ranges(apply_filter, max_range_m))
-        rss_frame = data.usable_rss()
-        self.ranges = ranges[ranges["anchor_id"].isin(members)] if "ranges" in self.kinds else ranges.iloc[:0]
-        self.rss = rss_frame[rss_frame["anchor_id"].isin(members)] if "rss" in self.kinds else rss_frame.iloc[:0]
         if "rss" in self.kinds and rss is None:
             raise ValueError("RSS measurements need an RSS model")
+        self._tables = {"ranges": (("ranges", apply_filter, max_range_m, correction),
+                                   lambda: correction.apply(data.usable_ranges(apply_filter, max_range_m)), "range_m"),
+                        "rss": (("rss",), data.usable_rss, "rss_dbm")}
+        self._members = data.members(anchors)
+        self._data_key = (kinds, anchors, apply_filter, max_range_m, correction)
         self._key = (kinds, anchors, range_sigma_m, apply_filter, max_range_m, rss, correction)
+
+    def _coded(self, kind: str) -> Coded:
+        """The run's usable measurements of `kind` ("ranges" or "rss"), coded (once per run)."""
+        key, frame, value = self._tables[kind]
+        return self.data.cached(("coded",) + key, lambda: Coded.of(frame(), value))
+
+    def _rows(self, kind: str) -> np.ndarray:
+        """bool per row of _coded(kind): the measurements this source reads."""
+        if kind not in self.kinds:
+            return np.zeros(len(self._coded(kind).t), dtype=bool)
+        coded = self._coded(kind)
+        return coded.among(self._members)[coded.code]
+
+    def _frame(self, kind: str) -> pd.DataFrame:
+        return self._tables[kind][1]()[self._rows(kind)]
+
+    @cached_property
+    def ranges(self) -> pd.DataFrame:
+        """The ranges this source reads (rows of the run's usable, corrected ranges)."""
+        return self._frame("ranges")
+
+    @cached_property
+    def rss(self) -> pd.DataFrame:
+        """The RSS samples this source reads (rows of the run's usable RSS)."""
+        return self._frame("rss")
 
     # ---- models ------------------------------------------------------------------------
     def model(self, range_ids, ranges, rss_ids, rss) -> Stacked | None:
@@ -97,9 +151,28 @@ class MeasurementSource:
         return multilateration(*self.horizontal_distances(range_ids, ranges, rss_ids, rss))
 
     # ---- epochs ------------------------------------------------------------------------
+    def epoch_means(self, times: np.ndarray, period: float) -> tuple[AnchorMeans, AnchorMeans]:
+        """(range means (m), RSS means (dB)) per epoch ending at `times` and anchor of this
+        source (epochs.anchor_means; codes into _coded(kind).ids)."""
+        return tuple(self._epoch_means(kind, times, period) for kind in ("ranges", "rss"))
+
+    def _epoch_means(self, kind: str, times: np.ndarray, period: float) -> AnchorMeans:
+        coded = self._coded(kind)
+        key = ("anchor_means",) + self._tables[kind][0] + (period, times.tobytes())
+        means = self.data.cached(key, lambda: anchor_means(coded.t, coded.code, coded.value, times, period))
+        keep = coded.among(self._members)[means.code] if kind in self.kinds else np.zeros(len(means.code), bool)
+        return means.select(keep)
+
+    def anchor_ids(self, kind: int) -> np.ndarray:
+        """The ids (object) the codes of epoch_means(...)[kind] index: 0 ranges, 1 RSS."""
+        return self._coded(("ranges", "rss")[kind]).ids
+
     def epochs(self, times: np.ndarray, period: float) -> list[Epoch]:
-        return self.data.cached(("epochs", self._key, period, len(times)),
-                                lambda: build_epochs(self.ranges, self.rss, period, times))
+        def build():
+            ranges, rss = (per_epoch(means, self.anchor_ids(kind), len(times))
+                           for kind, means in enumerate(self.epoch_means(times, period)))
+            return [Epoch(float(t), gr[0], gr[1], gs[0], gs[1]) for t, gr, gs in zip(times, ranges, rss)]
+        return self.data.cached(("epochs", self._data_key, period, len(times)), build)
 
     def epoch_models(self, times: np.ndarray, period: float) -> list[Stacked | None]:
         """The measurement model of every epoch (shared by the filters of one run)."""
@@ -108,7 +181,18 @@ class MeasurementSource:
 
     # ---- time-ordered records ----------------------------------------------------------
     def records(self) -> "Records":
-        return self.data.cached(("records", self._key), lambda: Records.of(self.ranges, self.rss))
+        return self.data.cached(("records", self._data_key), lambda: Records.of(
+            *[(self._coded(kind), self._rows(kind)) for kind in ("ranges", "rss")]))
+
+    def window_fix(self, t: float, window: float) -> np.ndarray | None:
+        """Multilateration (fix) on the per-anchor means of the records in (t - window, t]
+        (Records.window_means); None with fewer than 3 records. Cached per run: sources that
+        share the measurement set and RSS model share it."""
+        def build():
+            records = self.records()
+            a, b = np.searchsorted(records.t, [t - window, t], side="right")
+            return None if b - a < 3 else self.fix(*records.window_means(a, b))
+        return self.data.cached(("window_fix", self._data_key, self.rss_params, t, window), build)
 
 
 @dataclass
@@ -121,11 +205,13 @@ class Records:
     value: np.ndarray
 
     @classmethod
-    def of(cls, ranges: pd.DataFrame, rss: pd.DataFrame) -> "Records":
-        t = np.concatenate([ranges["t"].to_numpy(float), rss["t"].to_numpy(float)])
-        kind = np.concatenate([np.zeros(len(ranges), dtype=np.int8), np.ones(len(rss), dtype=np.int8)])
-        anchor = np.concatenate([ranges["anchor_id"].to_numpy(object), rss["anchor_id"].to_numpy(object)])
-        value = np.concatenate([ranges["range_m"].to_numpy(float), rss["rss_dbm"].to_numpy(float)])
+    def of(cls, ranges: tuple[Coded, np.ndarray], rss: tuple[Coded, np.ndarray]) -> "Records":
+        """The (coded measurements, bool rows to take) of the ranges and of the RSS."""
+        (r, r_rows), (s, s_rows) = ranges, rss
+        t = np.concatenate([r.t[r_rows], s.t[s_rows]])
+        kind = np.concatenate([np.zeros(r_rows.sum(), dtype=np.int8), np.ones(s_rows.sum(), dtype=np.int8)])
+        anchor = np.concatenate([r.ids[r.code[r_rows]], s.ids[s.code[s_rows]]])
+        value = np.concatenate([r.value[r_rows], s.value[s_rows]])
         order = np.argsort(t, kind="stable")
         return cls(t[order], kind[order], anchor[order], value[order])
 

@@ -10,15 +10,17 @@ This module holds only the paper's table layout, its claims and figures.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
+import numpy as np
 import pandas as pd
 
 from wsnloc import results
 from wsnloc.analysis import setup_facts
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
-from wsnloc.estimators import batched
+from wsnloc.estimators import batched, bayes
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import claims as claims_of
 from wsnloc.metrics import verdicts
@@ -88,17 +90,29 @@ def estimator_params(settings: Settings, row: dict, motion_detection: bool) -> d
 
 def run_all(datas: list[RunData], settings: Settings) -> list[pd.DataFrame]:
     """Estimates of every row, without (Table I) and with (Table II) motion detection, scored,
-    per run of `datas`; all runs x rows are stepped together (batched.run_cells)."""
+    per run of `datas`; all runs x rows are stepped together (batched.cell_tracks)."""
     cells = [(row, table, motion_detection) for row in settings.rows
              for table, motion_detection in (("Table I", False), ("Table II", True))]
     params = [estimator_params(settings, row, md) for row, _, md in cells]
-    tracks = batched.run_cells("ekf", [(data, p) for data in datas for p in params], where="experiments.paper_a")
-    out = []
-    for i, data in enumerate(datas):
-        frames = [track.assign(row=row_label(row), table=table)
-                  for track, (row, table, _) in zip(tracks[i * len(cells):(i + 1) * len(cells)], cells)]
-        out.append(score(pd.concat(frames, ignore_index=True), data.table("truth")))
-    return out
+    tracks = batched.cell_tracks("ekf", [(data, p) for data in datas for p in params], where="experiments.paper_a")
+    labels = {"row": [row_label(row) for row, _, _ in cells], "table": [table for _, table, _ in cells]}
+    return [score(_run_frame(tracks[i * len(cells):(i + 1) * len(cells)], labels), data.table("truth"))
+            for i, data in enumerate(datas)]
+
+
+def _run_frame(tracks: list[batched.Track], labels: dict[str, list[str]]) -> pd.DataFrame:
+    """One run's cells stacked (bayes.COLUMNS, then each label column, labels[name][c] on
+    the rows of cell c): pd.concat of the cells' frames, each with its labels assigned,
+    built at once from the arrays. attrs: the cells' attrs when they all agree (as concat)."""
+    rows = np.concatenate([track.rows for track in tracks])
+    counts = [len(track.rows) for track in tracks]
+    columns = {name: rows[:, j] for j, name in enumerate(bayes.COLUMNS)}
+    cell = np.repeat(np.arange(len(tracks)), counts)
+    columns.update({name: pd.array(values, dtype="str")[cell] for name, values in labels.items()})
+    frame = pd.DataFrame(columns)
+    if all(track.attrs and track.attrs == tracks[0].attrs for track in tracks):
+        frame.attrs = copy.deepcopy(tracks[0].attrs)
+    return frame
 
 
 def run(data: RunData, settings: Settings) -> pd.DataFrame:

@@ -117,27 +117,27 @@ def _names(estimator: str) -> set[str]:
 
 def run_all(datas: list[RunData], settings: Settings, stages=("raw", "velocity", "kalman")) -> list[pd.DataFrame]:
     """All estimates of each run (every cell of the given stages), scored against its truth; the
-    cells of one registry estimator over all runs go through one batched.run_cells (the KF
+    cells of one registry estimator over all runs go through one batched.cell_tracks (the KF
     cells of every run and technique are stepped together)."""
     selected = [cell for cell in cells(settings) if cell[2] in stages]
-    tracks: dict[int, list[pd.DataFrame]] = {}
+    tracks: dict[int, list[batched.Track]] = {}
     for name in dict.fromkeys(cell[3] for cell in selected):
         mine = [i for i, cell in enumerate(selected) if cell[3] == name]
-        out = batched.run_cells(name, [(data, selected[i][4]) for i in mine for data in datas],
-                                where="experiments.paper_d")
+        out = batched.cell_tracks(name, [(data, selected[i][4]) for i in mine for data in datas],
+                                  where="experiments.paper_d")
         for j, i in enumerate(mine):
             tracks[i] = out[j * len(datas):(j + 1) * len(datas)]
     return [score(_labelled([tracks[i][r] for i in range(len(selected))], selected), data.table("truth"))
             for r, data in enumerate(datas)]
 
 
-def _labelled(parts: list[pd.DataFrame], selected: list[tuple]) -> pd.DataFrame:
+def _labelled(parts: list[batched.Track], selected: list[tuple]) -> pd.DataFrame:
     """The t, x, y of every cell's track stacked, with its localizer, technique and stage."""
-    lengths = [len(part) for part in parts]
-    stacked = {column: np.concatenate([part[column].to_numpy(float) for part in parts]) for column in ("t", "x", "y")}
+    lengths = [len(part.rows) for part in parts]
+    stacked = np.concatenate([part.rows[:, :3] for part in parts])
     labels = {key: np.repeat(np.array([cell[k] for cell in selected], dtype=object), lengths)
               for k, key in enumerate(("localizer", "technique", "stage"))}
-    return pd.DataFrame({**stacked, **labels})
+    return pd.DataFrame({**{column: stacked[:, j] for j, column in enumerate(("t", "x", "y"))}, **labels})
 
 
 def run(data: RunData, settings: Settings, stages=("raw", "velocity", "kalman")) -> pd.DataFrame:

@@ -87,21 +87,31 @@ def cell_metrics(scored: pd.DataFrame, keys: list[str], truth: pd.DataFrame) -> 
     """RUN_METRICS of each cell (group of `keys`, in order of first appearance; rows with a
     missing key are left out) of one run's scored estimates. The cells are index arrays into
     the columns (no sub-frame per cell); the truth span is read once."""
-    span, cells = truth_span(truth), _cell_rows(scored, keys)
+    span, (names, cells) = truth_span(truth), _cell_rows(scored, keys)
     t, x, y, error = (scored[c].to_numpy(float) for c in ("t", "x", "y", "error_m"))
     finite = np.isfinite(x) & np.isfinite(y)
-    names = scored[keys].iloc[[rows[0] for rows in cells]].itertuples(index=False, name=None)
     records = [{**dict(zip(keys, name)), **error_summary(error[rows]),
                 "availability": covered_share(t[rows], finite[rows], span)} for name, rows in zip(names, cells)]
     return pd.DataFrame(records, columns=keys + list(RUN_METRICS))
 
 
-def _cell_rows(frame: pd.DataFrame, keys: list[str]) -> list[np.ndarray]:
-    """Row positions of each group of `keys` (groupby(keys, sort=False) order), ascending;
-    rows with a missing key (group number NaN, -1 here) are in none."""
-    grouped = frame[keys].groupby(keys, sort=False)
-    ids = grouped.ngroup().fillna(-1).to_numpy(int)
-    counts = np.bincount(ids[ids >= 0], minlength=grouped.ngroups)
-    order = np.argsort(ids, kind="stable")[len(ids) - counts.sum():]
-    ends = np.cumsum(counts)
-    return [order[end - n:end] for n, end in zip(counts, ends)]
+def _cell_rows(frame: pd.DataFrame, keys: list[str]) -> tuple[list[tuple], list[np.ndarray]]:
+    """(key values, row positions (ascending)) of each group of `keys`, in groupby(keys,
+    sort=False) order (first appearance); rows with a missing key are in none. Each key
+    column is factorized once (code -1: missing); a row's group is its codes combined,
+    c = (...(c_1 n_2 + c_2) n_3 + ...) with n_i the distinct values of key i."""
+    codes, uniques = zip(*(pd.factorize(frame[key]) for key in keys))
+    combined = np.zeros(len(frame), dtype=np.int64)
+    for code, distinct in zip(codes, uniques):
+        combined = combined * len(distinct) + code
+    valid = np.flatnonzero(np.all([code >= 0 for code in codes], axis=0))
+    _, first, inverse = np.unique(combined[valid], return_index=True, return_inverse=True)
+    appearance = np.argsort(first)                        # groups in order of their first row
+    group = np.empty(len(first), dtype=np.intp)
+    group[appearance] = np.arange(len(first))
+    ids = group[inverse.reshape(-1)]
+    order = valid[np.argsort(ids, kind="stable")]
+    ends = np.cumsum(np.bincount(ids, minlength=len(first)))
+    rows = np.split(order, ends[:-1]) if len(first) else []
+    names = [tuple(distinct[code[r[0]]] for code, distinct in zip(codes, uniques)) for r in rows]
+    return names, rows
