@@ -50,6 +50,15 @@ def test_range_errors_against_truth(campaign):
     assert errors["error_m"].iloc[0] == pytest.approx(0.25) and bool(errors["los"].iloc[0])
 
 
+def test_results_rows_sharing_their_labels_are_refused(tmp_path):
+    labels = dict(experiment="A", table="Claim parts", row="claim", column="Table I: hybrid - TOA",
+                  scenario="all", metric="difference_m")
+    rows = [results.single_row(-0.57, **labels), results.single_row(-0.66, **labels)]
+    with pytest.raises(ValueError, match="r.csv: 2 rows share their labels"):
+        results.write(rows, tmp_path / "r.csv")
+    results.write([rows[0], results.single_row(-0.66, **{**labels, "column": "Table I: other"})], tmp_path / "r.csv")
+
+
 def test_results_contract_round_trip(tmp_path):
     rows = [results.row_over_runs([1.0, 2.0, 3.0], experiment="x", table="t", row="r", column="c",
                                   scenario="s", metric="m", paper_value=2.5)]

@@ -15,6 +15,7 @@ from wsnloc.metrics.stats import mean_ci95
 
 COLUMNS = ["experiment", "table", "row", "column", "scenario", "metric",
            "value", "ci95_low", "ci95_high", "runs", "paper_value"]
+KEY = COLUMNS[:6]      # the labels that name a number: no two rows of a file share them
 
 
 def row_over_runs(per_run_values, *, experiment: str, table: str, row: str, column: str,
@@ -41,7 +42,13 @@ def frame(rows: list[dict]) -> pd.DataFrame:
 
 
 def write(rows_or_frame, path: str | Path) -> None:
+    """Write the rows; raises ValueError naming the file when two rows share their labels
+    (KEY), since a reader could not tell which number is which."""
     data = rows_or_frame if isinstance(rows_or_frame, pd.DataFrame) else frame(rows_or_frame)
+    repeated = data[data.duplicated(KEY, keep=False)]
+    if len(repeated):
+        raise ValueError(f"{path}: {len(repeated)} rows share their labels ({', '.join(KEY)}), e.g. "
+                         f"{repeated[KEY].iloc[0].to_dict()}")
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     data.to_csv(path, index=False, float_format="%.6g")
 

@@ -169,10 +169,9 @@ def claims(metrics: dict[str, pd.DataFrame], motions: dict[str, str], settings: 
         where = f"{label} "
         for table in tables:
             for hybrid, toa, rss in zip(by_kind["hybrid"], by_kind["toa"], by_kind["rss"]):
-                runs = {"hybrid": rmse(label, table, hybrid), "TOA": rmse(label, table, toa),
-                        "RSS": rmse(label, table, rss)}
-                for lo, hi in (("hybrid", "TOA"), ("TOA", "RSS")):
-                    order.append(claims_of.paired(runs[lo], runs[hi], "<", f"{where}{table}: {lo} - {hi}"))
+                for lo, hi in ((hybrid, toa), (toa, rss)):
+                    order.append(claims_of.paired(rmse(label, table, lo), rmse(label, table, hi), "<",
+                                                  f"{where}{table}: {lo} - {hi}"))
             for kind, rows in by_kind.items():
                 if len(rows) == 2:
                     anchors.append(claims_of.paired(rmse(label, table, rows[0]), rmse(label, table, rows[1]), "<",
