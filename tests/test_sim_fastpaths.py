@@ -201,22 +201,6 @@ def test_vibration_is_the_per_axis_formula_bit_for_bit(campaign):
         assert got[:, axis].tobytes() == (weight * amplitude * waves).tobytes()
 
 
-def test_wall_counts_equal_the_full_count(campaign):
-    """Points in and beside the rooms, on wall lines and at door edges, repeated (the cart at
-    rest), against anchors inside, outside and on wall lines: the same integers as
-    campaign.walls_between (every piece, every point)."""
-    rng = np.random.default_rng(5)
-    grid = np.array([(x, y) for x in (0.0, 2.5, 6.0, 8.5, 12.0, 22.5, 30.0) for y in (0.0, 6.0, 7.5, 9.0, 15.0)])
-    moving = np.column_stack([rng.uniform(-1.0, 31.0, 600), rng.uniform(-1.0, 16.0, 600)])
-    points = np.repeat(np.concatenate([grid, moving]), rng.integers(1, 4, len(grid) + len(moving)), axis=0)
-    anchors = np.concatenate([campaign.anchors[["x", "y"]].to_numpy(float), grid[::3], [[15.0, 9.0], [-2.0, 7.0]]])
-    for subset in (points, points[:1], points[points[:, 1] > 7.0], points[:0]):
-        for anchor in anchors:
-            got = newcom._walls_crossed(campaign, subset, anchor)
-            expected = campaign.walls_between(subset, anchor)
-            assert got.dtype == expected.dtype and np.array_equal(got, expected)
-
-
 def test_broadcast_lines_are_the_per_pair_formatting():
     rng = np.random.default_rng(6)
     ids = [f"Z{k:02d}" for k in range(1, 22)]

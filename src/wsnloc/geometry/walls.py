@@ -36,6 +36,9 @@ def _cross(ax, ay, bx, by):
     return ax * by - ay * bx
 
 
+PRUNE_FROM_POINTS = 32   # below this many points, pruning pieces and repeated points costs more than it saves
+
+
 def count_crossings(points: np.ndarray, anchor: np.ndarray, pieces: np.ndarray) -> np.ndarray:
     """Number of wall pieces properly crossed by each segment points[k] -> anchor.
 
@@ -43,11 +46,23 @@ def count_crossings(points: np.ndarray, anchor: np.ndarray, pieces: np.ndarray) 
     A crossing is counted when the two open segments intersect at a single interior
     point (orientation test: the end points of each segment lie strictly on opposite
     sides of the other); grazing contact at an end point does not count.
+    From PRUNE_FROM_POINTS points on, a run of equal consecutive points (a tag at rest) is
+    tested once and only the pieces a link may cross (_crossable) are tested: the same counts.
     Returns an (N,) integer array.
     """
     points = np.atleast_2d(np.asarray(points, dtype=float))
     if pieces.size == 0:
         return np.zeros(len(points), dtype=int)
+    if len(points) < PRUNE_FROM_POINTS:
+        return _crossings(points, anchor, pieces)
+    moved = np.ones(len(points), dtype=bool)
+    moved[1:] = np.any(points[1:] != points[:-1], axis=1)
+    distinct = points[moved]
+    return _crossings(distinct, anchor, _crossable(pieces, distinct, anchor))[np.cumsum(moved) - 1]
+
+
+def _crossings(points: np.ndarray, anchor: np.ndarray, pieces: np.ndarray) -> np.ndarray:
+    """count_crossings tested on every point and piece: (N,) integers."""
     px, py = points[:, 0:1], points[:, 1:2]            # (N, 1)
     ax, ay = float(anchor[0]), float(anchor[1])
     w1x, w1y, w2x, w2y = (pieces[:, i][None, :] for i in range(4))  # (1, M)
@@ -61,3 +76,25 @@ def count_crossings(points: np.ndarray, anchor: np.ndarray, pieces: np.ndarray) 
     s4 = _cross(wx, wy, ax - w1x, ay - w1y)
     crosses = (s1 * s2 < 0) & (s3 * s4 < 0)
     return crosses.sum(axis=1)
+
+
+def _crossable(pieces: np.ndarray, points: np.ndarray, anchor: np.ndarray) -> np.ndarray:
+    """The pieces (M, 4) that a link from one of `points` (N, 2) to `anchor` (2,) may cross.
+
+    A horizontal piece (y1 == y2 = c) is crossed only where the link's end points lie strictly
+    on opposite sides of y = c: its side test of the link's end points is wx (y - c) - 0 (x - x1),
+    whose float sign is that of y - c or 0 (a float difference is zero only for equal operands),
+    so a piece with the anchor on y = c, or every finite point on the anchor's side or on the
+    line, counts 0 for every point and is left out (a point with a NaN coordinate crosses
+    nothing); likewise a vertical piece (x1 == x2) with x. Other pieces are kept.
+    """
+    finite = points[np.isfinite(points).all(axis=1)]
+    if len(finite) == 0:
+        return pieces[:0]
+    x1, y1, x2, y2 = pieces.T
+    keep = np.ones(len(pieces), dtype=bool)
+    for aligned, line, coordinate, a in ((y1 == y2, y1, finite[:, 1], anchor[1]),
+                                         (x1 == x2, x1, finite[:, 0], anchor[0])):
+        opposite = ((a > line) & (coordinate.min() < line)) | ((a < line) & (coordinate.max() > line))
+        keep &= ~aligned | opposite
+    return pieces[keep]

@@ -11,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 from wsnloc.campaign import Campaign
-from wsnloc.geometry.walls import count_crossings
 from wsnloc.sim import rss as rss_model
 from wsnloc.sim import trajectory as motion
 from wsnloc.sim import uwb_channel
@@ -33,39 +32,6 @@ def uwb_settings(campaign: Campaign, overrides: dict) -> dict:
     if overrides.get("uwb_channel_only", False):
         spec.update(IMPAIRMENTS_BESIDES_CHANNEL)
     return spec
-
-
-def _crossable_pieces(pieces: np.ndarray, points: np.ndarray, anchor: np.ndarray) -> np.ndarray:
-    """The wall pieces (M, 4) that a link from one of `points` (N, 2) to `anchor` (2,) may cross.
-
-    A horizontal piece (y1 == y2 = c) is crossed only if the link's end points lie strictly on
-    opposite sides of y = c; for such a piece count_crossings' side test of the link's end points
-    is wx (y - c) - 0 (x - x1), whose float sign is that of y - c or 0 (a float subtraction is
-    zero only for equal operands), so a piece with the anchor on y = c, or every point on the
-    anchor's side or on the line, counts 0 for every point and is left out; likewise a vertical
-    piece (x1 == x2) with x. Other pieces are kept. Counts are therefore unchanged, exactly.
-    """
-    x1, y1, x2, y2 = pieces.T
-    keep = np.ones(len(pieces), dtype=bool)
-    for aligned, line, coordinate, a in ((y1 == y2, y1, points[:, 1], anchor[1]),
-                                         (x1 == x2, x1, points[:, 0], anchor[0])):
-        opposite = ((a > line) & (coordinate.min() < line)) | ((a < line) & (coordinate.max() > line))
-        keep &= ~aligned | opposite
-    return pieces[keep]
-
-
-def _walls_crossed(campaign: Campaign, points: np.ndarray, anchor: np.ndarray) -> np.ndarray:
-    """campaign.walls_between(points, anchor), the same integers at less cost: repeated
-    consecutive points (the cart at rest) are counted once, and only the pieces a link can
-    cross (_crossable_pieces) are tested. points (N, 2) and anchor (2,) in m."""
-    points = np.asarray(points, dtype=float)
-    if len(points) == 0:
-        return campaign.walls_between(points, anchor)
-    moved = np.ones(len(points), dtype=bool)
-    moved[1:] = np.any(points[1:] != points[:-1], axis=1)
-    distinct = points[moved]
-    counts = count_crossings(distinct, anchor, _crossable_pieces(campaign.walls, distinct, anchor))
-    return counts[np.cumsum(moved) - 1]
 
 
 def twr_clock_bias_m(spec: dict, rng: np.random.Generator, n_anchors: int, c: float) -> np.ndarray:
@@ -99,7 +65,7 @@ def _uwb_lines(campaign: Campaign, spec: dict, traj, rng_time, rng_channel, rng_
     round_ms = rounds + rng_time.uniform(-jitter, jitter, len(rounds))
     times_ms = np.round(round_ms[:, None] + np.arange(len(anchors))[None, :] * spec["anchor_spacing_ms"])
     pos = _positions(campaign, traj, times_ms.ravel() / 1000.0)["xy"].reshape(len(rounds), len(anchors), 2)
-    walls = np.column_stack([_walls_crossed(campaign, pos[:, j], a) for j, a in
+    walls = np.column_stack([campaign.walls_between(pos[:, j], a) for j, a in
                              enumerate(anchors[["x", "y"]].to_numpy(float))])
     dist = np.hypot(pos[..., 0] - anchors["x"].to_numpy()[None, :], pos[..., 1] - anchors["y"].to_numpy()[None, :])
     linked = ((walls == 0) & (dist <= spec["los_max_range_m"])) | \
@@ -137,7 +103,7 @@ def _zigbee_lines(campaign: Campaign, traj, rng, clock_ms: int) -> list[str]:
     xy = state["xy"]
     axy = anchors[["x", "y"]].to_numpy(float)
     dist = np.hypot(xy[:, None, 0] - axy[None, :, 0], xy[:, None, 1] - axy[None, :, 1])
-    walls = np.column_stack([_walls_crossed(campaign, xy, a) for a in axy])
+    walls = np.column_stack([campaign.walls_between(xy, a) for a in axy])
     shadow = rss_model.correlated_shadowing(state["s"], len(anchors), spec["shadowing_sigma_db"],
                                             spec["shadowing_decorrelation_m"], rng)
     power = rss_model.mean_rss_dbm(dist, walls, spec["p0_dbm"], spec["d0_m"],
