@@ -96,6 +96,42 @@ def parse_uwb(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.Da
     check_magic(raw, "-uwb")
     c = campaign.spec["speed_of_light_mps"]
     techs = dict(zip(campaign.anchors["anchor_id"], campaign.anchors["tech"]))
+    plain = _uwb_plain(raw, c, {anchor for anchor, tech in techs.items() if tech == "uwb"})
+    return plain if plain is not None else _uwb_lines(raw, c, techs, quarantine)
+
+
+# A uwb.log line the bulk path reads: single spaces, plain decimal t_ms, an anchor without
+# spaces, tw_toa_ps and status of at most 9 digits (no int64 overflow in c * tw_toa_ps).
+# On these tokens pyarrow's casts give float() / int() exactly (see _ZIGBEE_LINE).
+_UWB_LINE = r"^(?P<t_ms>-?[0-9]+(?:\.[0-9]+)?) (?P<anchor>[^ ]+) (?P<tw>-?[0-9]{1,9}) (?P<status>-?[0-9]{1,9})$"
+
+
+def _plain_lines(raw: RawFile) -> pa.Array:
+    """The data lines of a plain log (raw.plain) as an Arrow string array."""
+    return pa.array(raw.plain.decode("ascii").split("\n")[:raw.n_records])
+
+
+def _uwb_plain(raw: RawFile, c: float, anchors: set[str]) -> pd.DataFrame | None:
+    """The ranges of a clean uwb.log, read in bulk by pyarrow (the same values as the per-line
+    path, range = c * tw_toa_ps * 1e-12 / 2.0 in that order); None when a line is not a
+    _UWB_LINE, names an anchor that is not a uwb anchor, has a t_ms that is not finite or
+    goes back in time, or when c is not a float (Python multiplies an integer c exactly)."""
+    if raw.plain is None or not isinstance(c, float):
+        return None
+    fields = pc.extract_regex(_plain_lines(raw), _UWB_LINE)
+    known = pc.is_in(fields.field("anchor"), value_set=pa.array(sorted(anchors), type=pa.string()))
+    if fields.null_count or not pc.all(known).as_py():
+        return None
+    t_ms, tw, status = (pc.cast(fields.field(name), kind).to_numpy()
+                        for name, kind in (("t_ms", pa.float64()), ("tw", pa.int64()), ("status", pa.int64())))
+    if not (np.all(np.isfinite(t_ms)) and in_order(t_ms, strict=False)):
+        return None
+    return pd.DataFrame({"t": t_ms / 1000.0, "anchor_id": pd.array(fields.field("anchor"), dtype="str"),
+                         "range_m": c * tw * 1e-12 / 2.0, "status": status, "line": _plain_line_numbers(raw)})
+
+
+def _uwb_lines(raw: RawFile, c: float, techs: dict[str, str], quarantine: Quarantine) -> pd.DataFrame:
+    """The ranges of the usable lines of a uwb.log, checked one by one (unusable ones quarantined)."""
     accepted, rejected = [], []
     for number, text, fields in iter_fields(raw):
         try:
@@ -137,7 +173,7 @@ def _zigbee_plain(raw: RawFile, anchors: set[str]) -> pd.DataFrame | None:
     per-line checks (n against the pairs, unknown or repeated anchor, time going backwards)."""
     if raw.plain is None:
         return None
-    lines = pa.array(raw.plain.decode("ascii").split("\n")[:raw.n_records])
+    lines = _plain_lines(raw)
     heads = pc.extract_regex(lines, _ZIGBEE_LINE)
     if heads.null_count:
         return None
@@ -247,14 +283,16 @@ def parse_imu(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.Da
     if not accepted.any():
         return tables.empty("imu")
     g = campaign.spec["gravity_mps2"]
-    t_ms, c = values[accepted, 0], values[accepted, 1:]
+    if not accepted.all():
+        numbers, values = numbers[accepted], values[accepted]
+    t_ms, c = values[:, 0], values[:, 1:]
     return pd.DataFrame({
         "t": t_ms / 1000.0,
         "ax": c[:, 0] / accel_lsb * g,
         "ay": c[:, 1] / accel_lsb * g,
         "az": c[:, 2] / accel_lsb * g,
         "gz": np.deg2rad(c[:, 3] / gyro_lsb),
-        "line": numbers[accepted].astype(np.int32),
+        "line": numbers.astype(np.int32),
     })
 
 

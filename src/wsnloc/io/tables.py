@@ -160,8 +160,9 @@ def write(table: str, frame: pd.DataFrame, path: str | Path, extra_metadata: dic
     pq.write_table(to_arrow(table, frame, extra_metadata), path, compression="zstd")
 
 
-def read(path: str | Path) -> pd.DataFrame:
-    return pq.read_table(path).to_pandas()
+def read(path: str | Path, columns: list[str] | None = None) -> pd.DataFrame:
+    """A written table as a DataFrame: all its columns, or only `columns` (in that order)."""
+    return pq.read_table(path, columns=columns).to_pandas()
 
 
 def row_count(path: str | Path) -> int:
