@@ -267,3 +267,15 @@ def test_within_limits_is_what_the_limit_check_says(tmp_path, quarantined, limit
     except IngestError:
         passed = False
     assert within_limits(inventory, limits) == passed
+
+
+def test_an_integer_speed_of_light_reads_uwb_line_by_line_with_the_same_ranges(simulated_run, campaign):
+    """Python multiplies an integer c by tw_toa_ps exactly: the bulk path steps aside."""
+    raw = read_raw(simulated_run / "uwb.log", Quarantine())
+    integer_c = Campaign(campaign.name, campaign.format, {**campaign.spec, "speed_of_light_mps": 299792458},
+                         campaign.source)
+    assert newcom._uwb_plain(raw, 299792458, set(campaign.anchors_of("uwb")["anchor_id"])) is None
+    expected = newcom._uwb_lines(raw, 299792458, dict(zip(campaign.anchors["anchor_id"], campaign.anchors["tech"])),
+                                 Quarantine())
+    pd.testing.assert_frame_equal(newcom.parse_uwb(raw, integer_c, Quarantine()), expected, check_exact=True)
+    pd.testing.assert_frame_equal(newcom.parse_uwb(raw, campaign, Quarantine()), expected, check_exact=True)

@@ -68,8 +68,8 @@ def ingest_scenario(fmt: str, run_dirs: dict[str, str], campaign: Campaign | Non
 
 def _stop(run_dir: str | Path, inventory: dict, quarantine_path: Path, limits: QuarantineLimits, kept: Path) -> None:
     """Copy the quarantine table of a run over the limits (within_limits is False) to `kept`,
-    then raise check_quarantine_limits' IngestError naming that copy. The table is read back only here: a run
-    within the limits needs nothing but its inventory."""
+    then raise check_quarantine_limits' IngestError naming that copy. The table is read
+    back only here: a run within the limits needs nothing but its inventory."""
     quarantine = tables.read(quarantine_path)
     kept.parent.mkdir(parents=True, exist_ok=True)
     quarantine.to_csv(kept, index=False)

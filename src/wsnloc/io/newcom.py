@@ -101,8 +101,9 @@ def parse_uwb(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.Da
 
 
 # A uwb.log line the bulk path reads: single spaces, plain decimal t_ms, an anchor without
-# spaces, tw_toa_ps and status of at most 9 digits (no int64 overflow in c * tw_toa_ps).
-# On these tokens pyarrow's casts give float() / int() exactly (see _ZIGBEE_LINE).
+# spaces, tw_toa_ps and status of at most 9 digits (integers a double holds exactly, so
+# c * tw_toa_ps rounds as in Python). On these tokens pyarrow's casts give float() / int()
+# exactly (see _ZIGBEE_LINE).
 _UWB_LINE = r"^(?P<t_ms>-?[0-9]+(?:\.[0-9]+)?) (?P<anchor>[^ ]+) (?P<tw>-?[0-9]{1,9}) (?P<status>-?[0-9]{1,9})$"
 
 
