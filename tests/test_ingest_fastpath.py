@@ -4,15 +4,20 @@ tables, quarantine and counts, on clean simulated logs of every format and on da
 The per-line path is forced by handing a parser the same RawFile without its plain body.
 """
 
+import itertools
+
 import numpy as np
 import pandas as pd
+import pyarrow as pa
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from wsnloc.campaign import Campaign
-from wsnloc.io import cricket, newcom
-from wsnloc.io.rawlines import Quarantine, RawFile, read_raw
+from wsnloc.errors import IngestError
+from wsnloc.io import cricket, newcom, tables
+from wsnloc.io.limits import QuarantineLimits, check_quarantine_limits, within_limits
+from wsnloc.io.rawlines import Quarantine, RawFile, plain_body, read_raw
 from wsnloc.sim.cricket import simulate_run as simulate_cricket
 from wsnloc.sim.seeding import run_seed_sequence
 
@@ -72,10 +77,11 @@ def test_clean_newcom_logs_take_the_bulk_path_with_the_per_line_result(simulated
 
 
 def test_clean_logs_are_all_read_in_bulk(simulated_run, campaign):
-    """Guards the speed: no clean high-volume log falls back to the per-line path (uwb.log,
-    small, is always read line by line)."""
+    """Guards the speed: no clean log falls back to the per-line path."""
     raws = {name: read_raw(simulated_run / name, Quarantine()) for name in PARSERS}
     zigbee = set(campaign.anchors_of("zigbee")["anchor_id"])
+    uwb = set(campaign.anchors_of("uwb")["anchor_id"])
+    assert newcom._uwb_plain(raws["uwb.log"], campaign.spec["speed_of_light_mps"], uwb) is not None
     assert newcom._imu_plain(raws["imu.log"]) is not None
     assert newcom._truth_plain(raws["truth.log"], campaign.path.length) is not None
     assert newcom._zigbee_plain(raws["zigbee.log"], zigbee) is not None
@@ -123,6 +129,7 @@ LINE_DAMAGE = [
     lambda s: s.replace(" ", " 1.5 ", 1).rsplit(" ", 1)[0],
     lambda s: s.replace(" ", " 1. ", 1).rsplit(" ", 1)[0],
     lambda s: "-" + s,
+    lambda s: "1" * 400 + "".join(s.partition(" ")[1:]),    # t_ms overflows to inf (float() too)
     lambda s: s.replace(":", "::", 1),
     lambda s: s.replace(":", " ", 1),
     lambda s: s.replace(":", " ", 1).replace(" Z02:", ":Z02:", 1),     # a pair without its colon
@@ -212,3 +219,63 @@ def test_blank_and_comment_lines_before_the_data_are_read_as_line_by_line(campai
     _check_both_paths(campaign, tmp_path, "imu.log", body)
     raw = read_raw(tmp_path / "imu.log", Quarantine())
     assert raw.plain is not None and raw.header[-1] != ""
+
+
+# --- the helpers made faster keep their former definitions ------------------------------------
+
+def _plain_body_by_substrings(body: bytes) -> bool:
+    """plain_body as first written: substring searches."""
+    return bool(body) and not (body.endswith(b" ") or b"\n\n" in body or b" \n" in body or b"\n#" in body
+                               or any(space in body for space in (b"\t", b"\r", b"\x0b", b"\x0c", b"\x1c",
+                                                                  b"\x1d", b"\x1e", b"\x1f")))
+
+
+def test_plain_body_equals_its_substring_definition_on_every_short_body():
+    alphabet = [b"\n", b" ", b"#", b"\t", b"\r", b"1", b"a"]
+    bodies = [b"".join(chars) for size in range(7) for chars in itertools.product(alphabet, repeat=size)]
+    assert [plain_body(body) for body in bodies] == [_plain_body_by_substrings(body) for body in bodies]
+
+
+def test_tables_equal_pyarrow_from_pandas(simulated_run, campaign):
+    """tables.to_arrow converts column by column what pa.Table.from_pandas converted."""
+    result, _ = newcom.ingest_run(simulated_run, campaign)
+    result["quarantine"] = pd.DataFrame({"file": ["uwb.log"], "line": np.array([3], dtype=np.int32),
+                                         "text": ["x"], "reason": ["y"]})
+    for name, frame in result.items():
+        schema = tables.SCHEMAS[name]
+        expected = pa.Table.from_pandas(frame[schema.names], schema=schema, preserve_index=False)
+        expected = expected.replace_schema_metadata({b"table": name.encode(), b"run": b"run-01"})
+        assert tables.to_arrow(name, frame, {"run": "run-01"}).equals(expected, check_metadata=True)
+
+
+def test_tables_refuse_a_missing_column_and_a_missing_value_where_none_is_allowed(simulated_run, campaign):
+    truth = newcom.ingest_run(simulated_run, campaign)[0]["truth"]
+    with pytest.raises(KeyError):
+        tables.to_arrow("truth", truth.drop(columns="s"))
+    with pytest.raises(ValueError, match="not nullable"):
+        tables.to_arrow("truth", truth.assign(x=np.nan))
+
+
+@pytest.mark.parametrize("quarantined", [0, 1, 2, 3])
+@pytest.mark.parametrize("limits", [QuarantineLimits(0.2, 0.2), QuarantineLimits(0.1, 0.3), QuarantineLimits(0.3, 0.1)])
+def test_within_limits_is_what_the_limit_check_says(tmp_path, quarantined, limits):
+    inventory = {"a.log": {"data_lines": 10, "quarantined": quarantined}, "b.log": {"data_lines": 5, "quarantined": 0}}
+    quarantine = pd.DataFrame({"file": ["a.log"] * quarantined, "reason": ["bad"] * quarantined})
+    try:
+        check_quarantine_limits(tmp_path, inventory, quarantine, limits, tmp_path / "kept.csv")
+        passed = True
+    except IngestError:
+        passed = False
+    assert within_limits(inventory, limits) == passed
+
+
+def test_an_integer_speed_of_light_reads_uwb_line_by_line_with_the_same_ranges(simulated_run, campaign):
+    """Python multiplies an integer c by tw_toa_ps exactly: the bulk path steps aside."""
+    raw = read_raw(simulated_run / "uwb.log", Quarantine())
+    integer_c = Campaign(campaign.name, campaign.format, {**campaign.spec, "speed_of_light_mps": 299792458},
+                         campaign.source)
+    assert newcom._uwb_plain(raw, 299792458, set(campaign.anchors_of("uwb")["anchor_id"])) is None
+    expected = newcom._uwb_lines(raw, 299792458, dict(zip(campaign.anchors["anchor_id"], campaign.anchors["tech"])),
+                                 Quarantine())
+    pd.testing.assert_frame_equal(newcom.parse_uwb(raw, integer_c, Quarantine()), expected, check_exact=True)
+    pd.testing.assert_frame_equal(newcom.parse_uwb(raw, campaign, Quarantine()), expected, check_exact=True)

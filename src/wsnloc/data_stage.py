@@ -18,7 +18,7 @@ from wsnloc.io.ingest import ingest_scenario
 from wsnloc.io.limits import QuarantineLimits
 from wsnloc.metrics.data_quality import SUMMARY_TABLES, imu_files, load_inventory, load_runs, run_folders, summarize
 from wsnloc.metrics.ranging import fit_path_loss
-from wsnloc.signal.resample import resample_imu
+from wsnloc.signal.resample import CHANNELS, resample_imu
 
 def ingest_shard(fmt: str, raw_dirs: dict[str, str], campaign: Campaign, tables_dir, imu_dir,
                  limits: QuarantineLimits, resample: dict, keep_dir, log) -> dict:
@@ -34,7 +34,7 @@ def ingest_shard(fmt: str, raw_dirs: dict[str, str], campaign: Campaign, tables_
     out = Path(imu_dir)
     out.mkdir(parents=True, exist_ok=True)
     for run in inventory:
-        imu = tables.read(Path(tables_dir) / run / "imu.parquet")
+        imu = tables.read(Path(tables_dir) / run / "imu.parquet", columns=["t", *CHANNELS])
         low = resample_imu(imu, resample["rate_hz"], resample["grid_rate_hz"], resample["max_gap_s"],
                            resample["kaiser_beta"])
         tables.write("imu_5hz", low, out / f"{run}.parquet", {"rate_hz": resample["rate_hz"],

@@ -17,7 +17,7 @@ import pandas as pd
 from wsnloc.campaign import Campaign
 from wsnloc.errors import IngestError
 from wsnloc.io import cricket, generic, newcom, tables
-from wsnloc.io.limits import QuarantineLimits, check_quarantine_limits
+from wsnloc.io.limits import QuarantineLimits, check_quarantine_limits, within_limits
 
 PARSERS: dict[str, Callable[[Path, Campaign], tuple[dict[str, pd.DataFrame], dict]]] = {
     "newcom": newcom.ingest_run,
@@ -59,13 +59,18 @@ def ingest_scenario(fmt: str, run_dirs: dict[str, str], campaign: Campaign | Non
     inventory = {}
     for run, run_dir in run_dirs.items():
         inventory[run] = ingest_one(fmt, run_dir, campaign, out_dir / run)
-        quarantine = tables.read(out_dir / run / "quarantine.parquet")
-        kept = Path(keep_dir) / f"{run}.quarantine.csv"
-        try:
-            check_quarantine_limits(run_dir, inventory[run], quarantine, limits, kept)
-        except IngestError:
-            kept.parent.mkdir(parents=True, exist_ok=True)
-            quarantine.to_csv(kept, index=False)
-            raise
+        if not within_limits(inventory[run], limits):
+            _stop(run_dir, inventory[run], out_dir / run / "quarantine.parquet", limits,
+                  Path(keep_dir) / f"{run}.quarantine.csv")
     (out_dir / "inventory.json").write_text(json.dumps(inventory, indent=1, sort_keys=True))
     return inventory
+
+
+def _stop(run_dir: str | Path, inventory: dict, quarantine_path: Path, limits: QuarantineLimits, kept: Path) -> None:
+    """Copy the quarantine table of a run over the limits (within_limits is False) to `kept`,
+    then raise check_quarantine_limits' IngestError naming that copy. The table is read
+    back only here: a run within the limits needs nothing but its inventory."""
+    quarantine = tables.read(quarantine_path)
+    kept.parent.mkdir(parents=True, exist_ok=True)
+    quarantine.to_csv(kept, index=False)
+    check_quarantine_limits(run_dir, inventory, quarantine, limits, kept)

@@ -47,6 +47,13 @@ def file_shares(inventory: dict) -> dict[str, float]:
     return {name: f["quarantined"] / f["data_lines"] for name, f in inventory.items() if f["data_lines"]}
 
 
+def within_limits(inventory: dict, limits: QuarantineLimits) -> bool:
+    """Whether check_quarantine_limits passes: no file's share above limits.per_file and the
+    run's share not above limits.per_run (from the inventory alone)."""
+    return (all(share <= limits.per_file for share in file_shares(inventory).values())
+            and quarantine_share(inventory) <= limits.per_run)
+
+
 def describe(quarantine: pd.DataFrame, file: str, top: int = 3) -> str:
     """The dominant reasons (with counts, grouped as in the report: values become '…' and
     numbers N) and the most frequent quoted values among the quarantined lines of `file`."""

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pyarrow as pa
+import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
 from wsnloc.campaign import Campaign
@@ -59,7 +60,8 @@ _NUMERIC_BYTES = b"0123456789.- \n"
 def _plain_numbers(raw: RawFile, columns: dict[str, pa.DataType]) -> dict[str, np.ndarray] | None:
     """The columns of a plain log (rawlines.plain_body) whose every line is len(columns)
     numbers separated by single spaces, parsed in bulk; None when the file is not such a
-    log (a line with another field count or a token that does not parse included)."""
+    log (a line with another field count or a token that does not parse included) or a
+    number overflows to infinity (float() gives inf too; the per-line checks refuse it)."""
     if raw.plain is None or raw.plain.translate(None, _NUMERIC_BYTES):
         return None
     options = {"read_options": pacsv.ReadOptions(column_names=list(columns), use_threads=False),
@@ -70,7 +72,9 @@ def _plain_numbers(raw: RawFile, columns: dict[str, pa.DataType]) -> dict[str, n
         table = pacsv.read_csv(io.BytesIO(raw.plain), **options)
     except pa.ArrowInvalid:
         return None
-    return {name: table.column(name).to_numpy() for name in columns}
+    numbers = {name: table.column(name).to_numpy() for name in columns}
+    return numbers if all(np.all(np.isfinite(numbers[name])) for name, kind in columns.items()
+                          if pa.types.is_floating(kind)) else None
 
 
 def _plain_line_numbers(raw: RawFile) -> np.ndarray:
@@ -92,6 +96,43 @@ def parse_uwb(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.Da
     check_magic(raw, "-uwb")
     c = campaign.spec["speed_of_light_mps"]
     techs = dict(zip(campaign.anchors["anchor_id"], campaign.anchors["tech"]))
+    plain = _uwb_plain(raw, c, {anchor for anchor, tech in techs.items() if tech == "uwb"})
+    return plain if plain is not None else _uwb_lines(raw, c, techs, quarantine)
+
+
+# A uwb.log line the bulk path reads: single spaces, plain decimal t_ms, an anchor without
+# spaces, tw_toa_ps and status of at most 9 digits (integers a double holds exactly, so
+# c * tw_toa_ps rounds as in Python). On these tokens pyarrow's casts give float() / int()
+# exactly (see _ZIGBEE_LINE).
+_UWB_LINE = r"^(?P<t_ms>-?[0-9]+(?:\.[0-9]+)?) (?P<anchor>[^ ]+) (?P<tw>-?[0-9]{1,9}) (?P<status>-?[0-9]{1,9})$"
+
+
+def _plain_lines(raw: RawFile) -> pa.Array:
+    """The data lines of a plain log (raw.plain) as an Arrow string array."""
+    return pa.array(raw.plain.decode("ascii").split("\n")[:raw.n_records])
+
+
+def _uwb_plain(raw: RawFile, c: float, anchors: set[str]) -> pd.DataFrame | None:
+    """The ranges of a clean uwb.log, read in bulk by pyarrow (the same values as the per-line
+    path, range = c * tw_toa_ps * 1e-12 / 2.0 in that order); None when a line is not a
+    _UWB_LINE, names an anchor that is not a uwb anchor, has a t_ms that is not finite or
+    goes back in time, or when c is not a float (Python multiplies an integer c exactly)."""
+    if raw.plain is None or not isinstance(c, float):
+        return None
+    fields = pc.extract_regex(_plain_lines(raw), _UWB_LINE)
+    known = pc.is_in(fields.field("anchor"), value_set=pa.array(sorted(anchors), type=pa.string()))
+    if fields.null_count or not pc.all(known).as_py():
+        return None
+    t_ms, tw, status = (pc.cast(fields.field(name), kind).to_numpy()
+                        for name, kind in (("t_ms", pa.float64()), ("tw", pa.int64()), ("status", pa.int64())))
+    if not (np.all(np.isfinite(t_ms)) and in_order(t_ms, strict=False)):
+        return None
+    return pd.DataFrame({"t": t_ms / 1000.0, "anchor_id": pd.array(fields.field("anchor"), dtype="str"),
+                         "range_m": c * tw * 1e-12 / 2.0, "status": status, "line": _plain_line_numbers(raw)})
+
+
+def _uwb_lines(raw: RawFile, c: float, techs: dict[str, str], quarantine: Quarantine) -> pd.DataFrame:
+    """The ranges of the usable lines of a uwb.log, checked one by one (unusable ones quarantined)."""
     accepted, rejected = [], []
     for number, text, fields in iter_fields(raw):
         try:
@@ -117,51 +158,45 @@ def parse_zigbee(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd
     return plain if plain is not None else _zigbee_lines(raw, techs, quarantine)
 
 
-def _plain_fields(raw: RawFile, most: int = -1) -> list[list[str]] | None:
-    """The space-separated fields of each line of a plain log, at most `most` splits per
-    line; None for another log. Where spaces are single these are the fields of
-    str.split(); elsewhere an empty field appears, which no bulk check accepts."""
-    if raw.plain is None:
-        return None
-    return [line.split(" ", most) for line in raw.plain.decode("ascii").splitlines()]
-
-
-# Space-separated anchor:value pairs, each with exactly one colon (the pairs of a zigbee.log).
-_PAIRS = re.compile(r"[^ :]+:[^ :]+(?: [^ :]+:[^ :]+)*")
+# A zigbee.log line the bulk path reads: single spaces, plain decimal t_ms, integer seq, n and
+# rssi, and at least one anchor:rssi pair whose anchor has neither a space nor a colon. Other
+# lines (including those that float() / int() would still accept, such as "+5" or "1e4")
+# send the file to the per-line checks. On these tokens pyarrow's string -> float64 / int64
+# casts give float() / int() exactly (decimal rounded to the nearest double; an int64
+# overflow raises and also sends the file to the per-line checks).
+_ZIGBEE_LINE = (r"^(?P<t_ms>-?[0-9]+(?:\.[0-9]+)?) (?P<seq>-?[0-9]+) (?P<n>[0-9]+) "
+                r"(?P<pairs>[^ :]+:-?[0-9]+(?: [^ :]+:-?[0-9]+)*)$")
 
 
 def _zigbee_plain(raw: RawFile, anchors: set[str]) -> pd.DataFrame | None:
-    """The rss rows of a clean zigbee.log, read in bulk (the same values as the per-line
-    path); None when any line would be refused by the per-line checks (fields, numbers,
-    n against the pairs, unknown or repeated anchor, time going backwards) or has no pair."""
-    heads = _plain_fields(raw, 3)
-    if heads is None:
+    """The rss rows of a clean zigbee.log, read in bulk by pyarrow (the same values as the
+    per-line path); None when any line is not a _ZIGBEE_LINE or would be refused by the
+    per-line checks (n against the pairs, unknown or repeated anchor, time going backwards)."""
+    if raw.plain is None:
         return None
+    lines = _plain_lines(raw)
+    heads = pc.extract_regex(lines, _ZIGBEE_LINE)
+    if heads.null_count:
+        return None
+    pairs = pc.split_pattern(heads.field("pairs"), " ")
+    halves = pc.split_pattern(pairs.flatten(), ":")
+    known = pa.array(sorted(anchors), type=pa.string())
+    codes = pc.index_in(pc.list_element(halves, 0), value_set=known)
     try:
-        t_ms = np.array([float(head[0]) for head in heads])
-        seq = np.array([int(head[1]) for head in heads], dtype=np.int64)
-        n = np.array([int(head[2]) for head in heads], dtype=np.int64)
-    except (ValueError, IndexError, OverflowError):
+        t_ms, seq, n, rss = (pc.cast(column, kind).to_numpy() for column, kind in (
+            (heads.field("t_ms"), pa.float64()), (heads.field("seq"), pa.int64()), (heads.field("n"), pa.int64()),
+            (pc.list_element(halves, 1), pa.int64())))
+    except pa.ArrowInvalid:
         return None
-    pairs_per_line = np.array([head[3].count(" ") + 1 if len(head) == 4 else 0 for head in heads], dtype=np.int64)
-    pairs = " ".join(head[3] for head in heads if len(head) == 4)
-    if not (_PAIRS.fullmatch(pairs) and np.array_equal(n, pairs_per_line) and np.all(np.isfinite(t_ms))
-            and in_order(t_ms, strict=False)):
+    pairs_per_line = pc.list_value_length(pairs).to_numpy().astype(np.int64)
+    if codes.null_count or not (np.array_equal(n, pairs_per_line) and np.all(np.isfinite(t_ms))
+                                and in_order(t_ms, strict=False)):
         return None
-    tokens = pairs.replace(":", " ").split(" ")
-    ids = tokens[0::2]
-    if not set(ids) <= anchors:
+    line_of_pair = np.repeat(np.arange(len(lines)), pairs_per_line)
+    if np.bincount(line_of_pair * len(known) + codes.to_numpy()).max() > 1:     # an anchor twice on one line
         return None
-    try:
-        rss = np.array(list(map(int, tokens[1::2])), dtype=np.int64)
-    except (ValueError, OverflowError):
-        return None
-    line_of_pair = np.repeat(np.arange(len(heads)), pairs_per_line)
-    codes = {anchor: code for code, anchor in enumerate(anchors)}
-    keys = line_of_pair * len(codes) + np.array([codes[anchor] for anchor in ids])
-    if np.bincount(keys).max() > 1:                 # an anchor twice on one line
-        return None
-    return pd.DataFrame({"t": np.repeat(t_ms / 1000.0, pairs_per_line), "seq": seq[line_of_pair], "anchor_id": ids,
+    return pd.DataFrame({"t": np.repeat(t_ms / 1000.0, pairs_per_line), "seq": seq[line_of_pair],
+                         "anchor_id": pd.array(pc.list_element(halves, 0), dtype="str"),
                          "rss_dbm": rss.astype(float), "line": _plain_line_numbers(raw)[line_of_pair]})
 
 
@@ -249,14 +284,16 @@ def parse_imu(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.Da
     if not accepted.any():
         return tables.empty("imu")
     g = campaign.spec["gravity_mps2"]
-    t_ms, c = values[accepted, 0], values[accepted, 1:]
+    if not accepted.all():
+        numbers, values = numbers[accepted], values[accepted]
+    t_ms, c = values[:, 0], values[:, 1:]
     return pd.DataFrame({
         "t": t_ms / 1000.0,
         "ax": c[:, 0] / accel_lsb * g,
         "ay": c[:, 1] / accel_lsb * g,
         "az": c[:, 2] / accel_lsb * g,
         "gz": np.deg2rad(c[:, 3] / gyro_lsb),
-        "line": numbers[accepted].astype(np.int32),
+        "line": numbers.astype(np.int32),
     })
 
 
@@ -264,8 +301,7 @@ def _imu_plain(raw: RawFile) -> tuple[np.ndarray, np.ndarray] | None:
     """Line numbers and (t_ms, ax, ay, az, gz) of every line of a clean imu.log, read in
     bulk (the same values as the per-line path); None when any line would be refused by
     the per-line checks: field count, a token that is not a number / an integer, a count
-    beyond MAX_COUNT, or time that does not increase strictly (t_ms is finite by the
-    bytes allowed)."""
+    beyond MAX_COUNT, a t_ms that is not finite, or time that does not increase strictly."""
     columns = _plain_numbers(raw, {"t_ms": pa.float64(), **{name: pa.int64() for name in _IMU_FIELDS}})
     if columns is None:
         return None

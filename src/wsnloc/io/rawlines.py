@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator
 
+import numpy as np
 import pandas as pd
 
 from wsnloc.errors import IngestError
@@ -70,8 +71,19 @@ def plain_body(body: bytes) -> bool:
     whitespace but spaces and line ends; the line texts are then the bytes between the
     newlines, and their count is the number of data lines.
     """
-    return bool(body) and not (body.endswith(b" ") or b"\n\n" in body or b" \n" in body or b"\n#" in body
-                               or any(space in body for space in _OTHER_SPACE))
+    return bool(body) and not (body.endswith(b" ") or any(space in body for space in _OTHER_SPACE)
+                               or _blank_trailing_or_comment(body))
+
+
+def _blank_trailing_or_comment(body: bytes) -> bool:
+    """Whether `body` holds b"\n\n", b" \n" or b"\n#": a newline after a newline or a space,
+    or before a '#'. One vectorised pass over the newlines' positions (bytes.__contains__
+    with a two-byte pattern is several times slower on a 1 MB log)."""
+    codes = np.frombuffer(body, dtype=np.uint8)
+    ends = np.flatnonzero(codes == ord("\n"))
+    before = codes[ends[ends > 0] - 1]
+    after = codes[ends[ends < len(codes) - 1] + 1]
+    return bool(np.any((before == ord("\n")) | (before == ord(" "))) or np.any(after == ord("#")))
 
 
 def read_raw(path: str | Path, quarantine: Quarantine) -> RawFile:

@@ -135,12 +135,24 @@ def empty(table: str) -> pd.DataFrame:
     return SCHEMAS[table].empty_table().to_pandas()
 
 
+def _column(frame: pd.DataFrame, field: pa.Field) -> pa.Array:
+    """Column `field.name` of `frame` as `field.type`, converted as pa.Table.from_pandas does;
+    raises KeyError when missing, ValueError when a non-nullable column holds NaN or None."""
+    array = pa.array(frame[field.name], type=field.type, from_pandas=True)
+    if not field.nullable and array.null_count:
+        raise ValueError(f"column {field.name!r} is not nullable but holds {array.null_count} missing values")
+    return array
+
+
 def to_arrow(table: str, frame: pd.DataFrame, extra_metadata: dict[str, str] | None = None) -> pa.Table:
-    """Cast a DataFrame to the table's schema (columns in schema order); raises on mismatch."""
+    """Cast a DataFrame to the table's schema (columns in schema order); raises on mismatch.
+
+    Column by column, on the calling thread: pa.Table.from_pandas would give the same table
+    but copies the frame's columns first and starts a thread pool for every table.
+    """
     schema = SCHEMAS[table]
     meta = {b"table": table.encode(), **{k.encode(): str(v).encode() for k, v in (extra_metadata or {}).items()}}
-    arrow = pa.Table.from_pandas(frame[schema.names], schema=schema, preserve_index=False)
-    return arrow.replace_schema_metadata(meta)
+    return pa.Table.from_arrays([_column(frame, field) for field in schema], schema=schema).replace_schema_metadata(meta)
 
 
 def write(table: str, frame: pd.DataFrame, path: str | Path, extra_metadata: dict[str, str] | None = None) -> None:
@@ -148,8 +160,9 @@ def write(table: str, frame: pd.DataFrame, path: str | Path, extra_metadata: dic
     pq.write_table(to_arrow(table, frame, extra_metadata), path, compression="zstd")
 
 
-def read(path: str | Path) -> pd.DataFrame:
-    return pq.read_table(path).to_pandas()
+def read(path: str | Path, columns: list[str] | None = None) -> pd.DataFrame:
+    """A written table as a DataFrame: all its columns, or only `columns` (in that order)."""
+    return pq.read_table(path, columns=columns).to_pandas()
 
 
 def row_count(path: str | Path) -> int:

@@ -65,6 +65,8 @@ def out_of_order_reasons(t: np.ndarray, keep: np.ndarray, strict: bool, unit: st
     """Why each refused record (index not in `keep`) is out of order, compared with the
     kept records around it: earlier than the last kept one ("time goes backwards"), equal to
     it ("time repeats"), or later than the next kept one ("time jumps ahead")."""
+    if keep.all():                          # the usual case: nothing refused
+        return {}
     t = np.asarray(t, dtype=float)
     kept_times = np.where(keep, t, -np.inf)
     previous = np.maximum.accumulate(np.concatenate([[-np.inf], kept_times[:-1]]))
