@@ -18,6 +18,8 @@ row (table "Claim parts", metric "difference", value = mean difference with its 
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 import pandas as pd
 
@@ -31,12 +33,39 @@ PARTS_TABLE = "Claim parts"
 
 
 def runs_of(metrics: pd.DataFrame, metric: str = "rmse", **keys) -> pd.Series:
-    """Per-run values of one cell: `metric` of the rows matching every key, indexed by run."""
-    match = np.ones(len(metrics), dtype=bool)
-    for column, value in keys.items():
-        match &= metrics[column].to_numpy() == value
-    sel = metrics[match]
-    return pd.Series(sel[metric].to_numpy(float), index=sel["run"].to_numpy(), name=metric)
+    """Per-run values of one cell: `metric` of the rows matching every key (column == value),
+    indexed by run, in the frame's row order. The rows of every cell are found once per frame
+    and key columns (cell_rows): a paper's claims look up the same cells many times."""
+    rows = cell_rows(metrics, tuple(keys)).get(tuple(keys.values()), _NO_ROWS)
+    return pd.Series(metrics[metric].to_numpy(float)[rows], index=metrics["run"].to_numpy()[rows], name=metric)
+
+
+_NO_ROWS = np.array([], dtype=np.intp)
+_CELL_ROWS: dict[int, tuple[weakref.ref, dict]] = {}   # id(frame) -> (frame, {key columns: cell rows})
+
+
+def cell_rows(metrics: pd.DataFrame, columns: tuple[str, ...]) -> dict[tuple, np.ndarray]:
+    """Row positions (ascending) of each cell of `metrics`, by its values of `columns`: the
+    rows where every column equals the value (rows with a missing value in one of them are in
+    no cell, as NaN == NaN is false). Computed once per frame and columns and kept while the
+    frame lives (the entry is dropped when it is garbage-collected): the frame must not be
+    modified after its first look-up."""
+    key = id(metrics)
+    held = _CELL_ROWS.get(key)
+    if held is None or held[0]() is not metrics:
+        held = (weakref.ref(metrics, lambda _ref, key=key: _CELL_ROWS.pop(key, None)), {})
+        _CELL_ROWS[key] = held
+    if columns not in held[1]:
+        held[1][columns] = _group_rows(metrics, columns)
+    return held[1][columns]
+
+
+def _group_rows(metrics: pd.DataFrame, columns: tuple[str, ...]) -> dict[tuple, np.ndarray]:
+    """{values of `columns`: ascending row positions} of the frame (all rows for no columns)."""
+    if not columns:
+        return {(): np.arange(len(metrics))}
+    groups = metrics.groupby(list(columns), sort=False, dropna=True).indices
+    return {(k if isinstance(k, tuple) else (k,)): np.asarray(v, dtype=np.intp) for k, v in groups.items()}
 
 
 def paired(a: pd.Series, b: pd.Series, side: str, label: str) -> Comparison:

@@ -9,16 +9,17 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from wsnloc.experiments import claims as claims_of
 from wsnloc.metrics.verdicts import VERDICTS, paper_value_inside
 
 
 def _cell(results: pd.DataFrame, **keys) -> dict:
-    match = np.ones(len(results), dtype=bool)
-    for column, value in keys.items():
-        match &= results[column].to_numpy() == value      # numpy, not pandas: ~400 cells per report
-    if not match.any():
+    """The first row of `results` where every key column equals its value, as a table cell;
+    the rows of each key are indexed once per frame and key columns (claims.cell_rows)."""
+    rows = claims_of.cell_rows(results, tuple(keys)).get(tuple(keys.values()))
+    if rows is None:
         return {"value": None, "low": None, "high": None, "runs": None, "paper": None, "delta": None, "inside": False}
-    row = results.iloc[int(np.argmax(match))]
+    row = results.iloc[int(rows[0])]
     paper = row["paper_value"] if pd.notna(row["paper_value"]) else None
     value = row["value"] if pd.notna(row["value"]) else None
     low = row["ci95_low"] if pd.notna(row["ci95_low"]) else None
