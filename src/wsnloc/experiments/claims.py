@@ -34,37 +34,51 @@ PARTS_TABLE = "Claim parts"
 
 def runs_of(metrics: pd.DataFrame, metric: str = "rmse", **keys) -> pd.Series:
     """Per-run values of one cell: `metric` of the rows matching every key (column == value),
-    indexed by run, in the frame's row order. The rows of every cell are found once per frame
-    and key columns (cell_rows): a paper's claims look up the same cells many times."""
+    indexed by run, in the frame's row order. The rows of every cell and the columns' arrays
+    are found once per frame (cell_rows, _column): a paper's claims look up the same cells
+    many times."""
     rows = cell_rows(metrics, tuple(keys)).get(tuple(keys.values()), _NO_ROWS)
-    return pd.Series(metrics[metric].to_numpy(float)[rows], index=metrics["run"].to_numpy()[rows], name=metric)
+    return pd.Series(_column(metrics, metric, float)[rows], index=_column(metrics, "run")[rows], name=metric)
 
 
 _NO_ROWS = np.array([], dtype=np.intp)
-_CELL_ROWS: dict[int, tuple[weakref.ref, dict]] = {}   # id(frame) -> (frame, {key columns: cell rows})
+_FRAME_MEMO: dict[int, tuple[weakref.ref, dict]] = {}   # id(frame) -> (frame, {what: derived from the frame})
 
 
-def cell_rows(metrics: pd.DataFrame, columns: tuple[str, ...]) -> dict[tuple, np.ndarray]:
-    """Row positions (ascending) of each cell of `metrics`, by its values of `columns`: the
-    rows where every column equals the value (rows with a missing value in one of them are in
-    no cell, as NaN == NaN is false). Computed once per frame and columns and kept while the
-    frame lives (the entry is dropped when it is garbage-collected): the frame must not be
-    modified after its first look-up."""
-    key = id(metrics)
-    held = _CELL_ROWS.get(key)
-    if held is None or held[0]() is not metrics:
-        held = (weakref.ref(metrics, lambda _ref, key=key: _CELL_ROWS.pop(key, None)), {})
-        _CELL_ROWS[key] = held
-    if columns not in held[1]:
-        held[1][columns] = _group_rows(metrics, columns)
-    return held[1][columns]
+def _memo(frame: pd.DataFrame) -> dict:
+    """A dict of values derived from `frame`, kept while the frame lives (its entry is dropped
+    when the frame is garbage-collected); the frame must not be modified after its first use."""
+    key = id(frame)
+    held = _FRAME_MEMO.get(key)
+    if held is None or held[0]() is not frame:
+        held = (weakref.ref(frame, lambda _ref, key=key: _FRAME_MEMO.pop(key, None)), {})
+        _FRAME_MEMO[key] = held
+    return held[1]
 
 
-def _group_rows(metrics: pd.DataFrame, columns: tuple[str, ...]) -> dict[tuple, np.ndarray]:
+def _column(frame: pd.DataFrame, name: str, dtype=None) -> np.ndarray:
+    """frame[name].to_numpy(dtype), converted once per frame (string columns convert slowly)."""
+    memo = _memo(frame)
+    if ("column", name, dtype) not in memo:
+        memo["column", name, dtype] = frame[name].to_numpy(dtype)
+    return memo["column", name, dtype]
+
+
+def cell_rows(frame: pd.DataFrame, columns: tuple[str, ...]) -> dict[tuple, np.ndarray]:
+    """Row positions (ascending) of each cell of `frame`, by its values of `columns`: the rows
+    where every column equals the value (rows with a missing value in one of them are in no
+    cell, as NaN == NaN is false). Computed once per frame and columns (_memo)."""
+    memo = _memo(frame)
+    if ("cells", columns) not in memo:
+        memo["cells", columns] = _group_rows(frame, columns)
+    return memo["cells", columns]
+
+
+def _group_rows(frame: pd.DataFrame, columns: tuple[str, ...]) -> dict[tuple, np.ndarray]:
     """{values of `columns`: ascending row positions} of the frame (all rows for no columns)."""
     if not columns:
-        return {(): np.arange(len(metrics))}
-    groups = metrics.groupby(list(columns), sort=False, dropna=True).indices
+        return {(): np.arange(len(frame))}
+    groups = frame.groupby(list(columns), sort=False, dropna=True).indices
     return {(k if isinstance(k, tuple) else (k,)): np.asarray(v, dtype=np.intp) for k, v in groups.items()}
 
 
