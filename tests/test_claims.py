@@ -156,3 +156,12 @@ def test_report_cell_is_the_first_matching_row():
                            for v, r in ((0.5, "a"), (0.7, "b"), (0.9, "a"))])
     assert _cell(frame, row="a", column="c")["value"] == 0.5 and _cell(frame, row="b")["value"] == 0.7
     assert _cell(frame, row="z")["value"] is None
+
+
+def test_report_numbers_read_the_first_matching_row_or_nan():
+    from wsnloc.report.explanations import Numbers
+    rows = [results.single_row(v, experiment="A", table="T", row=r, column="c", scenario=s, metric="rmse_m")
+            for v, r, s in ((0.5, "a", "x"), (0.7, "a", "y"), (None, "b", "x"), (0.9, "a", "x"))]
+    numbers = Numbers(results.frame(rows), {})
+    assert numbers.value("A", "T", "a", "c") == 0.5 and numbers.value("A", "T", "a", "c", scenario="y") == 0.7
+    assert np.isnan(numbers.value("A", "T", "b", "c")) and np.isnan(numbers.value("A", "T", "z", "c"))

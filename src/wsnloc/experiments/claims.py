@@ -35,10 +35,10 @@ PARTS_TABLE = "Claim parts"
 def runs_of(metrics: pd.DataFrame, metric: str = "rmse", **keys) -> pd.Series:
     """Per-run values of one cell: `metric` of the rows matching every key (column == value),
     indexed by run, in the frame's row order. The rows of every cell and the columns' arrays
-    are found once per frame (cell_rows, _column): a paper's claims look up the same cells
+    are found once per frame (cell_rows, column_values): a paper's claims look up the same cells
     many times."""
     rows = cell_rows(metrics, tuple(keys)).get(tuple(keys.values()), _NO_ROWS)
-    return pd.Series(_column(metrics, metric, float)[rows], index=_column(metrics, "run")[rows], name=metric)
+    return pd.Series(column_values(metrics, metric, float)[rows], index=column_values(metrics, "run")[rows], name=metric)
 
 
 _NO_ROWS = np.array([], dtype=np.intp)
@@ -56,8 +56,8 @@ def _memo(frame: pd.DataFrame) -> dict:
     return held[1]
 
 
-def _column(frame: pd.DataFrame, name: str, dtype=None) -> np.ndarray:
-    """frame[name].to_numpy(dtype), converted once per frame (string columns convert slowly)."""
+def column_values(frame: pd.DataFrame, name: str, dtype=None) -> np.ndarray:
+    """frame[name].to_numpy(dtype), converted once per frame (_memo; string columns convert slowly)."""
     memo = _memo(frame)
     if ("column", name, dtype) not in memo:
         memo["column", name, dtype] = frame[name].to_numpy(dtype)
