@@ -38,7 +38,8 @@ def runs_of(metrics: pd.DataFrame, metric: str = "rmse", **keys) -> pd.Series:
     are found once per frame (cell_rows, column_values): a paper's claims look up the same cells
     many times."""
     rows = cell_rows(metrics, tuple(keys)).get(tuple(keys.values()), _NO_ROWS)
-    return pd.Series(column_values(metrics, metric, float)[rows], index=column_values(metrics, "run")[rows], name=metric)
+    values, runs = column_values(metrics, metric, float), column_values(metrics, "run")
+    return pd.Series(values[rows], index=runs[rows], name=metric)
 
 
 _NO_ROWS = np.array([], dtype=np.intp)
