@@ -123,3 +123,45 @@ def test_cells_show_the_difference_only_where_the_paper_lies_outside_our_interva
                "claims": [{"verdict": HOLDS}, {"verdict": INCONCLUSIVE}, {"verdict": INCONCLUSIVE}]}
     assert summary([section]) == [{"id": "A", "title": "t", "cells": 2, "inside": 1, "claims": 3,
                                    "verdicts": {HOLDS: 1, DOES_NOT_HOLD: 0, INCONCLUSIVE: 2}}]
+
+
+def _runs_by_mask(metrics: pd.DataFrame, metric: str = "rmse", **keys) -> pd.Series:
+    """The former runs_of: a boolean mask per call (the reference for the indexed look-up)."""
+    match = np.ones(len(metrics), dtype=bool)
+    for column, value in keys.items():
+        match &= metrics[column].to_numpy() == value
+    sel = metrics[match]
+    return pd.Series(sel[metric].to_numpy(float), index=sel["run"].to_numpy(), name=metric)
+
+
+def test_runs_of_matches_a_boolean_mask_in_row_order_with_missing_keys():
+    rng = np.random.default_rng(3)
+    n = 60
+    metrics = pd.DataFrame({"loc": rng.choice(["minmax", "multilateration", None], n),
+                            "tech": rng.choice(["uwb", "fmix"], n), "stage": rng.choice(["raw", "velocity"], n),
+                            "run": rng.permutation([f"run-{i:02d}" for i in range(n)]), "rmse": rng.random(n)})
+    metrics = metrics.astype({"loc": "str", "tech": "str", "stage": "str", "run": "str"})
+    keys = [{"loc": loc, "tech": tech, "stage": stage} for loc in ("minmax", "multilateration", "absent")
+            for tech in ("uwb", "fmix") for stage in ("raw", "velocity")] + [{"tech": "uwb"}, {}]
+    for _ in range(2):     # the second pass reads the index built by the first
+        for key in keys:
+            pd.testing.assert_series_equal(claims.runs_of(metrics, **key), _runs_by_mask(metrics, **key))
+    shuffled = metrics.iloc[::-1].reset_index(drop=True)     # another frame, not the first one's index
+    pd.testing.assert_series_equal(claims.runs_of(shuffled, tech="uwb"), _runs_by_mask(shuffled, tech="uwb"))
+
+
+def test_report_cell_is_the_first_matching_row():
+    frame = results.frame([results.single_row(v, experiment="D", table="T", row=r, column="c", scenario="s",
+                                              metric="rmse_m", paper_value=1.0)
+                           for v, r in ((0.5, "a"), (0.7, "b"), (0.9, "a"))])
+    assert _cell(frame, row="a", column="c")["value"] == 0.5 and _cell(frame, row="b")["value"] == 0.7
+    assert _cell(frame, row="z")["value"] is None
+
+
+def test_report_numbers_read_the_first_matching_row_or_nan():
+    from wsnloc.report.explanations import Numbers
+    rows = [results.single_row(v, experiment="A", table="T", row=r, column="c", scenario=s, metric="rmse_m")
+            for v, r, s in ((0.5, "a", "x"), (0.7, "a", "y"), (None, "b", "x"), (0.9, "a", "x"))]
+    numbers = Numbers(results.frame(rows), {})
+    assert numbers.value("A", "T", "a", "c") == 0.5 and numbers.value("A", "T", "a", "c", scenario="y") == 0.7
+    assert np.isnan(numbers.value("A", "T", "b", "c")) and np.isnan(numbers.value("A", "T", "z", "c"))

@@ -191,3 +191,13 @@ def test_tight_png_records_overlaps_of_its_own_draw():
     draws = draws_of(fig)
     image = Image.open(io.BytesIO(figures.to_png(fig)))
     assert image.mode == "P" and image.text[OVERLAPS_KEY] == '[["left", "right"]]' and len(draws) == 1
+
+
+def test_error_histograms_draw_the_pixels_of_bar_histograms(monkeypatch):
+    errors = {label: np.random.default_rng(seed).gamma(2.0, 0.2, 4000) for seed, label in enumerate(("P", "PV"))}
+    stepped = figures.error_histograms(errors, "title")
+    hist = plt.Axes.hist
+    monkeypatch.setattr(plt.Axes, "hist", lambda self, *a, histtype=None, **k: hist(self, *a, histtype="bar", **k))
+    bars = figures.error_histograms(errors, "title")
+    pixels = [np.asarray(Image.open(io.BytesIO(png)).convert("RGB")) for png in (stepped, bars)]
+    assert pixels[0].shape == pixels[1].shape and (pixels[0] == pixels[1]).all()

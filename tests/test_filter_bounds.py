@@ -167,3 +167,18 @@ def test_study_cells_carry_bound_and_consistency_only_for_bayesian_filters():
                                       runs, None)
     assert quality_table(solver).empty and "efficiency" not in solver_metrics
     assert "efficiency" not in {r["column"] for r in results_rows("s", "minmax", "site/walk", solver_metrics)}
+
+
+def test_runs_by_epoch_matrix_equals_a_pivot_table_with_inf_nan_and_repeats():
+    from wsnloc.analysis.filter_quality import _epoch_index, _runs_by_epoch
+    rng = np.random.default_rng(7)
+    n = 300
+    quality = pd.DataFrame({"run": rng.choice(["run-03", "run-01", "run-02"], n), "t": rng.uniform(0.0, 20.0, n),
+                            "nees": rng.choice([1.0, 2.5, np.nan, np.inf], n) * rng.random(n)})
+    quality["run"] = quality["run"].astype("str")
+    frame = quality.assign(k=_epoch_index(quality["t"], 0.5))     # the former pandas form as reference
+    pivot = frame.pivot_table(index="run", columns="k", values="nees", aggfunc="first", dropna=False)
+    times = frame.groupby("k")["t"].mean().reindex(pivot.columns)
+    table, t = _runs_by_epoch(quality, "nees", 0.5)
+    np.testing.assert_array_equal(table, pivot.to_numpy(float))
+    np.testing.assert_array_equal(t, times.to_numpy(float))

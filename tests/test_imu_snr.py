@@ -89,3 +89,12 @@ def test_campaign_file_names_a_bad_imu_noise_setting(tmp_path, change, message):
     path.write_text(yaml.safe_dump(spec))
     with pytest.raises(ConfigError, match=message):
         Campaign.load(path)
+
+
+def test_study_shares_each_runs_motion_across_snrs_without_changing_it(campaign):
+    from wsnloc.analysis.imu_snr import dead_reckoning_rmse
+    curve = rmse_against_snr(campaign, "b_simulation", [40.0, 60.0], runs=2, seed=5, resample=RESAMPLE,
+                             static_bias_s=0.0)
+    alone = [[dead_reckoning_rmse(campaign, "b_simulation", snr, run, 5, RESAMPLE, 0.0) for run in (1, 2)]
+             for snr in (40.0, 60.0)]
+    assert curve["run_rmse_m"].tolist() == alone      # exactly: the motion of a run does not depend on the SNR

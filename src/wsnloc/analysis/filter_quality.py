@@ -104,11 +104,21 @@ def over_time(quality: pd.DataFrame, period: float) -> pd.DataFrame:
 
 
 def _runs_by_epoch(quality: pd.DataFrame, column: str, period: float) -> tuple[np.ndarray, np.ndarray]:
-    """(runs, epochs) matrix of a column (NaN where a run has no value) and the epochs' mean times."""
-    frame = quality.assign(k=_epoch_index(quality["t"], period))
-    table = frame.pivot_table(index="run", columns="k", values=column, aggfunc="first", dropna=False)
-    times = frame.groupby("k")["t"].mean().reindex(table.columns)
-    return table.to_numpy(float), times.to_numpy(float)
+    """(runs, epochs) matrix of a column and the epochs' mean times: rows the runs in sorted
+    order, columns the epoch indices k = round(t / period) in sorted order, entry (r, k) the
+    first value that is not NaN (inf counts: a singular covariance) of run r at epoch k in
+    row order (NaN where it has none)."""
+    k = _epoch_index(quality["t"], period)
+    runs, run_code = np.unique(quality["run"].to_numpy(), return_inverse=True)
+    epochs, epoch_code = np.unique(k, return_inverse=True)
+    values = quality[column].to_numpy(float)
+    present = np.flatnonzero(~np.isnan(values))
+    cell = run_code[present] * len(epochs) + epoch_code[present]
+    cells, first = np.unique(cell, return_index=True)     # first: the earliest row of each cell
+    table = np.full(len(runs) * len(epochs), np.nan)
+    table[cells] = values[present[first]]
+    times = quality["t"].groupby(k).mean()     # index: the sorted epochs
+    return table.reshape(len(runs), len(epochs)), times.to_numpy(float)
 
 
 def consistency(quality: pd.DataFrame, period: float, epoch_updates: bool) -> dict[str, tuple]:

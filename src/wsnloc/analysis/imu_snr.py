@@ -37,21 +37,36 @@ def with_snr(campaign: Campaign, snr_db: float) -> Campaign:
 
 def lines_as_raw(name: str, lines: list[str]) -> RawFile:
     """Log lines held in memory as a RawFile (header comments first, data lines numbered from 1)."""
-    header = [text for text in lines if text.startswith("#")]
-    data = [(number, text) for number, text in enumerate(lines, start=1) if not text.startswith("#")]
+    header, data = [], []
+    for number, text in enumerate(lines, start=1):
+        if text.startswith("#"):
+            header.append(text)
+        else:
+            data.append((number, text))
     return RawFile(Path(name), header, data, sha256="", n_lines=len(lines), n_records=len(data))
 
 
+def run_trajectory(campaign: Campaign, scenario: str, run: int, seed: int,
+                   dataset: str = "newcom") -> motion.Trajectory:
+    """The simulator's motion of run `run` of `scenario` (its seeds: wsnloc.sim.seeding); the
+    IMU noise model does not enter it, so every SNR of a run shares it."""
+    seeds = run_seed_sequence(seed, dataset, scenario, run)
+    return motion.for_scenario(campaign.section("scenarios", scenario), campaign.path.length,
+                               model_rng(seeds, "motion"))
+
+
 def dead_reckoning_rmse(campaign: Campaign, scenario: str, snr_db: float, run: int, seed: int,
-                        resample: dict, static_bias_s: float, dataset: str = "newcom") -> float:
+                        resample: dict, static_bias_s: float, dataset: str = "newcom",
+                        traj: motion.Trajectory | None = None) -> float:
     """RMSE (m) of 5 Hz dead reckoning over one simulated run at accelerometer SNR `snr_db`.
 
     resample: the workflow's `resample` settings (rate_hz, grid_rate_hz, max_gap_s, kaiser_beta).
+    traj: the run's motion (run_trajectory), when the caller already has it.
     """
     noisy = with_snr(campaign, snr_db)
     seeds = run_seed_sequence(seed, dataset, scenario, run)
-    traj = motion.for_scenario(noisy.section("scenarios", scenario), noisy.path.length,
-                               model_rng(seeds, "motion"))
+    if traj is None:
+        traj = run_trajectory(noisy, scenario, run, seed, dataset)
     raw = lines_as_raw("imu.log", imu_lines(noisy, traj, model_rng(seeds, "imu"), "snr", clock_ms=0))
     imu = resample_imu(parse_imu(raw, noisy, Quarantine()), **resample)
     x0, y0, heading0 = noisy.path.start_pose()
@@ -65,13 +80,14 @@ def rmse_against_snr(campaign: Campaign, scenario: str, snrs_db, runs: int, seed
                      resample: dict, static_bias_s: float, dataset: str = "newcom") -> pd.DataFrame:
     """Dead-reckoning RMSE per SNR: columns snr_db, rmse_m (mean over runs), ci95_low,
     ci95_high (95% Student-t interval of the mean), runs, and run_rmse_m (the per-run values,
-    runs 1..`runs`, for paired comparisons)."""
+    runs 1..`runs`, for paired comparisons). Each run's motion is simulated once for all SNRs."""
     if runs < 1:
         raise ValueError(f"runs must be at least 1, got {runs}")
+    motions = {run: run_trajectory(campaign, scenario, run, seed, dataset) for run in range(1, runs + 1)}
     rows = []
     for snr_db in snrs_db:
-        values = [dead_reckoning_rmse(campaign, scenario, snr_db, run, seed, resample, static_bias_s, dataset)
-                  for run in range(1, runs + 1)]
+        values = [dead_reckoning_rmse(campaign, scenario, snr_db, run, seed, resample, static_bias_s, dataset, traj)
+                  for run, traj in motions.items()]
         mean, low, high = mean_ci95(values)
         rows.append({"snr_db": float(snr_db), "rmse_m": mean, "ci95_low": low, "ci95_high": high,
                      "runs": len(values), "run_rmse_m": values})

@@ -18,6 +18,8 @@ row (table "Claim parts", metric "difference", value = mean difference with its 
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 import pandas as pd
 
@@ -31,12 +33,54 @@ PARTS_TABLE = "Claim parts"
 
 
 def runs_of(metrics: pd.DataFrame, metric: str = "rmse", **keys) -> pd.Series:
-    """Per-run values of one cell: `metric` of the rows matching every key, indexed by run."""
-    match = np.ones(len(metrics), dtype=bool)
-    for column, value in keys.items():
-        match &= metrics[column].to_numpy() == value
-    sel = metrics[match]
-    return pd.Series(sel[metric].to_numpy(float), index=sel["run"].to_numpy(), name=metric)
+    """Per-run values of one cell: `metric` of the rows matching every key (column == value),
+    indexed by run, in the frame's row order. The rows of every cell and the columns' arrays
+    are found once per frame (cell_rows, column_values): a paper's claims look up the same cells
+    many times."""
+    rows = cell_rows(metrics, tuple(keys)).get(tuple(keys.values()), _NO_ROWS)
+    values, runs = column_values(metrics, metric, float), column_values(metrics, "run")
+    return pd.Series(values[rows], index=runs[rows], name=metric)
+
+
+_NO_ROWS = np.array([], dtype=np.intp)
+_FRAME_MEMO: dict[int, tuple[weakref.ref, dict]] = {}   # id(frame) -> (frame, {what: derived from the frame})
+
+
+def _memo(frame: pd.DataFrame) -> dict:
+    """A dict of values derived from `frame`, kept while the frame lives (its entry is dropped
+    when the frame is garbage-collected); the frame must not be modified after its first use."""
+    key = id(frame)
+    held = _FRAME_MEMO.get(key)
+    if held is None or held[0]() is not frame:
+        held = (weakref.ref(frame, lambda _ref, key=key: _FRAME_MEMO.pop(key, None)), {})
+        _FRAME_MEMO[key] = held
+    return held[1]
+
+
+def column_values(frame: pd.DataFrame, name: str, dtype=None) -> np.ndarray:
+    """frame[name].to_numpy(dtype), converted once per frame (_memo; string columns convert slowly)."""
+    memo = _memo(frame)
+    if ("column", name, dtype) not in memo:
+        memo["column", name, dtype] = frame[name].to_numpy(dtype)
+    return memo["column", name, dtype]
+
+
+def cell_rows(frame: pd.DataFrame, columns: tuple[str, ...]) -> dict[tuple, np.ndarray]:
+    """Row positions (ascending) of each cell of `frame`, by its values of `columns`: the rows
+    where every column equals the value (rows with a missing value in one of them are in no
+    cell, as NaN == NaN is false). Computed once per frame and columns (_memo)."""
+    memo = _memo(frame)
+    if ("cells", columns) not in memo:
+        memo["cells", columns] = _group_rows(frame, columns)
+    return memo["cells", columns]
+
+
+def _group_rows(frame: pd.DataFrame, columns: tuple[str, ...]) -> dict[tuple, np.ndarray]:
+    """{values of `columns`: ascending row positions} of the frame (all rows for no columns)."""
+    if not columns:
+        return {(): np.arange(len(frame))}
+    groups = frame.groupby(list(columns), sort=False, dropna=True).indices
+    return {(k if isinstance(k, tuple) else (k,)): np.asarray(v, dtype=np.intp) for k, v in groups.items()}
 
 
 def paired(a: pd.Series, b: pd.Series, side: str, label: str) -> Comparison:

@@ -107,9 +107,11 @@ def results_rows(experiment: str, grids: dict[str, pd.DataFrame], decide: Callab
     if not grids or any(grid.empty for grid in grids.values()):
         return []
     settings = list(dict.fromkeys(s for grid in grids.values() for s in grid["setting"]))
+    split = {label: dict(tuple(grid.groupby("setting", sort=False))) for label, grid in grids.items()}
     rows = []
     for setting in settings:
-        for rec in decide({label: grid[grid["setting"] == setting] for label, grid in grids.items()}):
+        for rec in decide({label: by_setting.get(setting, grids[label].iloc[:0])
+                           for label, by_setting in split.items()}):
             rows.append({"experiment": experiment, "table": TABLE, "row": rec["claim"], "column": setting,
                          "scenario": "all", "metric": "verdict", "value": claims_of.VERDICT_CODE[rec["verdict"]],
                          "ci95_low": None, "ci95_high": None,

@@ -6,12 +6,14 @@ whose numbers are missing (e.g. no NLOS links in the data) is left out.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import pandas as pd
 
 from wsnloc.analysis.setup_facts import SETUP_TABLE
 from wsnloc.campaign import Campaign
+from wsnloc.experiments import claims as claims_of
 
 
 class Numbers:
@@ -22,11 +24,13 @@ class Numbers:
         self.summaries = summaries
 
     def value(self, experiment: str, table: str, row: str, column: str, field: str = "value", **keys) -> float:
-        sel = self.results[(self.results["experiment"] == experiment) & (self.results["table"] == table)
-                           & (self.results["row"] == row) & (self.results["column"] == column)]
-        for key, value in keys.items():
-            sel = sel[sel[key] == value]
-        return float(sel[field].iloc[0]) if len(sel) and pd.notna(sel[field].iloc[0]) else math.nan
+        """`field` of the first results row with these experiment, table, row, column and keys
+        (columns of results.csv); NaN when there is none or it is missing. The rows of each
+        key are indexed once (claims.cell_rows)."""
+        match = {"experiment": experiment, "table": table, "row": row, "column": column, **keys}
+        rows = claims_of.cell_rows(self.results, tuple(match)).get(tuple(match.values()))
+        found = claims_of.column_values(self.results, field)[rows[0]] if rows is not None else math.nan
+        return float(found) if pd.notna(found) else math.nan
 
     def fact(self, experiment: str, fact: str, scenario: str) -> float:
         return self.value(experiment, SETUP_TABLE, fact, scenario)
@@ -193,6 +197,12 @@ def paper_d(n: Numbers, scenarios: list[str]) -> list[str]:
     return out
 
 
+@functools.lru_cache(maxsize=None)
+def _campaign(path: str) -> Campaign:
+    """Campaign.load, once per file for all papers' sentences (read only here)."""
+    return Campaign.load(path)
+
+
 def for_paper(paper: str, numbers: Numbers, config: dict, labels: list[str]) -> list[str]:
     """The sentences of one paper ("A" ... "D") on its scenarios `labels` (dataset/scenario),
     with the scenario details (speed profile, speed) read from the campaign files of `config`."""
@@ -201,7 +211,7 @@ def for_paper(paper: str, numbers: Numbers, config: dict, labels: list[str]) -> 
     spec = config["experiments"][f"paper_{paper.lower()}"]
 
     def campaign_of(label: str) -> Campaign:
-        return Campaign.load(config["datasets"][label.split("/", 1)[0]]["campaign"])
+        return _campaign(config["datasets"][label.split("/", 1)[0]]["campaign"])
 
     if paper == "A":
         hybrid = next((a.row_label(r) for r in spec["rows"] if r["measurements"] == "hybrid"), None)

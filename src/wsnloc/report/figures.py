@@ -373,14 +373,15 @@ def rmse_vs_anchors(curves: dict[str, tuple[list[int], list[float]]], title: str
 
 
 def error_histograms(errors: dict[str, pd.Series], title: str, xmax: float = 1.5) -> bytes:
-    """Histograms of position error (m), one per label, side by side."""
+    """Histograms of position error (m), one per label, side by side; each is one filled step
+    outline (histtype "stepfilled"), not 30 bar patches: the same pixels at less cost."""
     fig, axes = plt.subplots(1, max(1, len(errors)), figsize=(4.2 * max(1, len(errors)), 3.4), squeeze=False,
                              sharey=True)
     bins = np.linspace(0, xmax, 31)
     for ax, (label, e) in zip(axes[0], errors.items()):
         e = np.asarray(e, dtype=float)
         e = e[np.isfinite(e)]
-        ax.hist(np.clip(e, 0, xmax), bins=bins, density=True, color="tab:blue", alpha=0.75)
+        ax.hist(np.clip(e, 0, xmax), bins=bins, density=True, histtype="stepfilled", color="tab:blue", alpha=0.75)
         ax.set_title(f"{label}\nmedian {np.median(e):.3f} m" if len(e) else label, fontsize=9)
         ax.set_xlabel("position error [m]")
     axes[0][0].set_ylabel("density")

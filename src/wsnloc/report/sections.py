@@ -9,25 +9,29 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from wsnloc.experiments import claims as claims_of
 from wsnloc.metrics.verdicts import VERDICTS, paper_value_inside
 
 
 def _cell(results: pd.DataFrame, **keys) -> dict:
-    match = np.ones(len(results), dtype=bool)
-    for column, value in keys.items():
-        match &= results[column].to_numpy() == value      # numpy, not pandas: ~400 cells per report
-    if not match.any():
+    """The first row of `results` where every key column equals its value, as a table cell;
+    rows and columns are indexed once per frame (claims.cell_rows, claims.column_values)."""
+    rows = claims_of.cell_rows(results, tuple(keys)).get(tuple(keys.values()))
+    if rows is None:
         return {"value": None, "low": None, "high": None, "runs": None, "paper": None, "delta": None, "inside": False}
-    row = results.iloc[int(np.argmax(match))]
-    paper = row["paper_value"] if pd.notna(row["paper_value"]) else None
-    value = row["value"] if pd.notna(row["value"]) else None
-    low = row["ci95_low"] if pd.notna(row["ci95_low"]) else None
-    high = row["ci95_high"] if pd.notna(row["ci95_high"]) else None
+    paper, value, low, high, runs = (_present(results, column, int(rows[0])) for column in
+                                     ("paper_value", "value", "ci95_low", "ci95_high", "runs"))
     inside = paper_value_inside(paper, np.nan if low is None else low, np.nan if high is None else high)
     # The red/green difference only where the paper's value lies outside our 95% interval.
     delta = value - paper if value is not None and paper is not None and not inside else None
-    return {"value": value, "low": low, "high": high, "runs": int(row["runs"]) if pd.notna(row["runs"]) else None,
+    return {"value": value, "low": low, "high": high, "runs": int(runs) if runs is not None else None,
             "paper": paper, "delta": delta, "inside": inside}
+
+
+def _present(results: pd.DataFrame, column: str, row: int):
+    """results[column] at position `row`, None where missing."""
+    value = claims_of.column_values(results, column)[row]
+    return value if pd.notna(value) else None
 
 
 def paper_table(results: pd.DataFrame, *, experiment: str, table: str, scenario: str, rows: list[str],
