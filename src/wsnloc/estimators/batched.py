@@ -24,6 +24,7 @@ Only the initiator's multilateration runs per run (once per track start).
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -235,6 +236,20 @@ class Track:
         frame = pd.DataFrame({name: self.rows[:, j] for j, name in enumerate(bayes.COLUMNS)})
         frame.attrs = dict(self.attrs)
         return frame
+
+
+def stacked(tracks: list[Track], labels: dict[str, list[str]], columns=tuple(bayes.COLUMNS)) -> pd.DataFrame:
+    """The tracks one after the other, their `columns` (of bayes.COLUMNS, floats) then each
+    label column (labels[name][c] on the rows of track c, strings): pd.concat of the tracks'
+    finished frames, each with its labels assigned, built at once from the arrays. attrs:
+    the tracks' attrs when they all agree (as pd.concat)."""
+    rows = np.concatenate([track.rows for track in tracks])
+    track = np.repeat(np.arange(len(tracks)), [len(t.rows) for t in tracks])
+    frame = pd.DataFrame({**{name: rows[:, bayes.COLUMNS.index(name)] for name in columns},
+                          **{name: pd.array(values, dtype="str")[track] for name, values in labels.items()}})
+    if all(t.attrs and t.attrs == tracks[0].attrs for t in tracks):
+        frame.attrs = copy.deepcopy(tracks[0].attrs)
+    return frame
 
 
 def run_epoch_ekf(cells: list[tuple[RunData, dict]]) -> list[pd.DataFrame]:
