@@ -81,10 +81,12 @@ def update(x: np.ndarray, P: np.ndarray, m: Measurements):
     width = m.z.shape[1]
     diff = x[:, None, :2] - m.anchors
     d = np.maximum(np.hypot(diff[..., 0], diff[..., 1]), MIN_DISTANCE)
-    is_range = m.kind == RANGE
     slant = np.sqrt(d**2 + m.dz**2)
-    h = np.where(is_range, slant, m.p0 - 10.0 * m.exponent * np.log10(d / m.d0))
-    gain = np.where(is_range, 1.0 / np.maximum(slant, MIN_DISTANCE), -10.0 * m.exponent / np.log(10.0) / d**2)
+    h, gain = slant, 1.0 / np.maximum(slant, MIN_DISTANCE)
+    is_rss = m.kind == RSS
+    if is_rss.any():                          # the RSS model's rows (range-only epochs skip it)
+        h = np.where(is_rss, m.p0 - 10.0 * m.exponent * np.log10(d / m.d0), h)
+        gain = np.where(is_rss, -10.0 * m.exponent / np.log(10.0) / d**2, gain)
     real = np.arange(width)[None, :] < m.count[:, None]
     H = np.where(real[..., None], diff * gain[..., None], 0.0)
     y = np.where(real, m.z - h, 0.0)
