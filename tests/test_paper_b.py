@@ -65,6 +65,37 @@ def test_dead_reckoning_converges_on_a_smooth_turn():
     assert fine < 0.6 * coarse and coarse < 0.05
 
 
+def _loop_dead_reckon(imu, x0, y0, heading0):
+    """dead_reckon as it was: the step-by-step loop (the reference the cumsum form must equal)."""
+    t, ax, ay, gz = (imu[c].to_numpy(float) for c in ("t", "ax", "ay", "gz"))
+    n = len(t)
+    x, y, vx, vy, heading = (np.zeros(n) for _ in range(5))
+    if n:
+        x[0], y[0], heading[0] = x0, y0, heading0
+    for k in range(n - 1):
+        dt = t[k + 1] - t[k]
+        mid = heading[k] + 0.5 * gz[k] * dt
+        c, s = np.cos(mid), np.sin(mid)
+        a_x, a_y = c * ax[k] - s * ay[k], s * ax[k] + c * ay[k]
+        x[k + 1] = x[k] + vx[k] * dt + 0.5 * a_x * dt * dt
+        y[k + 1] = y[k] + vy[k] * dt + 0.5 * a_y * dt * dt
+        vx[k + 1] = vx[k] + a_x * dt
+        vy[k + 1] = vy[k] + a_y * dt
+        heading[k + 1] = heading[k] + gz[k] * dt
+    return np.column_stack([t, x, y, vx, vy, heading])
+
+
+@pytest.mark.parametrize("n", [0, 1, 2, 700])
+def test_dead_reckoning_equals_the_step_by_step_loop_bitwise(n):
+    """The sequential cumsums add the same rounded terms in the same order as the loop."""
+    rng = np.random.default_rng(n)
+    imu = pd.DataFrame({"t": np.cumsum(rng.uniform(0.15, 0.25, n)), "ax": rng.normal(0, 0.3, n),
+                        "ay": rng.normal(0, 0.3, n), "az": 9.81, "gz": rng.normal(0, 0.2, n)})
+    got = dead_reckon(imu, 3.0, -1.0, 0.7)
+    assert list(got.columns) == ["t", "x", "y", "vx", "vy", "heading"]
+    assert got.to_numpy().tobytes() == _loop_dead_reckon(imu, 3.0, -1.0, 0.7).tobytes()
+
+
 def test_static_bias_is_removed():
     imu, x, y = _piecewise_motion()
     biased = imu.assign(ax=imu["ax"] + 0.02, ay=imu["ay"] - 0.01, gz=imu["gz"] + 0.003)
