@@ -8,7 +8,7 @@ import pytest
 from synthetic import SQUARE, bursts, run_data, tables_for, walk
 from conftest import ROOT
 from wsnloc.campaign import Campaign
-from wsnloc.estimators import batched, registry
+from wsnloc.estimators import batched, bayes, registry
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import paper_a, paper_c
 from wsnloc.io.cricket import ingest_run as ingest_cricket
@@ -241,8 +241,38 @@ def test_paper_c_models_and_subsets_of_one_run_equal_registry_run(tmp_path):
     params = [paper_c.estimator_params(settings, model, subset) for subset in SETTINGS_C["table_2_subsets"]
               for model in paper_c.MODELS]
     single = [registry.run("ekf", data, q, where="experiments.paper_c") for q in params]
-    _assert_same(batched.run_cells("ekf", [(data, q) for q in params], where="experiments.paper_c"), single)
+    frames = batched.run_cells("ekf", [(data, q) for q in params], where="experiments.paper_c")
+    _assert_same(frames, single)
     assert all(len(s) > 50 for s in single)
+    # run_all builds one frame per run from the arrays (batched.stacked): the former pd.concat
+    # of every cell's run_cells frame with its model and subset assigned, then scored
+    cells = [(model, subset) for subset in SETTINGS_C["table_2_subsets"] for model in paper_c.MODELS]
+    expected = score(pd.concat([f.assign(model=model, subset=subset) for f, (model, subset) in zip(frames, cells)],
+                               ignore_index=True), data.table("truth"))
+    got = paper_c.run(data, settings, SETTINGS_C["table_2_subsets"])
+    pd.testing.assert_frame_equal(got, expected, check_exact=True)
+    assert got.attrs == expected.attrs
+
+
+def test_stacked_equals_the_labelled_frames_concatenated(campaign, simulated_runs):
+    """stacked(tracks, labels, columns) is pd.concat of each track's finished frame (those
+    columns) with its labels assigned: values exactly, dtypes, column order, attrs (kept only
+    when every track has the same non-empty attrs, as pd.concat keeps them)."""
+    datas = _datas(simulated_runs, campaign)[:2]
+    p = {"update": "epoch", "anchors": "UWB=12"}
+    tracks = batched.cell_tracks("ekf", [(d, p) for d in datas] + [(datas[0], dict(p, motion="p"))])
+    tracks.append(batched.Track(tracks[0].rows, {**tracks[0].attrs, "resets": -1}))     # other attrs
+    labels = {"model": ["PV", "PV", "P", "PV"], "run": ["a", "b", "a", "c"]}
+    for columns in (tuple(bayes.COLUMNS), ("t", "x", "y")):
+        for chosen in ([0, 1, 2], [0, 2], [1], [0, 3]):
+            picked = [tracks[i] for i in chosen]
+            names = {name: [values[i] for i in chosen] for name, values in labels.items()}
+            expected = pd.concat([t.finished()[list(columns)].assign(**{n: v[j] for n, v in names.items()})
+                                  for j, t in enumerate(picked)], ignore_index=True)
+            got = batched.stacked(picked, names, columns)
+            pd.testing.assert_frame_equal(got, expected, check_exact=True)
+            assert got.attrs == expected.attrs
+            assert bool(got.attrs) == (len({repr(tracks[i].attrs) for i in chosen}) == 1)
 
 
 def test_run_cells_falls_back_for_sequential_rows():

@@ -4,12 +4,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from wsnloc.estimators import inertial, registry
 from wsnloc.estimators.inertial import align_fixes
 from wsnloc.estimators.run_data import RunData
 from wsnloc import results
 from wsnloc.experiments import paper_b
 from wsnloc.filters.steady_state import fuse, steady_state_gain
 from wsnloc.inertial.dead_reckoning import dead_reckon, static_bias
+from wsnloc.metrics.tracking import score
 
 DT = 0.2
 
@@ -63,6 +65,37 @@ def test_dead_reckoning_converges_on_a_smooth_turn():
     assert fine < 0.6 * coarse and coarse < 0.05
 
 
+def _loop_dead_reckon(imu, x0, y0, heading0):
+    """dead_reckon as it was: the step-by-step loop (the reference the cumsum form must equal)."""
+    t, ax, ay, gz = (imu[c].to_numpy(float) for c in ("t", "ax", "ay", "gz"))
+    n = len(t)
+    x, y, vx, vy, heading = (np.zeros(n) for _ in range(5))
+    if n:
+        x[0], y[0], heading[0] = x0, y0, heading0
+    for k in range(n - 1):
+        dt = t[k + 1] - t[k]
+        mid = heading[k] + 0.5 * gz[k] * dt
+        c, s = np.cos(mid), np.sin(mid)
+        a_x, a_y = c * ax[k] - s * ay[k], s * ax[k] + c * ay[k]
+        x[k + 1] = x[k] + vx[k] * dt + 0.5 * a_x * dt * dt
+        y[k + 1] = y[k] + vy[k] * dt + 0.5 * a_y * dt * dt
+        vx[k + 1] = vx[k] + a_x * dt
+        vy[k + 1] = vy[k] + a_y * dt
+        heading[k + 1] = heading[k] + gz[k] * dt
+    return np.column_stack([t, x, y, vx, vy, heading])
+
+
+@pytest.mark.parametrize("n", [0, 1, 2, 700])
+def test_dead_reckoning_equals_the_step_by_step_loop_bitwise(n):
+    """The sequential cumsums add the same rounded terms in the same order as the loop."""
+    rng = np.random.default_rng(n)
+    imu = pd.DataFrame({"t": np.cumsum(rng.uniform(0.15, 0.25, n)), "ax": rng.normal(0, 0.3, n),
+                        "ay": rng.normal(0, 0.3, n), "az": 9.81, "gz": rng.normal(0, 0.2, n)})
+    got = dead_reckon(imu, 3.0, -1.0, 0.7)
+    assert list(got.columns) == ["t", "x", "y", "vx", "vy", "heading"]
+    assert got.to_numpy().tobytes() == _loop_dead_reckon(imu, 3.0, -1.0, 0.7).tobytes()
+
+
 def test_static_bias_is_removed():
     imu, x, y = _piecewise_motion()
     biased = imu.assign(ax=imu["ax"] + 0.02, ay=imu["ay"] - 0.01, gz=imu["gz"] + 0.003)
@@ -113,11 +146,64 @@ def test_classical_filter_converges_to_the_steady_state_filter():
     assert np.abs(ss[1] - kf[1]).max() > 0.1
 
 
+def _matrix_fuse(displacements, fixes, start, Q_step, R, gain=None, P0=None):
+    """The former 2 x 2 matrix recursion of steady_state.fuse (the reference it must equal)."""
+    p, P = np.asarray(start, dtype=float).copy(), np.zeros((2, 2)) if P0 is None else np.asarray(P0, float).copy()
+    out, eye = [p], np.eye(2)
+    for delta, z in zip(displacements, fixes):
+        p, P = p + delta, P + Q_step
+        if np.all(np.isfinite(z)):
+            if gain is None:
+                K = P @ np.linalg.inv(P + R)
+                P = (eye - K) @ P @ (eye - K).T + K @ R @ K.T
+            else:
+                K = gain
+            p = p + K @ (z - p)
+        out.append(p)
+    return np.array(out)
+
+
+@pytest.mark.parametrize("q, r, p0", [((0.0025, 0.0025), (1.0, 1.0), (0.0, 0.0)),
+                                      ((0.01, 0.003), (0.7, 2.5), (10.0, 0.5))])
+def test_per_axis_filters_equal_the_matrix_recursion_bitwise(q, r, p0):
+    """Diagonal Q, R, P0 and gain: the per-axis float loops are the matrix products' operations
+    on diagonal matrices, so the positions are bitwise the 2 x 2 recursion's (fixes missing in
+    one coordinate, or both, are not used)."""
+    rng = np.random.default_rng(5)
+    n = 500
+    displacements = rng.normal(0, 0.1, (n, 2))
+    fixes = np.cumsum(displacements, axis=0) + rng.normal(0, 1.0, (n, 2))
+    fixes[rng.random(n) < 0.5] = np.nan
+    fixes[rng.random(n) < 0.1, 1] = np.nan
+    Q, R, P0 = np.diag(q), np.diag(r), np.diag(p0)
+    gain = steady_state_gain(Q * 2.5, R)
+    for kwargs in ({"gain": gain}, {"P0": P0}):
+        got = fuse(displacements, fixes, (1.5, -2.0), Q, R, **kwargs)
+        assert got.tobytes() == _matrix_fuse(displacements, fixes, (1.5, -2.0), Q, R, **kwargs).tobytes()
+    assert fuse(displacements, fixes, (0, 0), Q, R).tobytes() == \
+        _matrix_fuse(displacements, fixes, (0, 0), Q, R, P0=np.zeros((2, 2))).tobytes()
+
+
+def test_fuse_refuses_coupled_axes():
+    with pytest.raises(ValueError, match="diagonal"):
+        fuse(np.zeros((2, 2)), np.zeros((2, 2)), (0, 0), np.eye(2), np.eye(2), gain=[[0.5, 0.1], [0.0, 0.5]])
+
+
+def test_steady_state_gain_is_cached_per_setting_and_returned_as_a_copy():
+    Q, R = np.eye(2) * 0.01, np.eye(2)
+    first = steady_state_gain(Q, R)
+    first[:] = 0.0
+    np.testing.assert_array_equal(steady_state_gain(Q.tolist(), R), steady_state_gain(Q, R))
+    assert steady_state_gain(Q, R)[0, 0] > 0 and steady_state_gain(Q * 4, R)[0, 0] > steady_state_gain(Q, R)[0, 0]
+
+
 def test_fixes_are_aligned_to_the_step_they_arrive_in():
     steps = np.array([0.0, 0.2, 0.4, 0.6])
     fixes = pd.DataFrame({"t": [0.2, 0.5, 0.9], "x": [1.0, 2.0, 3.0], "y": [0.0, np.nan, 0.0]})
     aligned = align_fixes(steps, fixes)
     assert aligned[0].tolist() == [1.0, 0.0] and np.isnan(aligned[1:]).all()
+    nan_time = pd.DataFrame({"t": [np.nan, 0.3], "x": [1.0, 2.0], "y": [0.0, 5.0]})    # dropped as dropna() drops it
+    assert align_fixes(steps, nan_time)[1].tolist() == [2.0, 5.0] and np.isnan(align_fixes(steps, nan_time)[0]).all()
 
 
 def test_paper_b_on_a_simulated_run(campaign, simulated_run):
@@ -128,7 +214,16 @@ def test_paper_b_on_a_simulated_run(campaign, simulated_run):
     imu = resample_imu(tables["imu"], 5.0, 500.0, 0.1, 8.0)
     settings = paper_b.Settings(epoch_s=0.5, uwb_subset="UWB=10", k_smallest=0, uwb_preliminary_filter=True,
                                 max_range_m=50.0, static_bias_s=4.0, process_sigma_m=0.05, fix_sigma_m=1.0)
-    estimates = paper_b.run(RunData(dict(tables, imu_5hz=imu), campaign), settings)
+    data = RunData(dict(tables, imu_5hz=imu), campaign)
+    estimates = paper_b.run(data, settings)
+    # the former frame: each method's registry.run (t, x, y) with its method assigned, concatenated
+    base = paper_b.estimator_params(settings)
+    former = [registry.run(name, data, {k: v for k, v in base.items() if k in {p.name for p in registry.get(name).params}},
+                           where="experiments.paper_b")[["t", "x", "y"]].assign(method=method)
+              for method, name in paper_b.METHOD_ESTIMATOR.items()]
+    pd.testing.assert_frame_equal(estimates, score(pd.concat(former, ignore_index=True), tables["truth"]),
+                                  check_exact=True)
+    assert inertial.floor_input(data, 4.0) is inertial.floor_input(data, 4.0)      # built once per run
     metrics = paper_b.run_metrics(estimates, tables["truth"]).set_index("method")
     assert set(metrics.index) == {"uwb", "imu", "sskf", "kf"}
     assert metrics.loc["sskf", "rmse"] < metrics.loc["uwb", "rmse"] < 2.0

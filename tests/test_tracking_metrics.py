@@ -105,3 +105,33 @@ def test_cell_metrics_of_no_estimates_and_of_a_short_truth():
     scored = scored_run(np.random.default_rng(9), 50)
     for frame, truth in ((scored.iloc[:0], TRUTH), (scored, TRUTH.iloc[:1])):
         pd.testing.assert_frame_equal(cell_metrics(frame, ["method"], truth), groupby_cell_metrics(frame, ["method"], truth))
+
+
+def _former_score(estimates, truth):
+    """score as it was: a copy of the estimates with the three columns assigned one by one."""
+    from wsnloc.metrics.ranging import truth_at
+    position = truth_at(truth, estimates["t"].to_numpy(float))
+    out = estimates.copy()
+    out["true_x"], out["true_y"] = position[:, 0], position[:, 1]
+    out["error_m"] = np.hypot(out["x"] - out["true_x"], out["y"] - out["true_y"])
+    return out
+
+
+@pytest.mark.parametrize("scored_before", [False, True])
+def test_score_equals_the_former_copy_assigned_column_by_column(scored_before):
+    """Values exactly, dtypes, column order (an existing true_x stays in place), index, attrs."""
+    from wsnloc.metrics.tracking import score
+    rng = np.random.default_rng(3)
+    t = np.sort(rng.uniform(0, 10, 40))
+    est = pd.DataFrame({"t": t, "x": rng.normal(size=40), "y": rng.normal(size=40), "n": np.arange(40),
+                        "model": pd.array(rng.choice(["P", "PV"], 40), dtype="str")}, index=np.arange(40) * 3)
+    est.loc[est.index[5], "x"] = np.nan
+    if scored_before:
+        est.insert(1, "true_x", 0.0)
+    est.attrs = {"resets": 2, "nested": {"a": [1]}}
+    truth = pd.DataFrame({"t": np.linspace(-1, 11, 30), "x": rng.normal(size=30), "y": rng.normal(size=30)})
+    got, expected = score(est, truth), _former_score(est, truth)
+    pd.testing.assert_frame_equal(got, expected, check_exact=True)
+    assert got.attrs == expected.attrs and got.attrs is not est.attrs
+    got.attrs["nested"]["a"].append(2)
+    assert est.attrs["nested"]["a"] == [1]

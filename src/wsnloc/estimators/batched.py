@@ -24,6 +24,7 @@ Only the initiator's multilateration runs per run (once per track start).
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -80,10 +81,12 @@ def update(x: np.ndarray, P: np.ndarray, m: Measurements):
     width = m.z.shape[1]
     diff = x[:, None, :2] - m.anchors
     d = np.maximum(np.hypot(diff[..., 0], diff[..., 1]), MIN_DISTANCE)
-    is_range = m.kind == RANGE
     slant = np.sqrt(d**2 + m.dz**2)
-    h = np.where(is_range, slant, m.p0 - 10.0 * m.exponent * np.log10(d / m.d0))
-    gain = np.where(is_range, 1.0 / np.maximum(slant, MIN_DISTANCE), -10.0 * m.exponent / np.log(10.0) / d**2)
+    h, gain = slant, 1.0 / np.maximum(slant, MIN_DISTANCE)
+    is_rss = m.kind == RSS
+    if is_rss.any():                          # the RSS model's rows (range-only epochs skip it)
+        h = np.where(is_rss, m.p0 - 10.0 * m.exponent * np.log10(d / m.d0), h)
+        gain = np.where(is_rss, -10.0 * m.exponent / np.log(10.0) / d**2, gain)
     real = np.arange(width)[None, :] < m.count[:, None]
     H = np.where(real[..., None], diff * gain[..., None], 0.0)
     y = np.where(real, m.z - h, 0.0)
@@ -235,6 +238,20 @@ class Track:
         frame = pd.DataFrame({name: self.rows[:, j] for j, name in enumerate(bayes.COLUMNS)})
         frame.attrs = dict(self.attrs)
         return frame
+
+
+def stacked(tracks: list[Track], labels: dict[str, list[str]], columns=tuple(bayes.COLUMNS)) -> pd.DataFrame:
+    """The tracks one after the other, their `columns` (of bayes.COLUMNS, floats) then each
+    label column (labels[name][c] on the rows of track c, strings): pd.concat of the tracks'
+    finished frames, each with its labels assigned, built at once from the arrays. attrs:
+    the tracks' attrs when they all agree (as pd.concat)."""
+    rows = np.concatenate([track.rows for track in tracks])
+    track = np.repeat(np.arange(len(tracks)), [len(t.rows) for t in tracks])
+    frame = pd.DataFrame({**{name: rows[:, bayes.COLUMNS.index(name)] for name in columns},
+                          **{name: pd.array(values, dtype="str")[track] for name, values in labels.items()}})
+    if all(t.attrs and t.attrs == tracks[0].attrs for t in tracks):
+        frame.attrs = copy.deepcopy(tracks[0].attrs)
+    return frame
 
 
 def run_epoch_ekf(cells: list[tuple[RunData, dict]]) -> list[pd.DataFrame]:

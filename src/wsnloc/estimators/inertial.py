@@ -37,10 +37,11 @@ def dead_reckoning(data: RunData, static_start_s: float) -> pd.DataFrame:
 def align_fixes(step_times: np.ndarray, fixes: pd.DataFrame) -> np.ndarray:
     """(N - 1, 2): the fix that arrived during step k (t_k, t_{k+1}], NaN where none."""
     out = np.full((len(step_times) - 1, 2), np.nan)
-    valid = fixes.dropna()
-    index = np.searchsorted(step_times, valid["t"].to_numpy(), side="left") - 1
+    t, x, y = (fixes[c].to_numpy(float) for c in ("t", "x", "y"))
+    valid = ~(np.isnan(t) | np.isnan(x) | np.isnan(y))       # fixes.dropna() of the (t, x, y) rows
+    index = np.searchsorted(step_times, t[valid], side="left") - 1
     inside = (index >= 0) & (index < len(out))
-    out[index[inside]] = valid[["x", "y"]].to_numpy()[inside]
+    out[index[inside]] = np.column_stack([x[valid], y[valid]])[inside]
     return out
 
 
@@ -52,8 +53,8 @@ def fused(data: RunData, fixes: pd.DataFrame, p: dict, steady_state: bool) -> pd
         raise WsnlocError(f"{data.name}: the 5 Hz IMU has fewer than 2 samples")
     Q_step = np.eye(2) * p["process_sigma_m"] ** 2
     R = np.eye(2) * p["fix_sigma_m"] ** 2
-    start = dr[["x", "y"]].to_numpy()[0]
-    displacements = np.diff(dr[["x", "y"]].to_numpy(), axis=0)
+    xy = np.column_stack([dr["x"].to_numpy(float), dr["y"].to_numpy(float)])
+    start, displacements = xy[0], np.diff(xy, axis=0)
     aligned = align_fixes(t, fixes)
     if steady_state:
         steps_per_update = p["epoch_s"] / float(np.median(np.diff(t)))
@@ -65,10 +66,13 @@ def fused(data: RunData, fixes: pd.DataFrame, p: dict, steady_state: bool) -> pd
 
 def floor_input(data: RunData, static_start_s: float) -> pd.DataFrame:
     """Floor-frame acceleration (t, ax, ay; m/s^2) of the 5 Hz IMU: bias measured at rest
-    removed, rotated with the gyro heading from the start pose (the PVA model's input)."""
-    imu = data.require("imu_5hz", "the PVA model's acceleration input")
-    heading0 = start_pose(data, "the PVA model's acceleration input")[2]
-    return floor_acceleration(imu, heading0, static_bias(imu, static_start_s))
+    removed, rotated with the gyro heading from the start pose (the PVA model's input).
+    Built once per run and static_start_s: every PVA cell of the run reads it."""
+    def build():
+        imu = data.require("imu_5hz", "the PVA model's acceleration input")
+        heading0 = start_pose(data, "the PVA model's acceleration input")[2]
+        return floor_acceleration(imu, heading0, static_bias(imu, static_start_s))
+    return data.cached(("floor_input", static_start_s), build)
 
 
 def epoch_inputs(acc: pd.DataFrame, times: np.ndarray) -> np.ndarray:

@@ -18,7 +18,7 @@ from wsnloc import results
 from wsnloc.analysis import setup_facts
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
-from wsnloc.estimators import registry
+from wsnloc.estimators import batched, registry
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import claims as claims_of
 from wsnloc.metrics import verdicts
@@ -81,13 +81,12 @@ def run(data: RunData, settings: Settings, methods=tuple(METHOD_ESTIMATOR)) -> p
     """UWB-only, IMU-only, steady-state KF and classical KF positions of one run (or the
     given methods), scored."""
     base = estimator_params(settings)
-    frames = []
-    for method, name in ((m, METHOD_ESTIMATOR[m]) for m in methods):
+    tracks = []
+    for name in (METHOD_ESTIMATOR[m] for m in methods):
         names = {p.name for p in registry.get(name).params}
         params = {k: v for k, v in base.items() if k in names}
-        frames.append(registry.run(name, data, params, where="experiments.paper_b")[["t", "x", "y"]]
-                      .assign(method=method))
-    return score(pd.concat(frames, ignore_index=True), data.table("truth"))
+        tracks += batched.cell_tracks(name, [(data, params)], where="experiments.paper_b")
+    return score(batched.stacked(tracks, {"method": list(methods)}, ("t", "x", "y")), data.table("truth"))
 
 
 def run_metrics(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:

@@ -85,16 +85,13 @@ DETAIL_METRICS = {"median": "median_m", "p95": "p95_m", "max": "max_m", "sqrt_pc
 
 def run_all(datas: list[RunData], settings: Settings, subsets: list[str], models=MODELS) -> list[pd.DataFrame]:
     """Estimates of the (given) motion models for each beacon subset, scored against truth, per
-    run of `datas`; all runs x cells are stepped together (batched.run_cells)."""
+    run of `datas`; all runs x cells are stepped together (batched.cell_tracks), one frame per run."""
     cells = [(model, subset) for subset in subsets for model in models]
     params = [estimator_params(settings, model, subset) for model, subset in cells]
-    tracks = batched.run_cells("ekf", [(data, p) for data in datas for p in params], where="experiments.paper_c")
-    out = []
-    for i, data in enumerate(datas):
-        frames = [track.assign(model=model, subset=subset)
-                  for track, (model, subset) in zip(tracks[i * len(cells):(i + 1) * len(cells)], cells)]
-        out.append(score(pd.concat(frames, ignore_index=True), data.table("truth")))
-    return out
+    tracks = batched.cell_tracks("ekf", [(data, p) for data in datas for p in params], where="experiments.paper_c")
+    labels = {"model": [model for model, _ in cells], "subset": [subset for _, subset in cells]}
+    return [score(batched.stacked(tracks[i * len(cells):(i + 1) * len(cells)], labels), data.table("truth"))
+            for i, data in enumerate(datas)]
 
 
 def run(data: RunData, settings: Settings, subsets: list[str], models=MODELS) -> pd.DataFrame:

@@ -6,20 +6,37 @@ State p = [x, y]; H = I.  Predict: p <- p + delta_DR, P <- P + Q.  Update with a
                 discrete algebraic Riccati equation  P = P - P (P + R)^-1 P + Q
                 (A = I, H = I), solved offline with scipy.linalg.solve_discrete_are.
 Q is the process noise accumulated between two updates (per step Q times steps per update).
+
+With diagonal Q, R, P0 and gain (paper B: sigma^2 I) every matrix stays diagonal, so the
+filter is two independent scalar filters, one per axis, run in plain floats: per axis
+  p <- p + d,  P <- P + q;  on a fix  k = P * (1 / (P + r)),  P <- (1 - k) P (1 - k) + k r k,
+  p <- p + k (z - p),
+the operations (and their order) of the matrix products on diagonal matrices, so the
+positions are bitwise those of the 2 x 2 matrix recursion (tests/test_paper_b.py).
 """
 
 from __future__ import annotations
+
+from functools import lru_cache
 
 import numpy as np
 
 
 def steady_state_gain(Q, R) -> np.ndarray:
-    """Constant gain K = P (P + R)^-1 with P the DARE solution for A = H = I."""
-    from scipy.linalg import solve_discrete_are   # here: every estimator job imports this module
-
+    """Constant gain K = P (P + R)^-1 with P the DARE solution for A = H = I (a copy of the
+    solution cached per (Q, R): the Monte Carlo runs of a setting share it)."""
     Q = np.atleast_2d(np.asarray(Q, dtype=float))
     R = np.atleast_2d(np.asarray(R, dtype=float))
-    eye = np.eye(len(Q))
+    return _dare_gain(len(Q), tuple(Q.ravel()), tuple(R.ravel())).copy()
+
+
+@lru_cache(maxsize=64)
+def _dare_gain(n: int, q: tuple, r: tuple) -> np.ndarray:
+    """steady_state_gain of the n x n matrices given by their row-major entries."""
+    from scipy.linalg import solve_discrete_are   # here: every estimator job imports this module
+
+    Q, R = np.reshape(q, (n, n)), np.reshape(r, (n, n))
+    eye = np.eye(n)
     P = solve_discrete_are(eye, eye, Q, R)     # a-priori steady-state covariance
     return P @ np.linalg.inv(P + R)
 
@@ -28,26 +45,55 @@ def fuse(displacements: np.ndarray, fixes: np.ndarray, start, Q_step, R, gain=No
     """Run the filter over N steps.
 
     displacements: (N, 2) dead-reckoning displacement of each step (m); fixes: (N, 2) fix
-    available at the end of the step, NaN when none; start: initial position. With `gain`
-    the steady-state filter runs; otherwise the classical filter from covariance P0.
-    Returns (N + 1, 2) positions (start included).
+    available at the end of the step, NaN when none (a fix is used when both coordinates
+    are finite); start: initial position. With `gain` the steady-state filter runs;
+    otherwise the classical filter from covariance P0 (default 0). Q_step, R (m^2), P0 and
+    gain must be diagonal (one scalar filter per axis). Returns (N + 1, 2) positions (m),
+    start included.
     """
-    p = np.asarray(start, dtype=float).copy()
-    Q_step = np.asarray(Q_step, dtype=float)
-    R = np.asarray(R, dtype=float)
-    P = np.zeros((2, 2)) if P0 is None else np.asarray(P0, dtype=float).copy()
+    q, r, k_or_p0 = (_diagonal(m, name) for m, name in ((Q_step, "Q_step"), (R, "R"),
+                                                         (gain if gain is not None else P0, "gain or P0")))
+    displacements, fixes = np.asarray(displacements, dtype=float), np.asarray(fixes, dtype=float)
+    has_fix = np.isfinite(fixes).all(axis=1).tolist()
+    start = np.asarray(start, dtype=float)
     out = np.empty((len(displacements) + 1, 2))
-    out[0] = p
-    eye = np.eye(2)
-    for k, (delta, z) in enumerate(zip(displacements, fixes)):
-        p = p + delta
-        P = P + Q_step
-        if np.all(np.isfinite(z)):
-            if gain is None:
-                K = P @ np.linalg.inv(P + R)
-                P = (eye - K) @ P @ (eye - K).T + K @ R @ K.T
-            else:
-                K = gain
-            p = p + K @ (z - p)
-        out[k + 1] = p
+    for axis in range(2):
+        args = (displacements[:, axis].tolist(), fixes[:, axis].tolist(), has_fix, float(start[axis]))
+        out[:, axis] = (_steady_axis(*args, k_or_p0[axis]) if gain is not None
+                        else _classical_axis(*args, q[axis], r[axis], k_or_p0[axis]))
+    return out
+
+
+def _diagonal(matrix, name: str) -> list[float]:
+    """The diagonal of a 2 x 2 diagonal matrix (zeros for None); ValueError if not diagonal."""
+    m = np.zeros((2, 2)) if matrix is None else np.asarray(matrix, dtype=float)
+    if m.shape != (2, 2) or m[0, 1] != 0 or m[1, 0] != 0:
+        raise ValueError(f"fuse: {name} must be a diagonal 2 x 2 matrix (one scalar filter per axis)")
+    return np.diag(m).tolist()
+
+
+def _steady_axis(deltas: list, fixes: list, has_fix: list, p: float, k: float) -> list[float]:
+    """One axis of the steady-state filter: p <- p + d; on a fix p <- p + k (z - p)."""
+    out = [p]
+    for delta, z, fix in zip(deltas, fixes, has_fix):
+        p += delta
+        if fix:
+            p += k * (z - p)
+        out.append(p)
+    return out
+
+
+def _classical_axis(deltas: list, fixes: list, has_fix: list, p: float, q: float, r: float,
+                    P: float) -> list[float]:
+    """One axis of the classical filter: p <- p + d, P <- P + q; on a fix k = P (1 / (P + r)),
+    P <- (1 - k) P (1 - k) + k r k, p <- p + k (z - p)."""
+    out = [p]
+    for delta, z, fix in zip(deltas, fixes, has_fix):
+        p += delta
+        P += q
+        if fix:
+            k = P * (1.0 / (P + r))
+            P = (1.0 - k) * P * (1.0 - k) + k * r * k
+            p += k * (z - p)
+        out.append(p)
     return out

@@ -48,22 +48,26 @@ def dead_reckon(imu: pd.DataFrame, x0: float, y0: float, heading0: float,
     ax = imu["ax"].to_numpy(float) - bias.ax
     ay = imu["ay"].to_numpy(float) - bias.ay
     gz = imu["gz"].to_numpy(float) - bias.gz
-    n = len(t)
-    x, y, vx, vy, heading = (np.zeros(n) for _ in range(5))
-    if n == 0:
-        return pd.DataFrame({"t": t, "x": x, "y": y, "vx": vx, "vy": vy, "heading": heading})
-    x[0], y[0], heading[0] = x0, y0, heading0
-    for k in range(n - 1):
-        dt = t[k + 1] - t[k]
-        mid = heading[k] + 0.5 * gz[k] * dt
-        c, s = np.cos(mid), np.sin(mid)
-        a_x, a_y = c * ax[k] - s * ay[k], s * ax[k] + c * ay[k]
-        x[k + 1] = x[k] + vx[k] * dt + 0.5 * a_x * dt * dt
-        y[k + 1] = y[k] + vy[k] * dt + 0.5 * a_y * dt * dt
-        vx[k + 1] = vx[k] + a_x * dt
-        vy[k + 1] = vy[k] + a_y * dt
-        heading[k + 1] = heading[k] + gz[k] * dt
+    if len(t) == 0:
+        return pd.DataFrame({name: np.zeros(0) for name in ("t", "x", "y", "vx", "vy", "heading")})
+    dt = np.diff(t)
+    heading = _accumulate(heading0, gz[:-1] * dt)
+    mid = heading[:-1] + 0.5 * gz[:-1] * dt
+    c, s = np.cos(mid), np.sin(mid)
+    a_x, a_y = c * ax[:-1] - s * ay[:-1], s * ax[:-1] + c * ay[:-1]
+    vx, vy = _accumulate(0.0, a_x * dt), _accumulate(0.0, a_y * dt)
+    x = _accumulate(x0, vx[:-1] * dt, 0.5 * a_x * dt * dt)
+    y = _accumulate(y0, vy[:-1] * dt, 0.5 * a_y * dt * dt)
     return pd.DataFrame({"t": t, "x": x, "y": y, "vx": vx, "vy": vy, "heading": heading})
+
+
+def _accumulate(start: float, *terms: np.ndarray) -> np.ndarray:
+    """s_0 = start, s_{k+1} = (s_k + terms[0][k]) + terms[1][k] + ... rounded after each
+    addition, as the step-by-step loop adds them: one sequential np.cumsum over the terms
+    interleaved (start, a_0, b_0, a_1, b_1, ...), read after each step's last term."""
+    steps = np.column_stack(terms).ravel()
+    sums = np.cumsum(np.concatenate([[float(start)], steps]))
+    return sums[::len(terms)]
 
 
 def floor_acceleration(imu: pd.DataFrame, heading0: float, bias: ImuBias | None = None) -> pd.DataFrame:

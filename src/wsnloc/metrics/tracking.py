@@ -11,6 +11,8 @@ Applied the same way to every estimator, study and paper.
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pandas as pd
 
@@ -21,11 +23,14 @@ RUN_METRICS = ERROR_STATS + ("availability",)
 
 
 def score(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
-    """Add true_x, true_y (truth at the estimate time) and error_m = ||estimate - truth||."""
+    """Add true_x, true_y (truth at the estimate time) and error_m = ||estimate - truth|| (m):
+    a new frame (index and attrs of `estimates`) built at once from its columns and these
+    three (replacing any of those names in place), not a copy assigned column by column."""
     position = truth_at(truth, estimates["t"].to_numpy(float))
-    out = estimates.copy()
-    out["true_x"], out["true_y"] = position[:, 0], position[:, 1]
-    out["error_m"] = np.hypot(out["x"] - out["true_x"], out["y"] - out["true_y"])
+    error = np.hypot(estimates["x"].to_numpy(float) - position[:, 0], estimates["y"].to_numpy(float) - position[:, 1])
+    out = pd.DataFrame({**{name: estimates[name].array for name in estimates.columns},
+                        "true_x": position[:, 0], "true_y": position[:, 1], "error_m": error}, index=estimates.index)
+    out.attrs = copy.deepcopy(estimates.attrs)
     return out
 
 
