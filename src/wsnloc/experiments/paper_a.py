@@ -10,17 +10,15 @@ This module holds only the paper's table layout, its claims and figures.
 
 from __future__ import annotations
 
-import copy
 from dataclasses import dataclass
 
-import numpy as np
 import pandas as pd
 
 from wsnloc import results
 from wsnloc.analysis import setup_facts
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
-from wsnloc.estimators import batched, bayes
+from wsnloc.estimators import batched
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import claims as claims_of
 from wsnloc.metrics import verdicts
@@ -96,23 +94,8 @@ def run_all(datas: list[RunData], settings: Settings) -> list[pd.DataFrame]:
     params = [estimator_params(settings, row, md) for row, _, md in cells]
     tracks = batched.cell_tracks("ekf", [(data, p) for data in datas for p in params], where="experiments.paper_a")
     labels = {"row": [row_label(row) for row, _, _ in cells], "table": [table for _, table, _ in cells]}
-    return [score(_run_frame(tracks[i * len(cells):(i + 1) * len(cells)], labels), data.table("truth"))
+    return [score(batched.stacked(tracks[i * len(cells):(i + 1) * len(cells)], labels), data.table("truth"))
             for i, data in enumerate(datas)]
-
-
-def _run_frame(tracks: list[batched.Track], labels: dict[str, list[str]]) -> pd.DataFrame:
-    """One run's cells stacked (bayes.COLUMNS, then each label column, labels[name][c] on
-    the rows of cell c): pd.concat of the cells' frames, each with its labels assigned,
-    built at once from the arrays. attrs: the cells' attrs when they all agree (as concat)."""
-    rows = np.concatenate([track.rows for track in tracks])
-    counts = [len(track.rows) for track in tracks]
-    columns = {name: rows[:, j] for j, name in enumerate(bayes.COLUMNS)}
-    cell = np.repeat(np.arange(len(tracks)), counts)
-    columns.update({name: pd.array(values, dtype="str")[cell] for name, values in labels.items()})
-    frame = pd.DataFrame(columns)
-    if all(track.attrs and track.attrs == tracks[0].attrs for track in tracks):
-        frame.attrs = copy.deepcopy(tracks[0].attrs)
-    return frame
 
 
 def run(data: RunData, settings: Settings) -> pd.DataFrame:
