@@ -20,7 +20,7 @@ rule static_bounds:
         sizes=lambda w: config["bounds"].get("subset_sizes", {}).get(w.dataset, {}),
         grid_m=config.get("bounds", {}).get("grid_m", 0.25),
         shown=config.get("bounds", {}).get("shown", 3),
-    priority: PRIORITY["summary"]
+    priority: PRIORITY["bounds"]
     log:
         "logs/static_bounds/{dataset}.log",
     conda:

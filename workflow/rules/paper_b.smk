@@ -56,7 +56,7 @@ rule paper_b_summary:
         snr_scenario=next((f"{d}/{s}" for d, s in experiment_pairs(PAPER_B, "simulation_scenarios")), ""),
         seed=config["seed"],
         resample=config["resample"],
-    priority: PRIORITY["paper"]
+    priority: PRIORITY["summary"]
     log:
         "logs/paper_b/summary.log",
     conda:

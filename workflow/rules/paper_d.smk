@@ -42,7 +42,7 @@ rule paper_d_summary:
         settings=PAPER_D,
         labels=[f"{d}/{s}" for d, s in PAPER_D_PAIRS],
         seed=config["seed"],
-    priority: PRIORITY["paper"]
+    priority: PRIORITY["summary"]
     log:
         "logs/paper_d/summary.log",
     conda:

@@ -50,7 +50,7 @@ rule paper_a_summary:
         labels=[f"{d}/{s}" for d, s in PAPER_A_PAIRS],
         campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in PAPER_A_PAIRS},
         seed=config["seed"],
-    priority: PRIORITY["paper"]
+    priority: PRIORITY["summary"]
     log:
         "logs/paper_a/summary.log",
     conda:
@@ -106,7 +106,7 @@ rule paper_c_summary:
         settings=PAPER_C,
         labels=[f"{d}/{s}" for d, s in PAPER_C_PAIRS],
         campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in PAPER_C_PAIRS},
-    priority: PRIORITY["paper"]
+    priority: PRIORITY["summary"]
     log:
         "logs/paper_c/summary.log",
     conda:
