@@ -37,19 +37,22 @@ def test_campaign_links_cross_the_expected_walls(campaign):
 
 def test_wall_counts_equal_the_full_count(campaign):
     """Points in and beside the rooms, on wall lines and at door edges, repeated (the cart at
-    rest) and NaN, against anchors inside, outside and on wall lines: the same integers as
-    every piece tested at every point."""
+    rest) and NaN, against anchors inside, outside and on wall lines, with the campaign's walls and
+    with two diagonal ones added: the same integers as every piece tested at every point."""
     rng = np.random.default_rng(5)
     grid = np.array([(x, y) for x in (0.0, 2.5, 6.0, 8.5, 12.0, 22.5, 30.0) for y in (0.0, 6.0, 7.5, 9.0, 15.0)])
     moving = np.column_stack([rng.uniform(-1.0, 31.0, 600), rng.uniform(-1.0, 16.0, 600)])
     distinct = np.concatenate([grid, moving, [[np.nan, 7.5]]])
     points = np.repeat(distinct, rng.integers(1, 4, len(distinct)), axis=0)
     anchors = np.concatenate([campaign.anchors[["x", "y"]].to_numpy(float), grid[::3], [[15.0, 9.0], [-2.0, 7.0]]])
-    for subset in (points, points[:1], points[points[:, 1] > 7.0], points[:0], points[-40:]):
-        for anchor in anchors:
-            got = campaign.walls_between(subset, anchor)
-            expected = walls._crossings(np.atleast_2d(subset), anchor, campaign.walls)
-            assert got.dtype == expected.dtype and np.array_equal(got, expected)
+    diagonal = wall_pieces([{"from": [4.0, 1.0], "to": [20.0, 13.0], "doors": [[5.0, 6.0]]},
+                            {"from": [26.0, 2.0], "to": [12.0, 9.0]}])
+    for pieces in (campaign.walls, np.concatenate([campaign.walls, diagonal])):   # axis-aligned, then mixed
+        for subset in (points, points[:1], points[points[:, 1] > 7.0], points[:0], points[-40:]):
+            for anchor in anchors:
+                got = count_crossings(subset, anchor, pieces)
+                expected = walls._crossings(np.atleast_2d(subset), anchor, pieces)
+                assert got.dtype == expected.dtype and np.array_equal(got, expected)
 
 
 def test_rail_length_and_shape(campaign):
