@@ -48,7 +48,7 @@ def test_wall_counts_equal_the_full_count(campaign):
     diagonal = wall_pieces([{"from": [4.0, 1.0], "to": [20.0, 13.0], "doors": [[5.0, 6.0]]},
                             {"from": [26.0, 2.0], "to": [12.0, 9.0]}])
     for pieces in (campaign.walls, np.concatenate([campaign.walls, diagonal])):   # axis-aligned, then mixed
-        for subset in (points, points[:1], points[points[:, 1] > 7.0], points[:0], points[-40:]):
+        for subset in (points, points[:40], points[points[:, 1] > 7.0], points[-40:], points[:1]):   # pruned; one point
             for anchor in anchors:
                 got = count_crossings(subset, anchor, pieces)
                 expected = walls._crossings(np.atleast_2d(subset), anchor, pieces)

@@ -20,6 +20,7 @@ from wsnloc.metrics.data_quality import SUMMARY_TABLES, imu_files, load_inventor
 from wsnloc.metrics.ranging import fit_path_loss
 from wsnloc.signal.resample import CHANNELS, resample_imu
 
+
 def ingest_shard(fmt: str, raw_dirs: dict[str, str], campaign: Campaign, tables_dir, imu_dir,
                  limits: QuarantineLimits, resample: dict, keep_dir, log) -> dict:
     """Ingest the runs {run: raw folder} into tables_dir/<run>/*.parquet and write each run's IMU

@@ -157,11 +157,12 @@ class MeasurementSource:
         return tuple(self._epoch_means(kind, times, period) for kind in ("ranges", "rss"))
 
     def _epoch_means(self, kind: str, times: np.ndarray, period: float) -> AnchorMeans:
+        if kind not in self.kinds:
+            return AnchorMeans(np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp), np.zeros(0))
         coded = self._coded(kind)
         key = ("anchor_means",) + self._tables[kind][0] + (period, times.tobytes())
         means = self.data.cached(key, lambda: anchor_means(coded.t, coded.code, coded.value, times, period))
-        keep = coded.among(self._members)[means.code] if kind in self.kinds else np.zeros(len(means.code), bool)
-        return means.select(keep)
+        return means.select(coded.among(self._members)[means.code])
 
     def anchor_ids(self, kind: int) -> np.ndarray:
         """The ids (object) the codes of epoch_means(...)[kind] index: 0 ranges, 1 RSS."""

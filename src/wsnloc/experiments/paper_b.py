@@ -80,7 +80,7 @@ SENSITIVITY_METHODS = ("sskf", "kf")
 def run(data: RunData, settings: Settings, methods=tuple(METHOD_ESTIMATOR)) -> pd.DataFrame:
     """UWB-only, IMU-only, steady-state KF and classical KF positions of one run (or the
     given methods), scored."""
-    base = estimator_params(settings)
+    base, methods = estimator_params(settings), tuple(methods)
     tracks = []
     for name in (METHOD_ESTIMATOR[m] for m in methods):
         names = {p.name for p in registry.get(name).params}

@@ -127,17 +127,11 @@ def run_all(datas: list[RunData], settings: Settings, stages=("raw", "velocity",
                                   where="experiments.paper_d")
         for j, i in enumerate(mine):
             tracks[i] = out[j * len(datas):(j + 1) * len(datas)]
-    return [score(_labelled([tracks[i][r] for i in range(len(selected))], selected), data.table("truth"))
+    return [score(batched.stacked([tracks[i][r] for i in range(len(selected))],
+                                 {key: [cell[k] for cell in selected]
+                                  for k, key in enumerate(("localizer", "technique", "stage"))},
+                                 ("t", "x", "y")), data.table("truth"))
             for r, data in enumerate(datas)]
-
-
-def _labelled(parts: list[batched.Track], selected: list[tuple]) -> pd.DataFrame:
-    """The t, x, y of every cell's track stacked, with its localizer, technique and stage."""
-    lengths = [len(part.rows) for part in parts]
-    stacked = np.concatenate([part.rows[:, :3] for part in parts])
-    labels = {key: np.repeat(np.array([cell[k] for cell in selected], dtype=object), lengths)
-              for k, key in enumerate(("localizer", "technique", "stage"))}
-    return pd.DataFrame({**{column: stacked[:, j] for j, column in enumerate(("t", "x", "y"))}, **labels})
 
 
 def run(data: RunData, settings: Settings, stages=("raw", "velocity", "kalman")) -> pd.DataFrame:

@@ -17,7 +17,7 @@ import pandas as pd
 from wsnloc.campaign import Campaign
 from wsnloc.errors import IngestError
 from wsnloc.io import cricket, generic, newcom, tables
-from wsnloc.io.limits import QuarantineLimits, check_quarantine_limits, within_limits
+from wsnloc.io.limits import QuarantineLimits, check_quarantine_limits, over_limits
 
 PARSERS: dict[str, Callable[[Path, Campaign], tuple[dict[str, pd.DataFrame], dict]]] = {
     "newcom": newcom.ingest_run,
@@ -59,7 +59,7 @@ def ingest_scenario(fmt: str, run_dirs: dict[str, str], campaign: Campaign | Non
     inventory = {}
     for run, run_dir in run_dirs.items():
         inventory[run] = ingest_one(fmt, run_dir, campaign, out_dir / run)
-        if not within_limits(inventory[run], limits):
+        if over_limits(inventory[run], limits) is not None:
             _stop(run_dir, inventory[run], out_dir / run / "quarantine.parquet", limits,
                   Path(keep_dir) / f"{run}.quarantine.csv")
     (out_dir / "inventory.json").write_text(json.dumps(inventory, indent=1, sort_keys=True))
@@ -67,7 +67,7 @@ def ingest_scenario(fmt: str, run_dirs: dict[str, str], campaign: Campaign | Non
 
 
 def _stop(run_dir: str | Path, inventory: dict, quarantine_path: Path, limits: QuarantineLimits, kept: Path) -> None:
-    """Copy the quarantine table of a run over the limits (within_limits is False) to `kept`,
+    """Copy the quarantine table of a run over the limits (over_limits is not None) to `kept`,
     then raise check_quarantine_limits' IngestError naming that copy. The table is read
     back only here: a run within the limits needs nothing but its inventory."""
     quarantine = tables.read(quarantine_path)

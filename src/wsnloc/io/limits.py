@@ -47,11 +47,19 @@ def file_shares(inventory: dict) -> dict[str, float]:
     return {name: f["quarantined"] / f["data_lines"] for name, f in inventory.items() if f["data_lines"]}
 
 
+def over_limits(inventory: dict, limits: QuarantineLimits) -> str | None:
+    """What is over the quarantine limits, from the inventory alone: the first file whose
+    share is above limits.per_file, "" when only the run's share is above limits.per_run,
+    None when the run is within both (check_quarantine_limits raises exactly when not None)."""
+    over_file = next((name for name, share in file_shares(inventory).items() if share > limits.per_file), None)
+    if over_file is not None:
+        return over_file
+    return "" if quarantine_share(inventory) > limits.per_run else None
+
+
 def within_limits(inventory: dict, limits: QuarantineLimits) -> bool:
-    """Whether check_quarantine_limits passes: no file's share above limits.per_file and the
-    run's share not above limits.per_run (from the inventory alone)."""
-    return (all(share <= limits.per_file for share in file_shares(inventory).values())
-            and quarantine_share(inventory) <= limits.per_run)
+    """Whether check_quarantine_limits passes (over_limits is None)."""
+    return over_limits(inventory, limits) is None
 
 
 def describe(quarantine: pd.DataFrame, file: str, top: int = 3) -> str:
@@ -73,16 +81,15 @@ def check_quarantine_limits(run_dir: str | Path, inventory: dict, quarantine: pd
     `kept_at`: where the quarantine table of the run can be read after the failure.
     """
     run_dir = Path(run_dir)
-    for name, share in file_shares(inventory).items():
-        if share > limits.per_file:
-            raise IngestError(
-                f"{run_dir / name}: {share:.1%} of its {inventory[name]['data_lines']} records are quarantined, "
-                f"more than config key 'ingest.max_quarantine_share_per_file' = {limits.per_file:.1%} allows; "
-                f"{describe(quarantine, name)}; quarantine table: {kept_at}")
-    share = quarantine_share(inventory)
-    if share > limits.per_run:
+    over = over_limits(inventory, limits)
+    if over:
+        raise IngestError(
+            f"{run_dir / over}: {file_shares(inventory)[over]:.1%} of its {inventory[over]['data_lines']} records are "
+            f"quarantined, more than config key 'ingest.max_quarantine_share_per_file' = {limits.per_file:.1%} "
+            f"allows; {describe(quarantine, over)}; quarantine table: {kept_at}")
+    if over == "":
         worst = max(inventory, key=lambda name: inventory[name]["quarantined"])
         raise IngestError(
-            f"{run_dir}: {share:.1%} of the run's records are quarantined (most in {worst}), more than "
-            f"config key 'ingest.max_quarantine_share' = {limits.per_run:.1%} allows; {worst}: "
+            f"{run_dir}: {quarantine_share(inventory):.1%} of the run's records are quarantined (most in {worst}), "
+            f"more than config key 'ingest.max_quarantine_share' = {limits.per_run:.1%} allows; {worst}: "
             f"{describe(quarantine, worst)}; quarantine table: {kept_at}")

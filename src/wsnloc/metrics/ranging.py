@@ -102,6 +102,8 @@ def fit_path_loss(rss_dbm, distance_m, d0_m: float = 1.0) -> dict[str, float]:
 
 
 RANGE_FIT_TOLERANCE_M = 1e-11     # IRLS stops when no fitted range moves by more than this (m)
+RANGE_FIT_ROUNDING = 1e-12        # ... or at the rounding floor: steps below this share of the largest
+                                  # range that no longer shrink (long ranges, many samples)
 RANGE_FIT_MAX_ITERATIONS = 1000
 
 
@@ -118,7 +120,8 @@ def fit_range_bias(range_m, true_distance_m, anchor_id) -> dict:
     w_i = 1 / sqrt(1 + (e_i / f)^2): iteratively reweighted least squares (_weighted_line
     with the weights of the previous fit, from the ordinary fit w = 1) lowers the cost at
     every step and stops when no fitted range s d_i + b_a(i) moves by more than
-    RANGE_FIT_TOLERANCE_M; the minimiser is scipy.optimize.least_squares(loss="soft_l1")'s.
+    RANGE_FIT_TOLERANCE_M, or when steps below RANGE_FIT_ROUNDING max|r| stop shrinking
+    (round-off of the weighted sums, not the fit, is then moving it); the minimiser is scipy.optimize.least_squares(loss="soft_l1")'s.
     """
     r = np.asarray(range_m, dtype=float)
     d = np.asarray(true_distance_m, dtype=float)
@@ -130,13 +133,15 @@ def fit_range_bias(range_m, true_distance_m, anchor_id) -> dict:
         raise ValueError(f"range calibration needs more samples than unknowns ({len(r)} for {len(anchors) + 1})")
     scale, offsets = _weighted_line(r, d, column, np.ones(len(r)))
     f_scale = max(1.4826 * np.median(np.abs(r - scale * d - offsets[column])), 1e-3)
+    floor, last_moved = RANGE_FIT_ROUNDING * np.max(np.abs(r)), np.inf
     for _ in range(RANGE_FIT_MAX_ITERATIONS):
         residual = r - scale * d - offsets[column]
         new_scale, new_offsets = _weighted_line(r, d, column, 1.0 / np.sqrt(1.0 + (residual / f_scale) ** 2))
         moved = np.max(np.abs((new_scale - scale) * d + (new_offsets - offsets)[column]))
         scale, offsets = new_scale, new_offsets
-        if moved <= RANGE_FIT_TOLERANCE_M:
+        if moved <= RANGE_FIT_TOLERANCE_M or (moved <= floor and moved >= last_moved):
             break
+        last_moved = moved
     else:
         raise ValueError(f"range calibration: no convergence in {RANGE_FIT_MAX_ITERATIONS} iterations")
     residual = r - scale * d - offsets[column]

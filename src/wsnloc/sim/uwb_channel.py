@@ -7,7 +7,7 @@ CM3 office LOS and CM4 office NLOS in the campaign file):
 - Rays in a cluster: arrivals from the two-process mixture
   p(tau_k | tau_{k-1}) = beta*l1*exp(-l1*dt) + (1-beta)*l2*exp(-l2*dt).
 - Cluster energy: 10 log10(Omega_l) = 10 log10(exp(-T_l / Gamma)) + N(0, sigma_cluster).
-- Ray mean power: E|a|^2 = Omega_l / (gamma (1 - beta) l1 + beta l2 + 1)) exp(-tau / gamma);
+- Ray mean power: E|a|^2 = Omega_l / (gamma ((1 - beta) l1 + beta l2 + 1)) exp(-tau / gamma);
   for CM4 the first cluster is diffuse:
   E|a|^2 ~ Omega_1 (1 - chi exp(-tau/gamma_rise)) exp(-tau/gamma_1)
            (gamma_1 + gamma_rise) / (gamma_1 (gamma_1 + gamma_rise (1 - chi))).
@@ -63,7 +63,7 @@ def _mean_ray_power(model: dict, omega: np.ndarray, decay: np.ndarray, first_clu
     """Mean ray power E|a|^2 of every ray (flat, `counts` rays per cluster; omega, decay (ns)
     and first_cluster per cluster, tau in ns):
 
-        Omega_l / (gamma (1 - beta) l1 + beta l2 + 1)) exp(-tau / gamma), and for the rays of a
+        Omega_l / (gamma ((1 - beta) l1 + beta l2 + 1)) exp(-tau / gamma), and for the rays of a
         diffuse first cluster (CM4) Omega_1 (1 - chi exp(-tau/gamma_rise)) exp(-tau/gamma_1)
         (gamma_1 + gamma_rise) / (gamma_1 (gamma_1 + gamma_rise (1 - chi))).
 
