@@ -12,7 +12,6 @@ across SNRs.
 from __future__ import annotations
 
 import copy
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -20,11 +19,11 @@ import pandas as pd
 from wsnloc.campaign import Campaign
 from wsnloc.inertial.dead_reckoning import dead_reckon, static_bias
 from wsnloc.io.newcom import parse_imu
-from wsnloc.io.rawlines import Quarantine, RawFile
+from wsnloc.io.rawlines import Quarantine, raw_from_bytes
 from wsnloc.metrics.stats import error_summary, mean_ci95
 from wsnloc.signal.resample import resample_imu
 from wsnloc.sim import trajectory as motion
-from wsnloc.sim.logs import imu_lines
+from wsnloc.sim.logs import imu_text
 from wsnloc.sim.seeding import model_rng, run_seed_sequence
 
 
@@ -33,17 +32,6 @@ def with_snr(campaign: Campaign, snr_db: float) -> Campaign:
     spec = copy.deepcopy(campaign.spec)
     spec["imu"].update(noise_model="snr", snr_db=float(snr_db))
     return Campaign(campaign.name, campaign.format, spec, campaign.source)
-
-
-def lines_as_raw(name: str, lines: list[str]) -> RawFile:
-    """Log lines held in memory as a RawFile (header comments first, data lines numbered from 1)."""
-    header, data = [], []
-    for number, text in enumerate(lines, start=1):
-        if text.startswith("#"):
-            header.append(text)
-        else:
-            data.append((number, text))
-    return RawFile(Path(name), header, data, sha256="", n_lines=len(lines), n_records=len(data))
 
 
 def run_trajectory(campaign: Campaign, scenario: str, run: int, seed: int,
@@ -67,8 +55,10 @@ def dead_reckoning_rmse(campaign: Campaign, scenario: str, snr_db: float, run: i
     seeds = run_seed_sequence(seed, dataset, scenario, run)
     if traj is None:
         traj = run_trajectory(noisy, scenario, run, seed, dataset)
-    raw = lines_as_raw("imu.log", imu_lines(noisy, traj, model_rng(seeds, "imu"), "snr", clock_ms=0))
-    imu = resample_imu(parse_imu(raw, noisy, Quarantine()), **resample)
+    quarantine = Quarantine()
+    text = imu_text(noisy, traj, model_rng(seeds, "imu"), "snr", clock_ms=0)
+    imu = resample_imu(parse_imu(raw_from_bytes("imu.log", text.encode("ascii"), quarantine), noisy, quarantine),
+                       **resample)
     x0, y0, heading0 = noisy.path.start_pose()
     track = dead_reckon(imu, x0, y0, heading0, static_bias(imu, static_bias_s))
     truth = noisy.path.evaluate(traj.at(track["t"].to_numpy())["s"])

@@ -99,6 +99,12 @@ def read_raw(path: str | Path, quarantine: Quarantine) -> RawFile:
         data = path.read_bytes()
     except OSError as exc:
         raise IngestError(f"{path}: cannot read ({exc.strerror or exc})") from exc
+    return raw_from_bytes(path, data, quarantine)
+
+
+def raw_from_bytes(path: str | Path, data: bytes, quarantine: Quarantine) -> RawFile:
+    """read_raw of a log held in memory as bytes (`path` names it in the quarantine)."""
+    path = Path(path)
     sha256 = hashlib.sha256(data).hexdigest()
     if data.isascii():
         header, start, first_line = _ascii_header(data)

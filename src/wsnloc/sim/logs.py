@@ -117,11 +117,6 @@ def imu_text(campaign: Campaign, traj: Trajectory, rng, noise_model: str, clock_
                                              (np.asarray(gyro_counts), 0)])
 
 
-def imu_lines(campaign: Campaign, traj: Trajectory, rng, noise_model: str, clock_ms: int) -> list[str]:
-    """The lines of `imu.log` (imu_text), without line ends."""
-    return imu_text(campaign, traj, rng, noise_model, clock_ms).splitlines()
-
-
 def truth_text(campaign: Campaign, traj: Trajectory, clock_ms: int, column: str) -> str:
     """`truth.log`: position along the path (`rail_m` or `path_m`) at the truth rate."""
     spec = campaign.section("truth")
