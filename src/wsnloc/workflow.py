@@ -96,6 +96,25 @@ def script_logger(log_path: str, name: str):
     return logger
 
 
+def end_job() -> None:
+    """End a finished Snakemake script job at once with exit status 0, skipping the interpreter's
+    teardown (os._exit after flushing the log handlers and the standard streams).
+
+    Teardown frees every loaded module's objects one by one: measured 0.1 s of CPU in a job with
+    pandas loaded and 0.25 s with matplotlib as well, about 6 s over the default build's jobs.
+    Call it as a script's last statement, when every output is written and closed; a script that
+    raises never gets there and exits with its error as usual.
+    """
+    import logging
+    import os
+    import sys
+
+    logging.shutdown()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(0)
+
+
 def compile_bytecode(package_dir: str | Path = Path(__file__).parent) -> None:
     """Write the bytecode (__pycache__) of the package's modules once, before the jobs start.
 

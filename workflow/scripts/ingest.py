@@ -12,7 +12,7 @@ from wsnloc.campaign import Campaign
 from wsnloc.data_stage import ingest_shard, summarize_scenario
 from wsnloc.errors import IngestError
 from wsnloc.io.limits import QuarantineLimits
-from wsnloc.workflow import script_logger
+from wsnloc.workflow import end_job, script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "ingest")
@@ -26,3 +26,4 @@ except IngestError as exc:
     raise
 if "summary" in sm.output.keys():
     summarize_scenario(sm.output.tables, sm.output.imu_5hz, campaign, sm.params.label, sm.output, log)
+end_job()

@@ -11,7 +11,7 @@ from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import calibration, paper_a, sensitivity
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
-from wsnloc.workflow import script_logger
+from wsnloc.workflow import end_job, script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "paper_a")
@@ -45,3 +45,4 @@ def variant_metrics(spec: dict, _, names: list[str]) -> pd.DataFrame:
 
 grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_a", metrics, variant_metrics)
 grid.to_csv(sm.output.sensitivity, index=False, float_format="%.6g")
+end_job()

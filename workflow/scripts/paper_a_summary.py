@@ -13,7 +13,7 @@ from wsnloc.config import read_yaml
 from wsnloc.experiments import claims as claims_of, paper_a, sensitivity
 from wsnloc.io import tables
 from wsnloc.report import bound_figures, figures
-from wsnloc.workflow import script_logger
+from wsnloc.workflow import end_job, script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "paper_a_summary")
@@ -60,3 +60,4 @@ else:
         figures.placeholder("no static-share sweep (experiments.paper_a.static_sweep.runs: 0)"))
 Path(sm.output.anchors).write_bytes(figures.rmse_vs_anchors(paper_a.anchor_curves(res, settings),
                                                              "Paper A: RMSE against the number of anchors"))
+end_job()

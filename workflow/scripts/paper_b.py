@@ -7,7 +7,7 @@ from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import paper_b, sensitivity
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
-from wsnloc.workflow import each_scenario, script_logger
+from wsnloc.workflow import each_scenario, end_job, script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "paper_b")
@@ -42,3 +42,4 @@ def run_scenario(label: str, campaign: Campaign, out: dict) -> None:
 
 for label, campaign, out in each_scenario(sm.params.sources, sm.output, ("estimates", "metrics", "sensitivity")):
     run_scenario(label, campaign, out)
+end_job()

@@ -12,7 +12,7 @@ from wsnloc.config import read_yaml
 from wsnloc.experiments import claims as claims_of, paper_b, sensitivity
 from wsnloc.io import tables
 from wsnloc.report import figures
-from wsnloc.workflow import script_logger
+from wsnloc.workflow import end_job, script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "paper_b_summary")
@@ -56,3 +56,4 @@ else:
 Path(sm.output.cdf).write_bytes(figures.error_cdf(paper_b.cdf_panels(estimates), xmax=5.0))
 Path(sm.output.errors).write_bytes(figures.error_over_time(paper_b.error_panels(estimates)))
 log.info("paper B summary over %s", labels)
+end_job()

@@ -12,7 +12,7 @@ from wsnloc.config import read_yaml
 from wsnloc.experiments import claims as claims_of, paper_c, sensitivity
 from wsnloc.io import tables
 from wsnloc.report import bound_figures, figures
-from wsnloc.workflow import script_logger
+from wsnloc.workflow import end_job, script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "paper_c_summary")
@@ -52,3 +52,4 @@ Path(sm.output.noise).write_bytes(figures.curve_with_interval(
     if curves else figures.placeholder("no sensitivity grid (experiments.paper_c.sensitivity.runs: 0)"))
 Path(sm.output.anchors).write_bytes(figures.rmse_vs_anchors(paper_c.anchor_curves(res, settings),
                                                              "Paper C: RMSE against the number of beacons"))
+end_job()

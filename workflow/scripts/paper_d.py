@@ -9,7 +9,7 @@ from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import paper_d, sensitivity
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
-from wsnloc.workflow import script_logger
+from wsnloc.workflow import end_job, script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "paper_d")
@@ -42,3 +42,4 @@ def kalman_variant(spec: dict, sigma: str, names: list[str]) -> pd.DataFrame:
 grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_d", metrics, kalman_variant,
                                 paper_d.SENSITIVITY_SIGMAS)
 grid.to_csv(sm.output.sensitivity, index=False, float_format="%.6g")
+end_job()

@@ -11,7 +11,7 @@ from wsnloc.analysis import nlos_severity
 from wsnloc.experiments import claims as claims_of, paper_d, sensitivity
 from wsnloc.io import tables
 from wsnloc.report import figures
-from wsnloc.workflow import script_logger
+from wsnloc.workflow import end_job, script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "paper_d_summary")
@@ -40,3 +40,4 @@ log.info("cost per step (us): %s", cost)
 
 Path(sm.output.cdf).write_bytes(figures.error_cdf(paper_d.cdf_panels(estimates)))
 Path(sm.output.tracks).write_bytes(figures.trajectories(paper_d.trajectory_panels(estimates)))
+end_job()

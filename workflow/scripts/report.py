@@ -13,7 +13,7 @@ from wsnloc.config import read_yaml
 from wsnloc.report.render import build_context, png_data_uri, render
 from wsnloc.report.sections import (paper_a_section, paper_b_section, paper_c_section, paper_d_section,
                                     sensitivity_table, static_bounds_section, study_section, summary)
-from wsnloc.workflow import script_logger
+from wsnloc.workflow import end_job, script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "report")
@@ -79,3 +79,4 @@ context["summary"] = summary(context["papers"])
 html = render(sm.input.template, context)
 Path(sm.output.html).write_text(html, encoding="utf-8")
 log.info("report: %d bytes, %d results rows", len(html), len(all_results))
+end_job()

@@ -5,7 +5,7 @@ from pathlib import Path
 from wsnloc.campaign import Campaign
 from wsnloc.sim import SIMULATORS
 from wsnloc.sim.seeding import run_seed_sequence
-from wsnloc.workflow import script_logger
+from wsnloc.workflow import end_job, script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "simulate")
@@ -17,3 +17,4 @@ for run in sm.params.runs:
     out = simulate_run(campaign, sm.wildcards.scenario, seeds, Path(sm.params.root) / run,
                        meta={"run": run, "base_seed": sm.params.seed, "dataset": sm.wildcards.dataset})
     log.info("simulated %s", out)
+end_job()

@@ -8,7 +8,7 @@ from wsnloc import results
 from wsnloc.analysis.static_bounds import NoiseModel, floor_maps, path_rows, subset_rows, subset_search
 from wsnloc.campaign import Campaign
 from wsnloc.report import bound_figures
-from wsnloc.workflow import script_logger
+from wsnloc.workflow import end_job, script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "static_bounds")
@@ -30,3 +30,4 @@ results.write(rows, sm.output.results)
 ranking = pd.concat(rankings, ignore_index=True) if rankings else pd.DataFrame(
     columns=["members", "mean_bound_m", "rank", "tech", "k"])
 ranking.to_csv(sm.output.ranking, index=False, float_format="%.6g")
+end_job()

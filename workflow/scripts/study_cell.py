@@ -5,7 +5,7 @@ from wsnloc.estimators import registry
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.studies import quality_table, run_cell
-from wsnloc.workflow import script_logger
+from wsnloc.workflow import end_job, script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "study_cell")
@@ -22,3 +22,4 @@ metrics.to_csv(sm.output.metrics, index=False, float_format="%.6g")
 quality_table(estimates).to_parquet(sm.output.quality, index=False, compression="zstd")
 log.info("%s on %s: %d runs x %d subsets, parameters %s", cell_name, sm.params.label, len(runs),
          len(cell["subsets"]), params)
+end_job()

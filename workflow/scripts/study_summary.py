@@ -8,7 +8,7 @@ from wsnloc import results
 from wsnloc.io import tables
 from wsnloc.report import bound_figures, figures
 from wsnloc.studies import bound_summary, results_rows, study_panels
-from wsnloc.workflow import script_logger
+from wsnloc.workflow import end_job, script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "study_summary")
@@ -36,3 +36,4 @@ Path(sm.output.cdf).write_bytes(figures.error_cdf(cdf, xmax=None))
 Path(sm.output.errors).write_bytes(figures.error_over_time(errors))
 Path(sm.output.tracks).write_bytes(figures.trajectories(tracks))
 log.info("study %s: %d cells, %d results rows", study, len(estimates), len(rows))
+end_job()

@@ -5,7 +5,7 @@ from wsnloc import results
 from wsnloc.analysis.static_bounds import NoiseModel, monte_carlo_rows
 from wsnloc.campaign import Campaign
 from wsnloc.metrics.data_quality import load_runs
-from wsnloc.workflow import script_logger
+from wsnloc.workflow import end_job, script_logger
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = script_logger(sm.log[0], "subset_monte_carlo")
@@ -25,3 +25,4 @@ for tech, sizes in sm.params.sizes.items():
         for failure in failures:
             log.warning("no RMSE: %s", failure)
 results.write(rows, sm.output.results)
+end_job()
