@@ -13,9 +13,10 @@ knot_s apart and covering the window [t_end - window_s, t_end]. Whitened residua
   one per range measured at time t to an anchor a with height difference dz, from the knot j
   before t (delta = t - tau_j):
       (sqrt(||p_j + delta v_j - a||^2 + dz^2) - r) / sigma
-Minimised with scipy.optimize.least_squares (trf), warm-started from the previous window; the
-robust loss rho (huber, soft_l1, cauchy or linear) acts on the range residuals only, with
-f_scale in units of sigma (the priors stay Gaussian). Covariance of the knots: (J^T J)^-1 with
+Minimised with filters.least_squares (Levenberg-Marquardt with scipy's robust-loss scaling,
+ftol = xtol = gtol = 1e-12), warm-started from the previous window; the robust loss rho
+(huber, soft_l1, cauchy or linear) acts on the range residuals only, with f_scale in units
+of sigma (the priors stay Gaussian). Covariance of the knots: (J^T J)^-1 with
 J the loss-weighted Jacobian at the solution; the estimate is the last knot (x, P).
 """
 
@@ -25,35 +26,11 @@ from typing import NamedTuple
 
 import numpy as np
 
+from wsnloc.filters.least_squares import LOSSES, robust_least_squares
 from wsnloc.filters.measurement_models import MIN_DISTANCE
 from wsnloc.filters.motion_models import constant_velocity
 
 STATE = 4
-
-
-def _linear(z):
-    return np.vstack([z, np.ones_like(z), np.zeros_like(z)])
-
-
-def _huber(z):
-    big = z > 1.0
-    root = np.sqrt(np.where(big, z, 1.0))
-    return np.vstack([np.where(big, 2.0 * root - 1.0, z), np.where(big, 1.0 / root, 1.0),
-                      np.where(big, -0.5 / root**3, 0.0)])
-
-
-def _soft_l1(z):
-    t = 1.0 + z
-    return np.vstack([2.0 * (np.sqrt(t) - 1.0), t**-0.5, -0.5 * t**-1.5])
-
-
-def _cauchy(z):
-    t = 1.0 + z
-    return np.vstack([np.log(t), 1.0 / t, -1.0 / t**2])
-
-
-# rho(z) with z = (residual / f_scale)^2, and its first two derivatives (scipy's convention).
-LOSSES = {"linear": _linear, "huber": _huber, "soft_l1": _soft_l1, "cauchy": _cauchy}
 
 
 def white_noise_acceleration_cov(dt: float, accel_sigma: float) -> np.ndarray:
@@ -97,6 +74,9 @@ class SlidingWindowEstimator:
         self.n_knots = int(np.ceil(window_s / knot_s - 1e-9)) + 1
         self.Phi = constant_velocity(knot_s, accel_sigma)[0]
         self._W_cv = np.linalg.inv(np.linalg.cholesky(white_noise_acceleration_cov(knot_s, accel_sigma)))
+        # Jacobian of the constant-velocity residuals W (s_j+1 - Phi s_j), j = 0..K-2: (4(K-1), 4K)
+        self._J_cv = (np.kron(np.eye(self.n_knots - 1, self.n_knots, 1), self._W_cv)
+                      - np.kron(np.eye(self.n_knots - 1, self.n_knots), self._W_cv @ self.Phi))
         self._previous = None      # (knot times (K,), states (K, 4), covariance (4K, 4K))
 
     def _propagate(self, times):
@@ -145,17 +125,9 @@ class SlidingWindowEstimator:
         j = np.clip(np.floor((t - knots[0]) / self.knot_s + 1e-9).astype(int), 0, self.n_knots - 1)
         ranges = RangeFactors(j, t - knots[j], anchors_xy, dz_m, ranges_m, sigma_m)
         n_gaussian = STATE * (self.n_knots - 1) + (0 if prior is None else STATE)
-
-        def loss(z):
-            out = _linear(z)
-            out[:, n_gaussian:] = self.rho(z[n_gaussian:])
-            return out
-
-        from scipy.optimize import least_squares    # here: a job without this estimator loads no scipy
-
-        solution = least_squares(self._residuals, start.ravel(), jac=self._jacobian, args=(prior, ranges),
-                                 loss=loss, f_scale=self.f_scale, method="trf",
-                                 ftol=1e-12, xtol=1e-12, gtol=1e-12)
+        solution = robust_least_squares(lambda theta: self._residuals(theta, prior, ranges),
+                                        lambda theta: self._jacobian(theta, prior, ranges), start.ravel(),
+                                        self.rho, self.f_scale, n_gaussian, ftol=1e-12, xtol=1e-12, gtol=1e-12)
         cov = np.linalg.inv(solution.jac.T @ solution.jac)
         states = solution.x.reshape(self.n_knots, STATE)
         self._previous = (knots, states, cov)
@@ -175,20 +147,14 @@ class SlidingWindowEstimator:
         return np.concatenate(parts)
 
     def _jacobian(self, theta, prior, ranges):
-        K, n = self.n_knots, STATE
-        j, delta = ranges.knot, ranges.delta
-        n_prior = 0 if prior is None else n
-        J = np.zeros((n_prior + n * (K - 1) + len(j), n * K))
+        n_prior = 0 if prior is None else STATE
+        n_gaussian = n_prior + len(self._J_cv)
+        J = np.zeros((n_gaussian + len(ranges.knot), STATE * self.n_knots))
         if prior is not None:
-            J[:n, :n] = prior[1]
-        for k in range(K - 1):
-            rows = slice(n_prior + n * k, n_prior + n * (k + 1))
-            J[rows, n * k:n * (k + 1)] = -self._W_cv @ self.Phi
-            J[rows, n * (k + 1):n * (k + 2)] = self._W_cv
+            J[:STATE, :STATE] = prior[1]
+        J[n_prior:n_gaussian] = self._J_cv
         diff, h = self._range_geometry(theta, ranges)
         unit = diff / (h * ranges.sigma)[:, None]
-        rows = n_prior + n * (K - 1) + np.arange(len(j))
-        for c in range(2):
-            J[rows, n * j + c] = unit[:, c]
-            J[rows, n * j + 2 + c] = delta * unit[:, c]
+        cols = STATE * ranges.knot[:, None] + np.arange(STATE)          # [x, y, vx, vy] of knot j
+        J[n_gaussian + np.arange(len(cols))[:, None], cols] = np.hstack([unit, ranges.delta[:, None] * unit])
         return J
