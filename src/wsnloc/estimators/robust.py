@@ -85,7 +85,8 @@ def robust_update(filt, z: np.ndarray, H: np.ndarray, R: np.ndarray, hx: np.ndar
         keep = gate(z - hx, S, options.gate_probability)
     if not keep.any():
         return keep
-    z, H, R, hx = z[keep], H[keep], R[np.ix_(keep, keep)], hx[keep]
+    if not keep.all():
+        z, H, R, hx = z[keep], H[keep], R[np.ix_(keep, keep)], hx[keep]
     if options.loss == "none":
         filt.update(z, H=H, R=R, hx=hx)
         return keep

@@ -14,6 +14,14 @@ from __future__ import annotations
 import numpy as np
 
 
+def inverse(S: np.ndarray) -> np.ndarray:
+    """S^-1 of a square S; a 1 x 1 S gives [[1 / s]] directly (the value LAPACK's LU solve in
+    numpy.linalg.inv computes, without its call overhead)."""
+    if S.shape == (1, 1):
+        return 1.0 / S
+    return np.linalg.inv(S)
+
+
 class KalmanFilter:
     def __init__(self, x, P, F, Q, H, R):
         self.x = np.asarray(x, dtype=float).copy()
@@ -46,7 +54,7 @@ class KalmanFilter:
         self.y = z - (H @ self.x if hx is None else hx)
         PHt = self.P @ H.T
         self.S = H @ PHt + R
-        S_inv = np.linalg.inv(self.S)
+        S_inv = inverse(self.S)
         self.K = PHt @ S_inv
         self.x = self.x + self.K @ self.y
         joseph = self._eye - self.K @ H

@@ -16,9 +16,11 @@ import numpy as np
 def constant_velocity(dt: float, accel_sigma_x: float, accel_sigma_y: float | None = None):
     """(F, Q) of the PV model for a step dt (s) and white-acceleration sigmas (m/s^2)."""
     sy = accel_sigma_x if accel_sigma_y is None else accel_sigma_y
-    eye = np.eye(2)
-    F = np.block([[eye, dt * eye], [np.zeros((2, 2)), eye]])
-    G = np.vstack([dt**2 / 2.0 * eye, dt * eye])
+    F = np.eye(4)
+    F[0, 2] = F[1, 3] = dt
+    G = np.zeros((4, 2))
+    G[0, 0] = G[1, 1] = dt**2 / 2.0
+    G[2, 0] = G[3, 1] = dt
     Q = G @ np.diag([accel_sigma_x**2, sy**2]) @ G.T
     return F, Q
 
@@ -31,9 +33,10 @@ def position_only(sigma_x: float, sigma_y: float | None = None):
 
 def pva(dt: float, accel_sigma: float, bias_walk_sigma: float):
     """(F, B, Q) of the PVA model; accel_sigma in m/s^2, bias_walk_sigma in m/s^2/sqrt(s)."""
-    eye, zero = np.eye(2), np.zeros((2, 2))
-    F = np.block([[eye, dt * eye, -dt**2 / 2 * eye], [zero, eye, -dt * eye], [zero, zero, eye]])
-    B = np.vstack([dt**2 / 2 * eye, dt * eye, zero])
+    F, B = np.eye(6), np.zeros((6, 2))
+    for axis in range(2):
+        F[axis, 2 + axis], F[axis, 4 + axis], F[2 + axis, 4 + axis] = dt, -dt**2 / 2, -dt
+        B[axis, axis], B[2 + axis, axis] = dt**2 / 2, dt
     Q = B @ B.T * accel_sigma**2
-    Q[4:, 4:] += eye * bias_walk_sigma**2 * dt
+    Q[4:, 4:] += np.eye(2) * bias_walk_sigma**2 * dt
     return F, B, Q

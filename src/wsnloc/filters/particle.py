@@ -35,6 +35,21 @@ def noise_square_root(Q) -> np.ndarray:
     return V * np.sqrt(np.maximum(lam, 0.0))
 
 
+def log_sum_exp(a) -> float:
+    """log sum_i exp(a_i) of a (N,), shifted by its maximum M so that no term overflows:
+    M + log k + log1p(s / k), k = number of a_i equal to M, s = sum of exp(a_i - M) over the
+    others (scipy.special.logsumexp's formula, accurate when one term dominates); +-inf or nan
+    when M is."""
+    m = np.max(a)
+    if not np.isfinite(m):
+        return float(m)
+    at_max = a == m
+    terms = np.exp(a - m)
+    terms[at_max] = 0.0
+    count = np.count_nonzero(at_max)
+    return float(np.log1p(np.sum(terms) / count) + np.log(count) + m)
+
+
 def systematic_resample(weights, rng: np.random.Generator) -> np.ndarray:
     """Indices (N,) of the particles kept by systematic resampling of normalised weights (N,)."""
     n = len(weights)
@@ -129,9 +144,7 @@ class ParticleFilter:
         log_p = element_log_likelihoods(residuals, variances, heavy_tailed,
                                         self.outlier_probability, self.outlier_span_m)
         joint = self.log_weights + log_p.sum(axis=1)
-        from scipy.special import logsumexp     # here: a job without particle filters loads no scipy
-
-        self.log_likelihood = float(logsumexp(joint))
+        self.log_likelihood = log_sum_exp(joint)
         self.log_weights = joint - self.log_likelihood
         self.resampled = self.ess < self.resample_threshold * len(self.particles)
         if self.resampled:

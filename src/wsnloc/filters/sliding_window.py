@@ -125,13 +125,19 @@ class SlidingWindowEstimator:
         j = np.clip(np.floor((t - knots[0]) / self.knot_s + 1e-9).astype(int), 0, self.n_knots - 1)
         ranges = RangeFactors(j, t - knots[j], anchors_xy, dz_m, ranges_m, sigma_m)
         n_gaussian = STATE * (self.n_knots - 1) + (0 if prior is None else STATE)
-        solution = robust_least_squares(lambda theta: self._residuals(theta, prior, ranges),
-                                        lambda theta: self._jacobian(theta, prior, ranges), start.ravel(),
-                                        self.rho, self.f_scale, n_gaussian, ftol=1e-12, xtol=1e-12, gtol=1e-12)
-        cov = np.linalg.inv(solution.jac.T @ solution.jac)
-        states = solution.x.reshape(self.n_knots, STATE)
+        theta, J = self._solve(start.ravel(), prior, ranges, n_gaussian)
+        cov = np.linalg.inv(J.T @ J)
+        states = theta.reshape(self.n_knots, STATE)
         self._previous = (knots, states, cov)
         return WindowEstimate(states[-1].copy(), cov[-STATE:, -STATE:].copy(), len(t))
+
+    def _solve(self, start, prior, ranges, n_gaussian):
+        """(theta, loss-weighted J at theta): the window's minimiser from start, the first
+        n_gaussian residuals Gaussian."""
+        solution = robust_least_squares(lambda theta: self._residuals(theta, prior, ranges),
+                                        lambda theta: self._jacobian(theta, prior, ranges), start,
+                                        self.rho, self.f_scale, n_gaussian, ftol=1e-12, xtol=1e-12, gtol=1e-12)
+        return solution.x, solution.jac
 
     def _range_geometry(self, theta, ranges):
         s = theta.reshape(self.n_knots, STATE)[ranges.knot]

@@ -1,0 +1,44 @@
+"""Fast paths of the filters' small matrices: the motion models' F, B, Q against their block
+formulas (filters.motion_models docstring), and the Kalman update's 1 x 1 inverse against
+numpy.linalg.inv, bit for bit."""
+
+import numpy as np
+import pytest
+
+from wsnloc.filters.kalman import inverse
+from wsnloc.filters.motion_models import constant_velocity, pva
+
+I2, Z2 = np.eye(2), np.zeros((2, 2))
+
+
+@pytest.mark.parametrize("dt", [0.0, 0.1, 0.5, 1.7])
+def test_constant_velocity_matches_its_block_formula(dt):
+    F, Q = constant_velocity(dt, 0.4, 0.7)
+    G = np.vstack([dt**2 / 2.0 * I2, dt * I2])
+    np.testing.assert_array_equal(F, np.block([[I2, dt * I2], [Z2, I2]]))
+    np.testing.assert_array_equal(Q, G @ np.diag([0.4**2, 0.7**2]) @ G.T)
+
+
+@pytest.mark.parametrize("dt", [0.0, 0.1, 0.5, 1.7])
+def test_pva_matches_its_block_formula(dt):
+    F, B, Q = pva(dt, 0.3, 0.02)
+    B_block = np.vstack([dt**2 / 2 * I2, dt * I2, Z2])
+    np.testing.assert_array_equal(F, np.block([[I2, dt * I2, -dt**2 / 2 * I2], [Z2, I2, -dt * I2], [Z2, Z2, I2]]))
+    np.testing.assert_array_equal(B, B_block)
+    expected = B_block @ B_block.T * 0.3**2
+    expected[4:, 4:] += I2 * 0.02**2 * dt
+    np.testing.assert_array_equal(Q, expected)
+
+
+def test_inverse_of_a_scalar_is_bit_identical_to_numpy():
+    rng = np.random.default_rng(0)
+    values = np.concatenate([rng.lognormal(0, 8, 5000), -rng.lognormal(0, 8, 500), [1e-300, 3.0, 7.0]])
+    for v in values:
+        np.testing.assert_array_equal(inverse(np.array([[v]])), np.linalg.inv(np.array([[v]])))
+
+
+def test_inverse_of_a_matrix_is_numpys():
+    rng = np.random.default_rng(1)
+    A = rng.normal(size=(3, 3))
+    S = A @ A.T + np.eye(3)
+    np.testing.assert_array_equal(inverse(S), np.linalg.inv(S))
