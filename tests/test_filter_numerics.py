@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from wsnloc.filters.kalman import inverse
+from wsnloc.filters.measurement_models import RangeModel
 from wsnloc.filters.motion_models import constant_velocity, pva
 
 I2, Z2 = np.eye(2), np.zeros((2, 2))
@@ -42,3 +43,19 @@ def test_inverse_of_a_matrix_is_numpys():
     A = rng.normal(size=(3, 3))
     S = A @ A.T + np.eye(3)
     np.testing.assert_array_equal(inverse(S), np.linalg.inv(S))
+
+
+@pytest.mark.parametrize("sigma", [0.3, np.array([0.1, 0.25, 0.4])])
+def test_range_noise_is_the_diagonal_of_the_squared_sigmas(sigma):
+    model = RangeModel(np.array([[0.0, 0.0], [5.0, 0.0], [0.0, 5.0]]), sigma)
+    np.testing.assert_array_equal(model.R(), np.diag(np.broadcast_to(sigma, 3) ** 2))
+
+
+def test_distances_of_many_states_equal_those_of_each_state():
+    """h_many row by row equals h (same floating-point operations: bit for bit), also for a
+    particle on an anchor (the 1 mm floor)."""
+    rng = np.random.default_rng(2)
+    anchors = rng.uniform(0, 20, (7, 2))
+    X = np.vstack([rng.uniform(0, 20, (200, 4)), [[*anchors[3], 0.0, 0.0]]])
+    model = RangeModel(anchors, np.full(7, 0.1))
+    np.testing.assert_array_equal(model.h_many(X), np.array([model.h(x) for x in X]))

@@ -114,7 +114,7 @@ class ConfiguredFilter:
         self.counts.gated += len(keep) - self.used
         self.counts.calibration = self.calibration()
         self.recent.append((len(keep), len(keep) - self.used))
-        offered, gated = np.sum(list(self.recent), axis=0)
+        offered, gated = (sum(column) for column in zip(*self.recent))
         if len(self.recent) == LOSS_WINDOW and gated > self.loss_share * offered:
             self.lost = True            # the loop drops the track (see bayes._update)
             self.counts.track_losses += 1

@@ -28,8 +28,8 @@ def _geometry(x, anchors):
 
 def _distances_many(X, anchors):
     """Horizontal distances (N, m) from N states X (N, n) to the anchors, floored like _geometry."""
-    diff = np.asarray(X, dtype=float)[:, None, :2] - anchors[None, :, :]
-    return np.maximum(np.hypot(diff[..., 0], diff[..., 1]), MIN_DISTANCE)
+    X = np.asarray(X, dtype=float)
+    return np.maximum(np.hypot(X[:, 0, None] - anchors[:, 0], X[:, 1, None] - anchors[:, 1]), MIN_DISTANCE)
 
 
 @dataclass
@@ -55,7 +55,8 @@ class RangeModel:
         return H
 
     def R(self) -> np.ndarray:
-        return np.diag(np.broadcast_to(self.sigma_m, len(self.anchors)) ** 2)
+        variances = np.asarray(self.sigma_m, dtype=float) ** 2         # (m,), or one for all
+        return np.diag(variances) if variances.ndim else np.eye(len(self.anchors)) * variances
 
 
 @dataclass
