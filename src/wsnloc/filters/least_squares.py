@@ -21,6 +21,7 @@ dC < ftol C with gain ratio > 0.25; xtol: ||dx|| < xtol (xtol + ||x||). Not stop
 
 from __future__ import annotations
 
+import math
 from typing import Callable, NamedTuple
 
 import numpy as np
@@ -81,10 +82,10 @@ def robust_least_squares(fun: Callable, jac: Callable, x0, rho: Callable = _line
     rho: one of LOSSES, applied to the residuals from index n_plain on."""
     point = _evaluate(fun, np.asarray(x0, dtype=float), rho, f_scale, n_plain)
     J = _weighted_jacobian(jac(point.x), point, n_plain)
-    radius, alpha = float(np.linalg.norm(point.x)) or 1.0, 0.0
+    radius, alpha = _norm(point.x) or 1.0, 0.0
     for n_iter in range(max_iter):
         g = J.T @ point.f
-        if np.max(np.abs(g), initial=0.0) < gtol:
+        if np.abs(g).max(initial=0.0) < gtol:
             return Solution(point.x, point.cost, J, n_iter)
         step = _gauss_newton_step(J, g, radius)
         if step is None:
@@ -92,13 +93,14 @@ def robust_least_squares(fun: Callable, jac: Callable, x0, rho: Callable = _line
             step, alpha = _trust_region_step(sv, Vt, sv * (U.T @ point.f), len(J), radius, alpha)
         else:
             alpha = 0.0
-        predicted = -(g @ step + 0.5 * np.sum((J @ step) ** 2))
+        Js = J @ step
+        predicted = -(g @ step + 0.5 * (Js @ Js))
         trial = _evaluate(fun, point.x + step, rho, f_scale, n_plain)
-        step_norm = float(np.linalg.norm(step))
+        step_norm = _norm(step)
         reduction = point.cost - trial.cost if np.isfinite(trial.cost) else -np.inf
         ratio = reduction / predicted if predicted > 0 else float(predicted == reduction == 0)
         converged = ((reduction < ftol * point.cost and ratio > 0.25)
-                     or step_norm < xtol * (xtol + np.linalg.norm(point.x)))
+                     or step_norm < xtol * (xtol + _norm(point.x)))
         new_radius = (0.25 * step_norm if ratio < 0.25 else
                       2.0 * radius if ratio > 0.75 and step_norm > 0.95 * radius else radius)
         alpha *= radius / new_radius
@@ -112,6 +114,11 @@ def robust_least_squares(fun: Callable, jac: Callable, x0, rho: Callable = _line
                            f"ftol {ftol}, xtol {xtol}, gtol {gtol})")
 
 
+def _norm(v) -> float:
+    """Euclidean norm sqrt(v . v) of a vector (numpy.linalg.norm's value, without its overhead)."""
+    return math.sqrt(v @ v)
+
+
 def _gauss_newton_step(J, g, radius):
     """The Gauss-Newton step dx = -(J~^T J~)^-1 J~^T f~ when J~^T J~ is positive definite (Cholesky
     succeeds, so J~ has full rank) and ||dx|| <= radius, else None (the cheap path of
@@ -122,7 +129,7 @@ def _gauss_newton_step(J, g, radius):
     except np.linalg.LinAlgError:
         return None
     step = np.linalg.solve(A, -g)
-    return step if np.linalg.norm(step) <= radius else None
+    return step if _norm(step) <= radius else None
 
 
 def _trust_region_step(sv, Vt, suf, m, radius, alpha, rtol=0.01, max_iter=10):
@@ -134,7 +141,7 @@ def _trust_region_step(sv, Vt, suf, m, radius, alpha, rtol=0.01, max_iter=10):
     full_rank = m >= len(sv) and sv[-1] > EPS * m * sv[0]
     if full_rank:
         step = -Vt.T @ (suf / sv**2)
-        if np.linalg.norm(step) <= radius:
+        if _norm(step) <= radius:
             return step, 0.0
 
     def phi_and_derivative(a):
@@ -172,7 +179,7 @@ def _evaluate(fun, x, rho, f_scale, n_plain) -> _Point:
     plain = raw_f[:n_plain]
     f = raw_f.copy()
     f[n_plain:] *= r[1] / sqrt_w
-    return _Point(x, 0.5 * (plain @ plain + f_scale**2 * np.sum(r[0])), f, sqrt_w)
+    return _Point(x, 0.5 * (plain @ plain + f_scale**2 * r[0].sum()), f, sqrt_w)
 
 
 def _weighted_jacobian(J, point: _Point, n_plain):

@@ -142,7 +142,7 @@ class SlidingWindowEstimator:
     def _range_geometry(self, theta, ranges):
         s = theta.reshape(self.n_knots, STATE)[ranges.knot]
         diff = s[:, :2] + ranges.delta[:, None] * s[:, 2:] - ranges.anchors
-        return diff, np.maximum(np.sqrt(np.sum(diff**2, axis=1) + ranges.dz**2), MIN_DISTANCE)
+        return diff, np.maximum(np.sqrt((diff**2).sum(axis=1) + ranges.dz**2), MIN_DISTANCE)
 
     def _residuals(self, theta, prior, ranges):
         s = theta.reshape(self.n_knots, STATE)
