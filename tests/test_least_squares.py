@@ -35,6 +35,11 @@ def window_problem(rng, with_prior: bool):
     return est, prior, ranges, (truth + rng.normal(0, 0.5, truth.shape)).ravel()
 
 
+def our_solution(est, prior, ranges, start, loss, n_plain):
+    return robust_least_squares(lambda th: est._residuals(th, prior, ranges), lambda th: est._jacobian(th, prior, ranges),
+                                start, LOSSES[loss], est.f_scale, n_plain, **TOLERANCES)
+
+
 def scipy_solution(est, prior, ranges, start, loss, n_plain):
     """scipy.optimize.least_squares on the same problem, as the estimator called it before."""
     def composite(z):
@@ -53,9 +58,7 @@ def test_solver_matches_scipy_least_squares_on_random_windows(loss):
     for case in range(40):
         est, prior, ranges, start = window_problem(rng, with_prior=case % 2 == 0)
         n_plain = 16 + (0 if prior is None else 4)
-        ours = robust_least_squares(lambda th: est._residuals(th, prior, ranges),
-                                    lambda th: est._jacobian(th, prior, ranges), start, LOSSES[loss],
-                                    est.f_scale, n_plain, **TOLERANCES)
+        ours = our_solution(est, prior, ranges, start, loss, n_plain)
         ref = scipy_solution(est, prior, ranges, start, loss, n_plain)
         np.testing.assert_allclose(ours.x, ref.x, rtol=0, atol=1e-6)
         assert ours.cost == pytest.approx(ref.cost, rel=1e-9)

@@ -116,7 +116,7 @@ SLIDING_WINDOW = (
           minimum=1e-3),
     Param("accel_sigma_mps2", 0.5, "m/s^2/sqrt(Hz)", "constant-velocity prior between knots: white acceleration "
           "of spectral density sigma^2 (m^2/s^3)", minimum=1e-6),
-    Param("loss", "huber", "", "robust loss on the range residuals (scipy.optimize.least_squares)", str,
+    Param("loss", "huber", "", "robust loss on the range residuals (scipy.optimize.least_squares's losses)", str,
           ("huber", "soft_l1", "cauchy", "linear")),
     Param("f_scale", 1.345, "sigma", "where the robust loss turns from quadratic, in units of range_sigma_m "
           "(1.345: Huber's 95% efficiency under Gaussian noise)", minimum=1e-6),

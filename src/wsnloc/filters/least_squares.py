@@ -22,7 +22,8 @@ dC < ftol C with gain ratio > 0.25; xtol: ||dx|| < xtol (xtol + ||x||). Not stop
 from __future__ import annotations
 
 import math
-from typing import Callable, NamedTuple
+from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 

@@ -13,11 +13,12 @@ knot_s apart and covering the window [t_end - window_s, t_end]. Whitened residua
   one per range measured at time t to an anchor a with height difference dz, from the knot j
   before t (delta = t - tau_j):
       (sqrt(||p_j + delta v_j - a||^2 + dz^2) - r) / sigma
-Minimised with filters.least_squares (Levenberg-Marquardt with scipy's robust-loss scaling,
-ftol = xtol = gtol = 1e-12), warm-started from the previous window; the robust loss rho
-(huber, soft_l1, cauchy or linear) acts on the range residuals only, with f_scale in units
-of sigma (the priors stay Gaussian). Covariance of the knots: (J^T J)^-1 with
-J the loss-weighted Jacobian at the solution; the estimate is the last knot (x, P).
+Minimised with filters.least_squares (scipy.optimize.least_squares' trust-region algorithm
+and robust-loss scaling, in numpy; ftol = xtol = gtol = 1e-12), warm-started from the
+previous window; the robust loss rho (huber, soft_l1, cauchy or linear) acts on the range
+residuals only, with f_scale in units of sigma (the priors stay Gaussian). Covariance of the
+knots: (J^T J)^-1 with J the loss-weighted Jacobian at the solution; the estimate is the last
+knot (x, P).
 """
 
 from __future__ import annotations
