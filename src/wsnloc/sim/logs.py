@@ -90,7 +90,7 @@ def format_text(columns: list[tuple[np.ndarray, int]]) -> str:
         column = separator + 1
     text = np.compress(kept.ravel(), chars.ravel())
     text += ord("0")
-    return text.tobytes().decode("ascii")
+    return str(text, "ascii")                       # decoded from the array's buffer, no bytes copy
 
 
 def lines_text(lines: list[str]) -> str:
