@@ -64,9 +64,9 @@ def vibration(t, v, spec: dict, rng: np.random.Generator) -> np.ndarray:
     axis i: w_i A(v) sum_j sin(2 pi f_j t + phi_ij), A(v) = ref_rms sqrt(2 / n_tones) v / ref_speed,
     t in s, f_j in Hz, phi_ij in rad. The angles 2 pi f_j t are computed once for the three axes,
     laid out tone by tone (contiguous sines), and summed as numpy sums an (N, tones) array over
-    its tones (_sum_over_tones). Samples with A(v) = 0 (cart at rest) are 0 without evaluating
-    their sines: w_i A sum is +-0 there, and adding +-0 to the other accelerometer terms (never
-    all exactly -0) gives the same floats.
+    its tones (_sum_over_tones). Samples with A(v) = 0 (cart at rest) are +0 without evaluating
+    their sines: the formula gives +-0 there, and x + 0 == x + (-0) for every accelerometer sum x
+    it is added to except x = -0 (f + bias + white noise is never exactly -0).
     """
     tones = np.asarray(spec["vibration_tones_hz"], dtype=float)
     weights = np.asarray(spec.get("vibration_axis_weights", [0.5, 0.5, 1.0]), dtype=float)
