@@ -187,18 +187,51 @@ def test_impulse_responses_and_taps_are_the_reference_bit_for_bit(campaign, name
         assert taps[0].tobytes() == taps[1].tobytes()
 
 
-def test_vibration_is_the_per_axis_formula_bit_for_bit(campaign):
-    spec = campaign.section("imu")
-    rng = np.random.default_rng(4)
-    t = np.sort(rng.uniform(0.0, 120.0, 5000))
-    v = np.where(rng.random(5000) < 0.2, 0.0, rng.uniform(0.0, 0.6, 5000))
-    got = imu.vibration(t, v, spec, np.random.default_rng(9))
+def _reference_vibration(t, v, spec, rng):
+    """The vibration as first written: sin over (samples, tones), summed over the tone axis."""
     tones = np.asarray(spec["vibration_tones_hz"], dtype=float)
     amplitude = spec["vibration_mps2_at_ref_speed"] * np.sqrt(2.0 / len(tones)) * (v / spec["vibration_ref_speed_mps"])
-    phases = np.random.default_rng(9).uniform(0.0, 2 * np.pi, (3, len(tones)))
-    for axis, weight in enumerate(spec["vibration_axis_weights"]):
-        waves = np.sin(2 * np.pi * tones[None, :] * t[:, None] + phases[axis][None, :]).sum(axis=1)
-        assert got[:, axis].tobytes() == (weight * amplitude * waves).tobytes()
+    phases = rng.uniform(0.0, 2 * np.pi, (3, len(tones)))
+    return np.column_stack([weight * amplitude * np.sin(2 * np.pi * tones[None, :] * t[:, None]
+                                                        + phases[axis][None, :]).sum(axis=1)
+                            for axis, weight in enumerate(spec["vibration_axis_weights"])])
+
+
+@pytest.mark.parametrize("tones", [None, [21.0], [17.0, 23.0], [5.0, 9.0, 13.0, 17.0, 23.0, 29.0, 31.0, 37.0, 41.0]])
+@pytest.mark.parametrize("n", [1, 2, 7, 5000])
+def test_vibration_is_the_per_axis_formula_bit_for_bit(campaign, tones, n):
+    """Moving samples: the same floats as the (samples, tones) formula; at rest (v = 0) the
+    formula gives +-0, the fast path +0."""
+    spec = dict(campaign.section("imu"))
+    if tones is not None:
+        spec["vibration_tones_hz"] = tones
+    rng = np.random.default_rng(4)
+    t = np.sort(rng.uniform(0.0, 120.0, n))
+    v = np.where(rng.random(n) < 0.2, 0.0, rng.uniform(0.0, 0.6, n))
+    got = imu.vibration(t, v, spec, np.random.default_rng(9))
+    expected = _reference_vibration(t, v, spec, np.random.default_rng(9))
+    assert got.tobytes() == np.where(v[:, None] == 0.0, 0.0, expected).tobytes()
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_accelerometer_is_the_reference_sum_bit_for_bit(campaign, seed):
+    """accel = ((f + bias) + noise) + vibration with the reference vibration, drawn in the same
+    order: the same floats, and the rng ends in the same state (rest and motion mixed)."""
+    spec = dict(campaign.section("imu"), noise_model="mems")
+    g, n, fs = campaign.spec["gravity_mps2"], 4000, campaign.section("imu")["rate_hz"]
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / fs
+    v = np.where((t > 2.0) & (t < 6.0), rng.uniform(0.0, 0.5, n), 0.0)
+    force, yaw = imu.body_motion(v, rng.normal(0.0, 0.1, n), rng.normal(0.0, 0.2, n), g)
+    rng_fast, rng_reference = np.random.default_rng(seed + 10), np.random.default_rng(seed + 10)
+    accel, gyro = imu.sensor_readings(t, force, yaw, v, spec, g, rng_fast)
+    bias = rng_reference.normal(0.0, spec["accel_bias_sigma_mps2"], 3)
+    sigma = spec["accel_noise_ug_per_rthz"] * imu.MICRO_G * g * np.sqrt(fs / 2.0)
+    expected = force + bias + rng_reference.normal(0.0, sigma, (n, 3)) + _reference_vibration(t, v, spec, rng_reference)
+    assert accel.tobytes() == expected.tobytes()
+    rng_reference.normal(0.0, spec["gyro_bias_sigma_dps"])
+    rng_reference.normal(0.0, 1.0, n)
+    assert rng_fast.bit_generator.state == rng_reference.bit_generator.state
 
 
 def test_broadcast_lines_are_the_per_pair_formatting():
@@ -214,6 +247,9 @@ def test_broadcast_lines_are_the_per_pair_formatting():
             expected.append(f"{int(times_ms[b]) + 10000} {(b + 1) % 256} {len(pairs)} " + " ".join(pairs))
     assert newcom._broadcast_lines(times_ms, heard, rssi, ids, 10000) == expected
     assert newcom._broadcast_lines(times_ms, heard & False, rssi, ids, 10000) == []
+    one = np.zeros_like(heard)
+    one[3, 20] = True                                      # a single pair, of the last anchor
+    assert newcom._broadcast_lines(times_ms, one, rssi, ids, 0) == [f"{int(times_ms[3])} 4 1 Z21:{rssi[3, 20]:d}"]
 
 
 def test_correlated_shadowing_is_the_recursion_bit_for_bit():

@@ -42,23 +42,45 @@ def body_motion(v, a, curvature, gravity: float) -> tuple[np.ndarray, np.ndarray
     return force, v * curvature
 
 
+PAIRWISE_FROM_TONES = 8   # numpy sums 8 or more terms of a row in pairwise blocks, fewer in sequence
+
+
+def _sum_over_tones(waves: np.ndarray) -> np.ndarray:
+    """sum_j waves[j] of a (tones, N) array, (N,): per sample, the float numpy's sum over the last
+    axis of the (N, tones) array gives. Below PAIRWISE_FROM_TONES tones that is the sequential
+    ((w_0 + w_1) + w_2) + ..., added here row by row over contiguous rows; from there on the sum
+    is taken on the (N, tones) copy."""
+    if len(waves) >= PAIRWISE_FROM_TONES:
+        return np.ascontiguousarray(waves.T).sum(axis=1)
+    total = waves[0].copy()
+    for wave in waves[1:]:
+        total += wave
+    return total
+
+
 def vibration(t, v, spec: dict, rng: np.random.Generator) -> np.ndarray:
     """(N, 3) drive vibration in m/s^2: sum of tones, RMS = ref_rms * v / ref_speed.
 
-    axis i: w_i A(v) sum_j sin(2 pi f_j t + phi_ij), A(v) = ref_rms sqrt(2 / n_tones) v / ref_speed;
-    the angle 2 pi f_j t (rad) is computed once for the three axes.
+    axis i: w_i A(v) sum_j sin(2 pi f_j t + phi_ij), A(v) = ref_rms sqrt(2 / n_tones) v / ref_speed,
+    t in s, f_j in Hz, phi_ij in rad. The angles 2 pi f_j t are computed once for the three axes,
+    laid out tone by tone (contiguous sines), and summed as numpy sums an (N, tones) array over
+    its tones (_sum_over_tones). Samples with A(v) = 0 (cart at rest) are +0 without evaluating
+    their sines: the formula gives +-0 there, and x + 0 == x + (-0) for every accelerometer sum x
+    it is added to except x = -0 (f + bias + white noise is never exactly -0).
     """
     tones = np.asarray(spec["vibration_tones_hz"], dtype=float)
     weights = np.asarray(spec.get("vibration_axis_weights", [0.5, 0.5, 1.0]), dtype=float)
     amplitude = spec["vibration_mps2_at_ref_speed"] * np.sqrt(2.0 / len(tones)) \
         * (v / spec["vibration_ref_speed_mps"])
     phases = rng.uniform(0.0, 2 * np.pi, (3, len(tones)))
-    angle = 2 * np.pi * tones[None, :] * t[:, None]
-    out = np.empty((len(t), 3))
+    moving = np.flatnonzero(amplitude)
+    amplitude = amplitude[moving]
+    angle = (2 * np.pi * tones)[:, None] * np.asarray(t)[moving][None, :]    # (tones, moving samples)
     waves = np.empty_like(angle)
+    out = np.zeros((len(t), 3))
     for axis in range(3):
-        np.add(angle, phases[axis][None, :], out=waves)
-        out[:, axis] = weights[axis] * amplitude * np.sin(waves).sum(axis=1)
+        np.sin(np.add(angle, phases[axis][:, None], out=waves), out=waves)
+        out[moving, axis] = weights[axis] * amplitude * _sum_over_tones(waves)
     return out
 
 
@@ -86,7 +108,9 @@ def sensor_readings(t, force, yaw_rate, v, spec: dict, gravity: float,
         return force + rng.normal(0.0, sigma_fs, (n, 3)), np.array(yaw_rate, dtype=float)
     accel_bias = rng.normal(0.0, spec["accel_bias_sigma_mps2"], 3)
     accel_sigma = spec["accel_noise_ug_per_rthz"] * MICRO_G * gravity * np.sqrt(fs / 2.0)
-    accel = force + accel_bias + rng.normal(0.0, accel_sigma, (n, 3)) + vibration(t, v, spec, rng)
+    accel = force + accel_bias                                  # ((f + b) + noise) + vibration, drawn in that order
+    accel += rng.normal(0.0, accel_sigma, (n, 3))
+    accel += vibration(t, v, spec, rng)
     gyro_bias = np.deg2rad(rng.normal(0.0, spec["gyro_bias_sigma_dps"]))
     gyro_sigma = np.deg2rad(spec["gyro_noise_dps_per_rthz"] * np.sqrt(fs / 2.0))
     gyro = yaw_rate + gyro_bias + rng.normal(0.0, gyro_sigma, n)

@@ -51,6 +51,11 @@ def _magnitudes(values: np.ndarray, decimals: int) -> tuple[np.ndarray, np.ndarr
     return _scaled_integers(values, decimals), np.signbit(values), decimals
 
 
+def _offset_code(character: str) -> int:
+    """The byte of an ASCII character minus ord('0'), modulo 256 (format_text's matrix codes)."""
+    return (ord(character) - ord("0")) % 256
+
+
 def format_text(columns: list[tuple[np.ndarray, int]]) -> str:
     """Text of lines of space-separated numbers, each line ending in '\\n', column = (values,
     decimals): byte for byte what '%d' (integer array) or '%.{decimals}f' (float array) writes.
@@ -58,7 +63,9 @@ def format_text(columns: list[tuple[np.ndarray, int]]) -> str:
     Each row is laid out in a fixed-width character matrix (sign, digits of the magnitude
     m = sum_i d_i 10^i written from d_0 leftwards, '.' before the last `decimals` digits,
     separator); a leading zero d_i (i > decimals and m < 10^i) and an absent sign are masked,
-    and the kept characters, read row by row, are the text.
+    and the kept characters, read row by row, are the text. The matrix holds each byte minus
+    ord('0') (mod 256), so a digit is written as its value d_i = r - 10 (r // 10), r = m // 10^i, and
+    ord('0') is added once to the kept bytes.
     """
     fields = [_magnitudes(np.asarray(values), decimals) for values, decimals in columns]
     n = len(fields[0][0])
@@ -67,21 +74,23 @@ def format_text(columns: list[tuple[np.ndarray, int]]) -> str:
     kept = np.ones(chars.shape, dtype=bool)
     column = 0
     for index, ((magnitude, negative, decimals), width) in enumerate(zip(fields, widths)):
-        chars[:, column], kept[:, column] = ord("-"), negative
+        chars[:, column], kept[:, column] = _offset_code("-"), negative
         separator = column + 1 + width + (decimals > 0)
-        rest = magnitude
+        rest = magnitude.astype(np.uint32) if width < 10 else magnitude     # m < 10^9 < 2^32: faster division
         for i in range(width):                      # digit d_i of m, i = 0 the last one written
             at = separator - 1 - i - (0 < decimals <= i)
             quotient = rest // 10
-            chars[:, at] = rest - 10 * quotient + ord("0")
+            chars[:, at] = rest - 10 * quotient
             if i > decimals:
                 kept[:, at] = rest > 0
             rest = quotient
         if decimals:
-            chars[:, separator - 1 - decimals] = ord(".")
-        chars[:, separator] = ord("\n") if index == len(fields) - 1 else ord(" ")
+            chars[:, separator - 1 - decimals] = _offset_code(".")
+        chars[:, separator] = _offset_code("\n" if index == len(fields) - 1 else " ")
         column = separator + 1
-    return chars[kept].tobytes().decode("ascii")
+    text = np.compress(kept.ravel(), chars.ravel())
+    text += ord("0")
+    return str(text, "ascii")                       # decoded from the array's buffer, no bytes copy
 
 
 def lines_text(lines: list[str]) -> str:

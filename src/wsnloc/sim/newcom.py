@@ -117,14 +117,20 @@ def _zigbee_lines(campaign: Campaign, traj, rng, clock_ms: int) -> list[str]:
 
 def _pair_texts(anchor: np.ndarray, rssi: np.ndarray, ids: list[str]) -> list[str]:
     """'<id>:<rssi>' of each (anchor index, integer RSSI in dBm) pair, each distinct pair
-    formatted once (a run repeats a few hundred distinct pairs tens of thousands of times)."""
+    formatted once (a run repeats a few hundred distinct pairs tens of thousands of times):
+    pair code = anchor * span + (rssi - min rssi), its text looked up in a table over all codes
+    (a few thousand entries, no sort)."""
     if len(rssi) == 0:
         return []
     low = int(rssi.min())
     span = int(rssi.max()) - low + 1
-    distinct, index = np.unique(anchor * span + (rssi - low), return_inverse=True)
-    texts = np.array([f"{ids[code // span]}:{code % span + low}" for code in distinct.tolist()], dtype=object)
-    return texts[index].tolist()
+    codes = anchor * span + (rssi - low)
+    table = np.empty(len(ids) * span, dtype=object)
+    present = np.zeros(len(table), dtype=bool)
+    present[codes] = True
+    distinct = np.flatnonzero(present)
+    table[distinct] = [f"{ids[code // span]}:{code % span + low}" for code in distinct.tolist()]
+    return table[codes].tolist()
 
 
 def _broadcast_lines(times_ms: np.ndarray, heard: np.ndarray, rssi: np.ndarray, ids: list[str],

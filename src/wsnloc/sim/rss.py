@@ -23,8 +23,9 @@ def correlated_shadowing(arc_length: np.ndarray, n_anchors: int, sigma_db: float
     innovations = rng.normal(0.0, sigma_db, (len(arc_length), n_anchors))
     out = np.sqrt(1.0 - rho**2)[:, None] * innovations         # sqrt(1 - rho_k^2) sigma e_k, all k at once
     out[0] = innovations[0]
-    for k in range(1, len(arc_length)):                       # + rho_k X_{k-1} (a + b == b + a in floats)
-        out[k] += rho[k] * out[k - 1]
+    rows = list(out)                                          # views of the rows of `out`
+    for rho_k, previous, row in zip(rho[1:].tolist(), rows, rows[1:]):
+        row += rho_k * previous                               # + rho_k X_{k-1} (a + b == b + a in floats)
     return out
 
 

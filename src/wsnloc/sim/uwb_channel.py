@@ -46,12 +46,17 @@ def _ray_delays(rng: np.random.Generator, n_clusters: int, n_rays: int, beta: fl
     time is e / l1 where u < beta, else e / l2 (two-process mixture, rates in 1/ns), 0 for the
     first ray, and tau_k = sum_{i <= k} inter_i (sequential cumsum). tau never decreases along
     a row, so the kept rays are a prefix of each row (at least the first, tau = 0 < limit).
+    The rare u < beta rays (beta ~ 0.01) are divided by l1 apart and written back, so all the
+    divisions happen in the one (n_clusters, n_rays) buffer of e (standard_exponential: the
+    draws of exponential(1.0), 1.0 e being e).
     """
     shape = (n_clusters, n_rays)
-    slow = rng.random(shape) < beta
-    draws = rng.exponential(1.0, shape)
-    inter = draws / l2
-    np.divide(draws, l1, out=inter, where=slow)
+    slow = np.flatnonzero(rng.random(shape) < beta)
+    inter = rng.standard_exponential(shape)
+    flat = inter.reshape(-1)                               # a view: inter is C-contiguous
+    slow_inter = flat[slow] / l1
+    np.divide(inter, l2, out=inter)
+    flat[slow] = slow_inter
     inter[:, 0] = 0.0                                      # first ray at the cluster arrival
     tau = np.cumsum(inter, axis=1, out=inter)
     kept = tau < limit[:, None]
@@ -68,22 +73,23 @@ def _mean_ray_power(model: dict, omega: np.ndarray, decay: np.ndarray, first_clu
         (gamma_1 + gamma_rise) / (gamma_1 (gamma_1 + gamma_rise (1 - chi))).
 
     The per-cluster factor Omega_l / (gamma ...) is computed once per cluster and repeated over
-    its rays (the same floats as per ray).
+    its rays (the same floats as per ray). A diffuse first cluster's decay is gamma_1, so
+    exp(-tau / decay) (one pass over all rays) is also its exp(-tau / gamma_1) factor.
     """
     beta, l1, l2 = model["ray_mixture_beta"], model["ray_rate_1_per_ns"], model["ray_rate_2_per_ns"]
     scale = np.repeat(omega / (decay * ((1 - beta) * l1 + beta * l2 + 1)), counts)
-    decay_ray = np.repeat(decay, counts)
+    power = np.negative(tau)
+    power /= np.repeat(decay, counts)
+    decayed = np.exp(power, out=power)
     if not model.get("diffuse_first_cluster", False):
-        return scale * np.exp(-tau / decay_ray)
+        return np.multiply(scale, decayed, out=decayed)
     first = np.repeat(first_cluster, counts)
-    later = ~first
-    power = np.empty(len(tau))
-    power[later] = scale[later] * np.exp(-tau[later] / decay_ray[later])
     rise, g1, chi = model["rise_ns"], model["first_cluster_decay_ns"], model["diffuse_chi"]
-    tau_1 = tau[first]
-    power[first] = np.repeat(omega[first_cluster], counts[first_cluster]) * (1 - chi * np.exp(-tau_1 / rise)) \
-        * np.exp(-tau_1 / g1) * (g1 + rise) / (g1 * (g1 + rise * (1 - chi)))
-    return power
+    first_power = np.repeat(omega[first_cluster], counts[first_cluster]) * (1 - chi * np.exp(-tau[first] / rise)) \
+        * decayed[first] * (g1 + rise) / (g1 * (g1 + rise * (1 - chi)))
+    np.multiply(scale, decayed, out=decayed)
+    decayed[first] = first_power
+    return decayed
 
 
 def impulse_responses(model: dict, rng: np.random.Generator, n_links: int
@@ -118,9 +124,10 @@ def impulse_responses(model: dict, rng: np.random.Generator, n_links: int
     phase = rng.uniform(0.0, 2 * np.pi, len(tau))
     magnitude = np.sqrt(power, out=power)
     amplitudes = np.empty(len(tau), dtype=complex)
-    amplitudes.real = magnitude * np.cos(phase)
-    amplitudes.imag = magnitude * np.sin(phase)
-    delays = np.repeat(cluster_t[link, cluster], counts) + tau
+    trig = np.cos(phase, out=m)                            # m is used up: its buffer takes cos, then sin
+    np.multiply(magnitude, trig, out=amplitudes.real)
+    np.multiply(magnitude, np.sin(phase, out=trig), out=amplitudes.imag)
+    delays = np.add(np.repeat(cluster_t[link, cluster], counts), tau, out=tau)
     return np.repeat(link, counts), delays, amplitudes
 
 
