@@ -1,31 +1,28 @@
-# The campaign simulators write raw logs, exactly as a testbed logger would. One rule per
-# format (their files differ) and per shard of the Monte Carlo runs (config `shards`).
-# Only datasets with `source: simulate` match these rules, so real logs are never overwritten.
+# The campaign simulators write raw logs, exactly as a testbed logger would. One job per format
+# (their files differ) and per shard of the Monte Carlo runs (config `shards`), over every
+# simulated scenario of that format: each job pays its start-up once, not once per scenario.
+# Only datasets with `source: simulate` are written here, so real logs are never overwritten.
 
 for _format in ("newcom", "cricket"):
-    for _shard, _runs in simulated_shards(config).items():
+    _pairs = [(d, s) for d, s in PAIRS if d in SIMULATED and config["datasets"][d]["format"] == _format]
+    for _shard, _runs in (simulated_shards(config) if _pairs else {}).items():
 
         rule:
             name:
                 f"simulate_{_format}_{_shard.replace('-', '')}"
             input:
-                campaign=campaign_file,
+                campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in _pairs}),
             output:
-                expand(
-                    "data/raw/{{dataset}}/{{scenario}}/{run}/{file}",
-                    run=_runs,
-                    file=RAW_FILES[_format] + ["meta.yaml"],
-                ),
+                [f"data/raw/{d}/{s}/{run}/{file}" for d, s in _pairs for run in _runs
+                 for file in RAW_FILES[_format] + ["meta.yaml"]],
             params:
+                scenarios=[{"dataset": d, "scenario": s, "campaign": config["datasets"][d]["campaign"]}
+                           for d, s in _pairs],
                 runs=_runs,
-                total=config["runs"],
                 seed=config["seed"],
-                root="data/raw/{dataset}/{scenario}",
             priority: PRIORITY[f"simulate_{_format}"]
-            wildcard_constraints:
-                dataset=simulated_of(_format),
             log:
-                f"logs/simulate/{{dataset}}-{{scenario}}-{_shard}.log",
+                f"logs/simulate/{_format}-{_shard}.log",
             conda:
                 ENV
             script:
