@@ -293,3 +293,13 @@ def test_an_imu_count_beyond_any_adc_is_quarantined(run_dir, campaign):
     (run_dir / "imu.log").write_text(IMU + "12510.000 1 1 1 " + "9" * 400 + "\n")
     result, _ = ingest_run(run_dir, campaign)
     assert "beyond" in _reasons(result["quarantine"], "imu.log")[10]
+
+
+@pytest.mark.parametrize("rows", [[], [("imu.log", 5, "1 2", "expected 5 fields")],
+                                  [("uwb.log", n, f"line {n}", f"reason {n % 3}") for n in range(1, 300)]])
+def test_quarantine_frame_is_the_cast_frame_of_its_rows(rows):
+    """Quarantine.frame builds its typed columns directly: the frame of the former
+    construction (a frame of the row tuples cast to str / int32), empty or not."""
+    former = pd.DataFrame(rows, columns=["file", "line", "text", "reason"]).astype(
+        {"file": str, "line": "int32", "text": str, "reason": str})
+    pd.testing.assert_frame_equal(Quarantine(rows=list(rows)).frame(), former)
