@@ -186,6 +186,30 @@ def test_tables_have_units_in_the_schema(run_dir, campaign, tmp_path):
     assert len(quarantine) == 6 + 6 + 3 + 3   # uwb, zigbee, imu, truth
 
 
+def test_tables_read_back_as_the_former_zstd_files(parsed, tmp_path):
+    """tables.write (LZ4, dictionaries for strings only) and tables.read (one file, no threads)
+    give the tables the former writer (zstd, dictionaries everywhere) and pq.read_table gave:
+    same values, types, nulls, units and metadata; `columns` picks and orders, a missing one
+    is a KeyError."""
+    import pyarrow.parquet as pq
+
+    result, _ = parsed
+    estimates = pd.DataFrame({"run": ["r1", "r1"], "subset": ["all", "all"], "t": [1.0, 2.0], "x": [1.0, np.nan],
+                              "y": [2.0, np.nan], "true_x": [1.0, 1.5], "true_y": [2.0, 2.5], "error_m": [0.0, np.nan],
+                              **{name: [np.nan, 1.0] for name in ("p_xx", "p_xy", "p_yy", "n_meas", "nis")}})
+    for name, frame in [*result.items(), ("estimates", estimates)]:
+        path, former = tmp_path / f"{name}.parquet", tmp_path / f"{name}.zstd.parquet"
+        tables.write(name, frame, path, {"format": "newcom"})
+        pq.write_table(tables.to_arrow(name, frame, {"format": "newcom"}), former, compression="zstd")
+        assert pq.read_table(path).equals(pq.read_table(former), check_metadata=True)
+        assert pq.read_table(path).schema.equals(pq.read_table(former).schema, check_metadata=True)
+        pd.testing.assert_frame_equal(tables.read(path), pq.read_table(former).to_pandas())
+    assert pq.read_table(tmp_path / "estimates.parquet").column("x").null_count == 1
+    assert list(tables.read(tmp_path / "imu.parquet", columns=["gz", "t"]).columns) == ["gz", "t"]
+    with pytest.raises(KeyError, match="no column nope"):
+        tables.read(tmp_path / "imu.parquet", columns=["t", "nope"])
+
+
 def test_quarantine_share_limit_fails_loudly(run_dir, campaign, tmp_path):
     """Per run: 18 of the 30 records of the fixture are quarantined (6 + 6 + 3 + 3 of 10 + 8 + 6 + 6)."""
     limits = QuarantineLimits(per_run=0.5, per_file=1.0)
@@ -269,3 +293,13 @@ def test_an_imu_count_beyond_any_adc_is_quarantined(run_dir, campaign):
     (run_dir / "imu.log").write_text(IMU + "12510.000 1 1 1 " + "9" * 400 + "\n")
     result, _ = ingest_run(run_dir, campaign)
     assert "beyond" in _reasons(result["quarantine"], "imu.log")[10]
+
+
+@pytest.mark.parametrize("rows", [[], [("imu.log", 5, "1 2", "expected 5 fields")],
+                                  [("uwb.log", n, f"line {n}", f"reason {n % 3}") for n in range(1, 300)]])
+def test_quarantine_frame_is_the_cast_frame_of_its_rows(rows):
+    """Quarantine.frame builds its typed columns directly: the frame of the former
+    construction (a frame of the row tuples cast to str / int32), empty or not."""
+    former = pd.DataFrame(rows, columns=["file", "line", "text", "reason"]).astype(
+        {"file": str, "line": "int32", "text": str, "reason": str})
+    pd.testing.assert_frame_equal(Quarantine(rows=list(rows)).frame(), former)

@@ -294,7 +294,7 @@ def parse_imu(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.Da
         "az": c[:, 2] / accel_lsb * g,
         "gz": np.deg2rad(c[:, 3] / gyro_lsb),
         "line": numbers.astype(np.int32),
-    })
+    }, copy=False)    # the columns are new arrays: no consolidating copy
 
 
 def _imu_plain(raw: RawFile) -> tuple[np.ndarray, np.ndarray] | None:
@@ -305,10 +305,15 @@ def _imu_plain(raw: RawFile) -> tuple[np.ndarray, np.ndarray] | None:
     columns = _plain_numbers(raw, {"t_ms": pa.float64(), **{name: pa.int64() for name in _IMU_FIELDS}})
     if columns is None:
         return None
-    t_ms, counts = columns["t_ms"], np.column_stack([columns[name] for name in _IMU_FIELDS])
-    if np.any((counts < -MAX_COUNT) | (counts > MAX_COUNT)) or not in_order(t_ms, strict=True):
+    t_ms, counts = columns["t_ms"], [columns[name] for name in _IMU_FIELDS]
+    beyond = any(np.any((count < -MAX_COUNT) | (count > MAX_COUNT)) for count in counts)
+    if beyond or not in_order(t_ms, strict=True):
         return None
-    return _plain_line_numbers(raw), np.column_stack([t_ms, counts.astype(float)])
+    values = np.empty((len(t_ms), 1 + len(counts)))      # filled column by column: no stacked copies
+    values[:, 0] = t_ms
+    for k, count in enumerate(counts, start=1):
+        values[:, k] = count                             # int64 -> float64, exact (|count| <= MAX_COUNT)
+    return _plain_line_numbers(raw), values
 
 
 def _imu_candidates(raw: RawFile) -> tuple[np.ndarray, np.ndarray, list[tuple[int, str, str]]]:

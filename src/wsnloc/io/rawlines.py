@@ -23,8 +23,11 @@ class Quarantine:
         self.rows.append((file, line, text[:500], reason))
 
     def frame(self) -> pd.DataFrame:
-        frame = pd.DataFrame(self.rows, columns=["file", "line", "text", "reason"])
-        return frame.astype({"file": str, "line": "int32", "text": str, "reason": str})
+        """The rows as a table (file, line, text, reason): strings and int32 line numbers,
+        each column built at its type (a frame of objects cast afterwards costs several times more)."""
+        files, lines, texts, reasons = zip(*self.rows) if self.rows else ((), (), (), ())
+        return pd.DataFrame({"file": pd.array(files, dtype="str"), "line": np.array(lines, dtype=np.int32),
+                             "text": pd.array(texts, dtype="str"), "reason": pd.array(reasons, dtype="str")})
 
 
 class RawFile:
