@@ -211,8 +211,8 @@ WALLS = [(0.0, 0.0, 10.0, 0.0), (10.0, 0.0, 10.0, 5.0), (0.0, 5.0, 4.0, 5.0), (5
          (0.0, 0.0, 0.0, 5.0), (2.0, 1.0, 6.5, 3.7)]     # a door gap and a diagonal wall
 
 
-@pytest.mark.parametrize("color, lw", [("0.25", 2.2), ("w", 1.6)])
-def test_walls_as_one_collection_draw_the_pixels_of_one_line_per_wall(color, lw):
+@pytest.mark.parametrize("walls, color, lw", [(WALLS, "0.25", 2.2), (WALLS, "w", 1.6)])
+def test_walls_as_one_collection_draw_the_pixels_of_one_line_per_wall(walls, color, lw):
     def drawn(draw) -> tuple:
         fig, ax = plt.subplots(figsize=(5, 3))
         ax.set_facecolor("tab:blue")
@@ -228,12 +228,20 @@ def test_walls_as_one_collection_draw_the_pixels_of_one_line_per_wall(color, lw)
         return pixels, limits
 
     def one_line_per_wall(ax) -> None:   # the former code
-        for x1, y1, x2, y2 in WALLS:
+        for x1, y1, x2, y2 in walls:
             ax.plot([x1, x2], [y1, y2], color=color, lw=lw, solid_capstyle="butt")
 
-    collection, lines = drawn(lambda ax: figures.draw_walls(ax, WALLS, color, lw)), drawn(one_line_per_wall)
+    collection, lines = drawn(lambda ax: figures.draw_walls(ax, walls, color, lw)), drawn(one_line_per_wall)
     assert collection[1] == lines[1]                                         # autoscaled alike
     assert np.array_equal(collection[0], lines[0])
+
+
+def test_no_walls_add_nothing():
+    fig, ax = plt.subplots()
+    figures.draw_walls(ax, [], "0.25", 2.2)
+    fig.canvas.draw()
+    assert not ax.collections and ax.get_xlim() == (0.0, 1.0)   # an empty collection would autoscale to +-0.055
+    plt.close(fig)
 
 
 def grid_figure():

@@ -235,10 +235,12 @@ def placeholder(message: str) -> bytes:
 
 def draw_walls(ax, walls, color, lw: float) -> None:
     """Wall segments (x1, y1, x2, y2 in m) as one LineCollection with butt caps, drawn and
-    autoscaled like one two-point line per wall (zorder of lines), at the cost of one artist."""
+    autoscaled like one two-point line per wall (zorder of lines), at the cost of one artist;
+    no walls: nothing added (an empty collection would still move the autoscaled limits)."""
     segments = np.asarray(walls, dtype=float).reshape(-1, 2, 2)
-    ax.add_collection(LineCollection(segments, colors=color, linewidths=lw, capstyle="butt",
-                                     zorder=Line2D.zorder))
+    if len(segments):
+        ax.add_collection(LineCollection(segments, colors=color, linewidths=lw, capstyle="butt",
+                                         zorder=Line2D.zorder))
 
 
 @gc_paused
