@@ -1,12 +1,16 @@
 """Report figures: stacked time panels laid out without a layout engine, log minor grid and
-labels, fitted grids saved as laid out (one measuring pass), tight figures cut from one draw."""
+labels, fitted grids saved as laid out (one measuring pass), tight figures cut from one draw;
+the cheaper paths (walls as one collection, one tight-layout pass, panel boxes without
+spines, collector paused) against the matplotlib calls they replace."""
 
+import gc
 import io
 
 import numpy as np
 import pandas as pd
 import pytest
 from matplotlib.collections import LineCollection
+from matplotlib.layout_engine import TightLayoutEngine
 from matplotlib.ticker import NullLocator
 from matplotlib.transforms import Bbox
 from PIL import Image
@@ -201,3 +205,101 @@ def test_error_histograms_draw_the_pixels_of_bar_histograms(monkeypatch):
     bars = figures.error_histograms(errors, "title")
     pixels = [np.asarray(Image.open(io.BytesIO(png)).convert("RGB")) for png in (stepped, bars)]
     assert pixels[0].shape == pixels[1].shape and (pixels[0] == pixels[1]).all()
+
+
+WALLS = [(0.0, 0.0, 10.0, 0.0), (10.0, 0.0, 10.0, 5.0), (0.0, 5.0, 4.0, 5.0), (5.0, 5.0, 10.0, 5.0),
+         (0.0, 0.0, 0.0, 5.0), (2.0, 1.0, 6.5, 3.7)]     # a door gap and a diagonal wall
+
+
+@pytest.mark.parametrize("walls, color, lw", [(WALLS, "0.25", 2.2), (WALLS, "w", 1.6)])
+def test_walls_as_one_collection_draw_the_pixels_of_one_line_per_wall(walls, color, lw):
+    def drawn(draw) -> tuple:
+        fig, ax = plt.subplots(figsize=(5, 3))
+        ax.set_facecolor("tab:blue")
+        ax.plot([5.0, 5.0], [-1.0, 6.0], color="tab:green", lw=3.0)        # drawn under the walls
+        draw(ax)
+        ax.plot([1.0, 9.0], [2.5, 2.5], color="tab:orange", lw=1.8)       # drawn over the walls
+        ax.set_aspect("equal")
+        fig.set_dpi(PNG_DPI)
+        fig.canvas.draw()
+        pixels = np.asarray(fig.canvas.buffer_rgba()).copy()
+        limits = (ax.get_xlim(), ax.get_ylim())
+        plt.close(fig)
+        return pixels, limits
+
+    def one_line_per_wall(ax) -> None:   # the former code
+        for x1, y1, x2, y2 in walls:
+            ax.plot([x1, x2], [y1, y2], color=color, lw=lw, solid_capstyle="butt")
+
+    collection, lines = drawn(lambda ax: figures.draw_walls(ax, walls, color, lw)), drawn(one_line_per_wall)
+    assert collection[1] == lines[1]                                         # autoscaled alike
+    assert np.array_equal(collection[0], lines[0])
+
+
+def test_no_walls_add_nothing():
+    fig, ax = plt.subplots()
+    figures.draw_walls(ax, [], "0.25", 2.2)
+    fig.canvas.draw()
+    assert not ax.collections and ax.get_xlim() == (0.0, 1.0)   # an empty collection would autoscale to +-0.055
+    plt.close(fig)
+
+
+def grid_figure():
+    """A 2 x 2 grid with titles, labels, legends and a suptitle, for the tight layout."""
+    fig, axes = plt.subplots(2, 2, figsize=(8, 5))
+    for k, ax in enumerate(axes.flat):
+        ax.plot(np.arange(10) * 10.0 ** k, label=f"curve {k}")
+        ax.set(title=f"panel {k}", xlabel="x [m]", ylabel=f"quantity {k} [m]")
+        ax.legend(fontsize=7)
+    fig.suptitle("a grid")
+    return fig
+
+
+def test_one_tight_layout_pass_lays_out_as_the_default_engine():
+    default, single = grid_figure(), grid_figure()
+    for fig in (default, single):
+        fig.set_dpi(PNG_DPI)
+    TightLayoutEngine().execute(default)                       # measures the axes twice
+    expected = [ax.get_position().extents for ax in default.axes]
+    png = figures.to_png(default, tight=False)
+    assert figures.fitted_png(single) == png
+    assert np.allclose([ax.get_position().extents for ax in single.axes], expected, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("kind", ["pcrb", "consistency"])
+def test_panel_box_without_spines_is_matplotlibs_tight_box(kind):
+    if kind == "pcrb":
+        fig, axes = stacked_figure()
+    else:
+        t = np.arange(200) * 0.5
+        test = consistency_test(np.random.default_rng(0).chisquare(4, size=(10, 200)), 4)
+        fig, axes = plt.subplots(2, 1, figsize=(8, 7.2), squeeze=False)
+        axes = list(axes[:, 0])
+        for ax in axes:
+            bound_figures._draw_consistency(ax, t, test, "ANEES", "cell")
+        fig.set_dpi(PNG_DPI)
+    renderer = fig.canvas.get_renderer()
+    for ax in axes:
+        assert np.allclose(bound_figures._decorated_box(ax, renderer).extents, ax.get_tightbbox(renderer).extents,
+                           rtol=0, atol=1e-9)                # pixels; a spine's edge may differ in the last bit
+    plt.close(fig)
+
+
+def test_figures_are_built_with_the_collector_paused():
+    states = []
+    build = figures.gc_paused(lambda: states.append(gc.isenabled()) or b"png")
+    assert gc.isenabled() and build() == b"png" and states == [False] and gc.isenabled()
+    with pytest.raises(ZeroDivisionError):
+        figures.gc_paused(lambda: 1 / 0)()
+    assert gc.isenabled()                                      # restored after a failure
+    gc.disable()
+    try:
+        build()
+        assert not gc.isenabled()                              # a caller's disabled collector stays disabled
+    finally:
+        gc.enable()
+    for module in (figures, bound_figures):
+        for name in ("placeholder", "floor_plan", "error_cdf", "trajectories", "error_over_time", "rmse_vs_anchors",
+                     "error_histograms", "curve_with_interval", "bound_maps", "pcrb_panels", "consistency_panels"):
+            if hasattr(module, name):
+                assert hasattr(getattr(module, name), "__wrapped__"), name

@@ -15,7 +15,7 @@ from mpl_toolkits.axes_grid1 import make_axes_locatable
 
 from wsnloc.campaign import Campaign
 from wsnloc.metrics.consistency import ConsistencyTest
-from wsnloc.report.figures import LABEL_OFFSET, PNG_DPI, TECH_STYLE, plt, to_png
+from wsnloc.report.figures import LABEL_OFFSET, PNG_DPI, TECH_STYLE, draw_walls, gc_paused, plt, to_png
 
 LEGEND_DROP_IN = 0.45      # inches from the bottom of the axes to the legend, below tick labels and x label
 TITLE_WRAP_CHARS = 90      # a 9 pt title line of this many characters fits the 8 in wide figure
@@ -60,8 +60,7 @@ def _minor_log_grid(ax, low: float, high: float) -> None:
 
 def _overlay_floor(ax, campaign: Campaign, anchors: pd.DataFrame) -> None:
     """Walls, the path and the given anchors (with ids) over a map."""
-    for x1, y1, x2, y2 in campaign.walls:
-        ax.plot([x1, x2], [y1, y2], color="w", lw=1.6, solid_capstyle="butt")
+    draw_walls(ax, campaign.walls, color="w", lw=1.6)
     if campaign.path is not None:
         pose = campaign.path.evaluate(np.linspace(0, campaign.path.length, 400))
         ax.plot(pose["x"], pose["y"], color="tab:orange", lw=1.8, label="path")
@@ -74,6 +73,7 @@ def _overlay_floor(ax, campaign: Campaign, anchors: pd.DataFrame) -> None:
                         textcoords="offset points", fontsize=7, color="w")
 
 
+@gc_paused
 def bound_maps(campaign: Campaign, anchors: pd.DataFrame | dict[str, pd.DataFrame], x, y,
                panels: dict[str, np.ndarray]) -> bytes:
     """One floor map per panel (title with units -> values (len(y), len(x)) on the grid of
@@ -143,7 +143,7 @@ def _fit_slots(fig, axes: list, height: float) -> None:
     width, total = fig.get_size_inches()
     margins = []
     for ax in axes:
-        inner, outer = ax.get_window_extent(renderer), ax.get_tightbbox(renderer)
+        inner, outer = ax.get_window_extent(renderer), _decorated_box(ax, renderer)
         margins.append(np.array([inner.x0 - outer.x0, outer.x1 - inner.x1,
                                  inner.y0 - outer.y0, outer.y1 - inner.y1]) / fig.dpi)
     left = max(m[0] for m in margins) + STACK_PAD_IN
@@ -154,6 +154,15 @@ def _fit_slots(fig, axes: list, height: float) -> None:
         ax.set_position([left / width, bottom / total, (right - left) / width, (top - bottom) / total])
 
 
+def _decorated_box(ax, renderer):
+    """Axes.get_tightbbox (pixels) of a time panel with its legend as the only extra artist.
+    The default extras add the spines, on the axes' edges with their tick marks under the
+    tick labels, and the axes patch (the axes box), both inside the union of the axes box
+    and its tick labels (up to the last bit of a spine's transformed edge); each spine would
+    lay out its axis' ticks once more."""
+    return ax.get_tightbbox(renderer, bbox_extra_artists=[ax.get_legend()])
+
+
 def pcrb_vs_rmse(t, rmse: dict[str, np.ndarray], sqrt_pcrb: np.ndarray, bound_model: str, title: str) -> bytes:
     """Monte Carlo RMSE curves (m) of estimators and sqrt(PCRB) (m) over time t (s).
 
@@ -162,6 +171,7 @@ def pcrb_vs_rmse(t, rmse: dict[str, np.ndarray], sqrt_pcrb: np.ndarray, bound_mo
     return pcrb_panels([(t, rmse, sqrt_pcrb, bound_model, title)])
 
 
+@gc_paused
 def pcrb_panels(panels: list[tuple]) -> bytes:
     """pcrb_vs_rmse for several cells, one panel each: (t, rmse, sqrt_pcrb, bound_model, title)."""
     return _stacked(_draw_pcrb, panels, 3.8)
@@ -173,6 +183,7 @@ def consistency_over_time(t, test: ConsistencyTest, statistic: str, title: str) 
     return consistency_panels([(t, test, statistic, title)])
 
 
+@gc_paused
 def consistency_panels(panels: list[tuple]) -> bytes:
     """consistency_over_time for several cells and statistics: (t, test, statistic, title)."""
     return _stacked(_draw_consistency, panels, 3.6)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+import gc
 import io
 import json
 import struct
@@ -16,7 +18,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.axes import Axes  # noqa: E402
+from matplotlib.collections import LineCollection  # noqa: E402
 from matplotlib.layout_engine import TightLayoutEngine  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.spines import Spine  # noqa: E402
 from matplotlib.transforms import Bbox  # noqa: E402
 from PIL import Image  # noqa: E402
@@ -32,6 +36,24 @@ PNG_DPI = 110
 # [[text, text], ...]; read back by wsnloc.report.browser_check.
 OVERLAPS_KEY = "wsnloc-text-overlaps"
 OVERLAP_TOLERANCE_PX = 1.0      # boxes that share less than this (width and height) only touch
+
+
+def gc_paused(build):
+    """Decorator of a function that builds, draws and closes a figure: Python's cyclic
+    garbage collector paused meanwhile. The figure's artists (about 10^4 to 10^5 container
+    objects, alive until the figure is closed) would trigger collections that traverse the
+    job's whole heap and find nothing to free; the closed figure is collected afterwards,
+    by the collector's next run."""
+    @functools.wraps(build)
+    def paused(*args, **kwargs):
+        if not gc.isenabled():
+            return build(*args, **kwargs)
+        gc.disable()
+        try:
+            return build(*args, **kwargs)
+        finally:
+            gc.enable()
+    return paused
 
 
 def _drawn_texts(fig) -> list:
@@ -185,9 +207,12 @@ def fitted_png(fig) -> bytes:
     """to_png of a grid of axes first fitted to its canvas by one measuring pass (tight
     layout: margins and spacing from each axes' tight bounding box, texts included), saved
     as laid out. The engine is run once, not attached: a figure with a layout engine is
-    drawn twice more by savefig (renderer probe, layout draw) before the saved draw."""
+    drawn twice more by savefig (renderer probe, layout draw) before the saved draw.
+    rect None: the margins are measured once. With its default rect (0, 0, 1, 1) the engine
+    measures every axes a second time, at unchanged positions, to fit the subplots into that
+    rect: the same margins, up to rounding (left = 0 + left, right = 1 - (1 - right))."""
     fig.set_dpi(PNG_DPI)
-    TightLayoutEngine().execute(fig)
+    TightLayoutEngine(rect=None).execute(fig)
     return to_png(fig, tight=False)
 
 
@@ -199,6 +224,7 @@ def _with_text_chunk(png: bytes, key: str, text: str) -> bytes:
     return png[:ihdr_end] + chunk + png[ihdr_end:]
 
 
+@gc_paused
 def placeholder(message: str) -> bytes:
     """A small figure saying why there is nothing to plot (e.g. no RSS in this dataset)."""
     fig, ax = plt.subplots(figsize=(6, 1.2))
@@ -207,12 +233,22 @@ def placeholder(message: str) -> bytes:
     return to_png(fig)
 
 
+def draw_walls(ax, walls, color, lw: float) -> None:
+    """Wall segments (x1, y1, x2, y2 in m) as one LineCollection with butt caps, drawn and
+    autoscaled like one two-point line per wall (zorder of lines), at the cost of one artist;
+    no walls: nothing added (an empty collection would still move the autoscaled limits)."""
+    segments = np.asarray(walls, dtype=float).reshape(-1, 2, 2)
+    if len(segments):
+        ax.add_collection(LineCollection(segments, colors=color, linewidths=lw, capstyle="butt",
+                                         zorder=Line2D.zorder))
+
+
+@gc_paused
 def floor_plan(campaign: Campaign, track: pd.DataFrame | None = None, anchors: pd.DataFrame | None = None) -> bytes:
     """Walls (doors as gaps), anchors by technology with their ids, the path and a truth track (m)."""
     anchors = campaign.anchors if anchors is None else anchors
     fig, ax = plt.subplots(figsize=(10, 5.4))
-    for x1, y1, x2, y2 in campaign.walls:
-        ax.plot([x1, x2], [y1, y2], color="0.25", lw=2.2, solid_capstyle="butt")
+    draw_walls(ax, campaign.walls, color="0.25", lw=2.2)
     if campaign.path is not None:
         pose = campaign.path.evaluate(np.linspace(0, campaign.path.length, 400))
         ax.plot(pose["x"], pose["y"], color="tab:orange", lw=2.5, label=f"path ({campaign.path.length:.1f} m)")
@@ -232,6 +268,7 @@ def floor_plan(campaign: Campaign, track: pd.DataFrame | None = None, anchors: p
     return to_png(fig)
 
 
+@gc_paused
 def range_error_figure(errors: pd.DataFrame, title: str, max_points: int = 6000) -> bytes:
     """Range error (measured - true, m): histogram of LOS and NLOS links (left) and error against
     the true distance (right): a sample of the ranges, grey, and each anchor's median per 1 m bin,
@@ -264,6 +301,7 @@ def range_error_figure(errors: pd.DataFrame, title: str, max_points: int = 6000)
     return fitted_png(fig)
 
 
+@gc_paused
 def rss_vs_distance(rss: pd.DataFrame, fit: dict, configured: dict, title: str, max_points: int = 6000) -> bytes:
     """RSS (dBm) against log distance, coloured by walls crossed, with the fitted path-loss line."""
     if len(rss) == 0:
@@ -288,6 +326,7 @@ def rss_vs_distance(rss: pd.DataFrame, fit: dict, configured: dict, title: str, 
     return to_png(fig, palette=False)
 
 
+@gc_paused
 def imu_resampling(raw: pd.DataFrame, resampled: pd.DataFrame, title: str, window_s: float = 20.0) -> bytes:
     """Body-x specific force: raw samples, naive 5 Hz sub-sampling, and the filtered 5 Hz output."""
     if len(raw) == 0:
@@ -308,6 +347,7 @@ def imu_resampling(raw: pd.DataFrame, resampled: pd.DataFrame, title: str, windo
     return to_png(fig)
 
 
+@gc_paused
 def error_cdf(panels: dict[str, dict[str, np.ndarray]], xmax: float | None = 4.0) -> bytes:
     """Empirical CDFs of position error (m), one panel per title, one curve per label;
     xmax None: 1.2 x the largest 95th percentile of the panel's curves."""
@@ -329,6 +369,7 @@ def error_cdf(panels: dict[str, dict[str, np.ndarray]], xmax: float | None = 4.0
     return fitted_png(fig)
 
 
+@gc_paused
 def trajectories(panels: dict[str, tuple[pd.DataFrame, dict[str, pd.DataFrame]]]) -> bytes:
     """True path and estimated tracks (x, y in m), one panel per title."""
     fig, axes = plt.subplots(len(panels), 1, figsize=(10, 3.3 * len(panels)), squeeze=False)
@@ -344,6 +385,7 @@ def trajectories(panels: dict[str, tuple[pd.DataFrame, dict[str, pd.DataFrame]]]
     return fitted_png(fig)
 
 
+@gc_paused
 def error_over_time(panels: dict[str, dict[str, pd.DataFrame]]) -> bytes:
     """Position error (m) against time (s from the start), one panel per title."""
     fig, axes = plt.subplots(len(panels), 1, figsize=(9, 2.8 * len(panels)), squeeze=False)
@@ -359,6 +401,7 @@ def error_over_time(panels: dict[str, dict[str, pd.DataFrame]]) -> bytes:
     return fitted_png(fig)
 
 
+@gc_paused
 def rmse_vs_anchors(curves: dict[str, tuple[list[int], list[float]]], title: str) -> bytes:
     """RMSE (m) against the number of anchors, one line per label."""
     fig, ax = plt.subplots(figsize=(6.5, 3.8))
@@ -372,6 +415,7 @@ def rmse_vs_anchors(curves: dict[str, tuple[list[int], list[float]]], title: str
     return to_png(fig)
 
 
+@gc_paused
 def error_histograms(errors: dict[str, pd.Series], title: str, xmax: float = 1.5) -> bytes:
     """Histograms of position error (m), one per label, side by side; each is one filled step
     outline (histtype "stepfilled"), not 30 bar patches: the same pixels at less cost."""
@@ -392,6 +436,7 @@ def error_histograms(errors: dict[str, pd.Series], title: str, xmax: float = 1.5
 CURVE_TITLE_CHARS = 75     # a 10 pt title line of at most this many characters fits the 6.5 in wide figure
 
 
+@gc_paused
 def curve_with_interval(curves: dict[str, pd.DataFrame], xlabel: str, ylabel: str, title: str,
                         references: dict[str, float] | None = None, logy: bool = False,
                         logx: bool = False) -> bytes:
