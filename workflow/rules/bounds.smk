@@ -1,5 +1,5 @@
-# Static bounds: CRLB / GDOP maps and the anchor-subset search, one job per dataset with a
-# noise model in config `bounds.models` (no data needed: campaign geometry only).
+# Campaign geometry: floor plans, static bounds (CRLB / GDOP maps, anchor-subset search) and the
+# opt-in Monte Carlo check of the ranked subsets.
 from wsnloc.analysis.static_bounds import check_config as _check_bounds, configured_subsets, monte_carlo_scenarios
 
 _check_bounds(config)
@@ -7,26 +7,41 @@ BOUND_DATASETS = list((config.get("bounds") or {}).get("models") or {})
 SUBSET_MONTE_CARLO = monte_carlo_scenarios(config)
 
 
-rule static_bounds:
+def first_run_tables(dataset):
+    """Table folder of the dataset's first run in path order (scenario, shard, run names): the
+    run whose true path its floor plan shows."""
+    return min(f"data/processed/{dataset}/{scenario}/tables/{shard}/{run}"
+               for scenario in config["datasets"][dataset]["scenarios"]
+               for shard, runs in shards_of(config, dataset, scenario).items() for run in runs)
+
+
+# One job for every dataset (few datasets, each a second or two of work: one start-up), run
+# last beside the summaries: each dataset's floor plan (walls, doors, anchors and the first
+# run's true path) and, for the datasets with a noise model in `bounds.models`, the static
+# bounds (CRLB / GDOP maps and the anchor-subset search; campaign geometry only, no data).
+rule geometry:
     input:
-        campaign=campaign_file,
+        campaigns=sorted({d["campaign"] for d in config["datasets"].values()}),
+        tables=[p for d, s in PAIRS for p in tables_of(d, s)],
     output:
-        results="data/processed/{dataset}/bounds/results.csv",
-        maps="data/processed/{dataset}/bounds/figures/crlb_maps.png",
-        ranking="data/processed/{dataset}/bounds/subset_search.csv",
+        floor_plans=[f"data/processed/{d}/figures/floor_plan.png" for d in config["datasets"]],
+        results=[f"data/processed/{d}/bounds/results.csv" for d in BOUND_DATASETS],
+        maps=[f"data/processed/{d}/bounds/figures/crlb_maps.png" for d in BOUND_DATASETS],
+        ranking=[f"data/processed/{d}/bounds/subset_search.csv" for d in BOUND_DATASETS],
     params:
-        subsets=lambda w: configured_subsets(config, w.dataset),
-        model=lambda w: config["bounds"]["models"][w.dataset],
-        sizes=lambda w: config["bounds"].get("subset_sizes", {}).get(w.dataset, {}),
+        datasets={d: {"campaign": spec["campaign"], "first_run": first_run_tables(d)}
+                  for d, spec in config["datasets"].items()},
+        bounds={d: {"subsets": configured_subsets(config, d), "model": config["bounds"]["models"][d],
+                    "sizes": config["bounds"].get("subset_sizes", {}).get(d, {})} for d in BOUND_DATASETS},
         grid_m=config.get("bounds", {}).get("grid_m", 0.25),
         shown=config.get("bounds", {}).get("shown", 3),
-    priority: PRIORITY["bounds"]
+    priority: PRIORITY["geometry"]
     log:
-        "logs/static_bounds/{dataset}.log",
+        "logs/geometry.log",
     conda:
         ENV
     script:
-        "../scripts/static_bounds.py"
+        "../scripts/geometry.py"
 
 
 rule subset_monte_carlo:

@@ -18,10 +18,10 @@ ENV = "../envs/wsnloc.yaml"
 # Job order on few cores (higher first among ready jobs): the data chain (simulate, ingest)
 # first, Newcom++ before Cricket, so that every estimator job is ready early; then the papers'
 # jobs and the short study cells; then the summaries (papers and studies, 3-6 s each) side by
-# side, with the short static bounds last to fill the core a summary leaves idle, so that no
-# long job runs alone before the report.
+# side, with the short geometry job (floor plans, static bounds) last to fill the core a summary
+# leaves idle, so that no long job runs alone before the report.
 PRIORITY = {"simulate_newcom": 6, "simulate_cricket": 5, "ingest": 5, "paper": 4, "cell": 3, "summary": 2,
-            "bounds": 1}
+            "geometry": 1}
 RAW_FILES = {"newcom": ["uwb.log", "zigbee.log", "imu.log", "truth.log"],
              "cricket": ["listener.log", "imu.log", "truth.log"]}
 SIMULATED = [name for name, d in config["datasets"].items() if d["source"] == "simulate"]

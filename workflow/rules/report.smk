@@ -14,8 +14,7 @@ rule report:
         figures=scenario_outputs("data/processed/{dataset}/{scenario}/figures/range_error.png")
         + scenario_outputs("data/processed/{dataset}/{scenario}/figures/rss_distance.png")
         + scenario_outputs("data/processed/{dataset}/{scenario}/figures/imu_resampling.png"),
-        tables=all_tables(PAIRS),
-        campaigns=sorted({d["campaign"] for d in config["datasets"].values()}),
+        floor_plans=[f"data/processed/{d}/figures/floor_plan.png" for d in config["datasets"]],
         template="workflow/templates/report.html.j2",
         papers="config/papers.yaml",
         paper_a=(

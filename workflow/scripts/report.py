@@ -6,9 +6,7 @@ from pathlib import Path
 import pandas as pd
 
 from wsnloc import results
-from wsnloc.campaign import Campaign
-from wsnloc.io import tables
-from wsnloc.report import explanations, figures
+from wsnloc.report import explanations
 from wsnloc.config import read_yaml
 from wsnloc.report.render import build_context, png_data_uri, render
 from wsnloc.report.sections import (paper_a_section, paper_b_section, paper_c_section, paper_d_section,
@@ -31,16 +29,11 @@ for path in map(Path, sm.input.figures):
     label = f"{path.parents[2].name}/{path.parents[1].name}"
     scenario_figures.setdefault(label, {})[path.stem] = path.read_bytes()
 
-floor_plans = {}
-for name, spec in config["datasets"].items():
-    shard_dirs = sorted(Path(p) for p in sm.input.tables if Path(p).parents[2].name == name)
-    first_run = sorted(p for d in shard_dirs for p in d.iterdir() if p.is_dir())[0]
-    floor_plans[name] = figures.floor_plan(Campaign.load(spec["campaign"]), tables.read(first_run / "truth.parquet"),
-                                           tables.read(first_run / "anchors.parquet"))
+floor_plans = {Path(p).parents[1].name: Path(p).read_bytes() for p in sm.input.floor_plans}   # rule geometry
 
 final_results = results.read(sm.output.results)
 context = build_context(config, summaries, final_results, scenario_figures, floor_plans)
-for ds in context["datasets"]:   # static bounds of the dataset (rule static_bounds), when configured
+for ds in context["datasets"]:   # static bounds of the dataset (rule geometry), when configured
     maps = [Path(p) for p in sm.input.bounds if p.endswith(".png") and Path(p).parts[2] == ds["name"]]
     ds["bounds"] = static_bounds_section(final_results, ds["name"], png_data_uri(maps[0].read_bytes())) if maps else None
 papers = read_yaml(sm.input.papers)
