@@ -7,14 +7,6 @@ BOUND_DATASETS = list((config.get("bounds") or {}).get("models") or {})
 SUBSET_MONTE_CARLO = monte_carlo_scenarios(config)
 
 
-def first_run_tables(dataset):
-    """Table folder of the dataset's first run in path order (scenario, shard, run names): the
-    run whose true path its floor plan shows."""
-    return min(f"data/processed/{dataset}/{scenario}/tables/{shard}/{run}"
-               for scenario in config["datasets"][dataset]["scenarios"]
-               for shard, runs in shards_of(config, dataset, scenario).items() for run in runs)
-
-
 # One job for every dataset (few datasets, each a second or two of work: one start-up), run
 # last beside the summaries: each dataset's floor plan (walls, doors, anchors and the first
 # run's true path) and, for the datasets with a noise model in `bounds.models`, the static

@@ -164,3 +164,11 @@ def campaign_of_label(label):
     """Campaign file of a dataset/scenario label."""
     dataset, _ = label.split("/", 1)
     return config["datasets"][dataset]["campaign"]
+
+
+def first_run_tables(dataset):
+    """Table folder of the dataset's first run in path order (scenario, shard, run names): the
+    run whose true path its floor plan shows."""
+    return min(f"data/processed/{dataset}/{scenario}/tables/{shard}/{run}"
+               for scenario in config["datasets"][dataset]["scenarios"]
+               for shard, runs in shards_of(config, dataset, scenario).items() for run in runs)

@@ -1,6 +1,6 @@
-# Papers A and C: estimator jobs (paper A: one per scenario; paper C: one for all its short
-# scenarios), each over all the runs, then one summary job per paper for the tables, claims
-# and figures over all scenarios.
+# Papers A and C. Paper A: one estimator job per scenario over all its runs, then one summary
+# job for the tables, claims and figures over all scenarios. Paper C: one job for all its short
+# scenarios and its summary.
 PAPER_A = config["experiments"].get("paper_a")
 PAPER_C = config["experiments"].get("paper_c")
 PAPER_A_PAIRS = experiment_pairs(PAPER_A)
@@ -60,7 +60,8 @@ rule paper_a_summary:
 
 
 # Paper C's scenarios are short (a few seconds each, about half of it job start-up): one job
-# runs them all, scenario after scenario, with each scenario's files as before.
+# runs them all, scenario after scenario, with each scenario's files as before, then writes
+# the paper's tables, claims and figures over all of them (read back from those files).
 PAPER_C_FILES = scenario_files(PAPER_C_PAIRS, "paper_c", (("estimates", "parquet"), ("metrics", "csv"),
                                                          ("quality", "parquet"), ("sensitivity", "csv")))
 
@@ -70,29 +71,9 @@ rule paper_c:
         tables=all_tables(PAPER_C_PAIRS),
         imu_5hz=[p for d, s in PAPER_C_PAIRS for p in imu_of(d, s)],
         campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_C_PAIRS}),
-    output:
-        **PAPER_C_FILES,
-    params:
-        settings=PAPER_C,
-        sources=scenario_sources(PAPER_C_PAIRS),
-    priority: PRIORITY["paper"]
-    log:
-        "logs/paper_c/scenarios.log",
-    conda:
-        ENV
-    script:
-        "../scripts/paper_c.py"
-
-
-rule paper_c_summary:
-    input:
-        metrics=PAPER_C_FILES["metrics"],
-        sensitivity=PAPER_C_FILES["sensitivity"],
-        estimates=PAPER_C_FILES["estimates"],
-        quality=PAPER_C_FILES["quality"],
-        campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_C_PAIRS}),
         papers="config/papers.yaml",
     output:
+        **PAPER_C_FILES,
         results="data/processed/paper_c/results.csv",
         claims="data/processed/paper_c/claims.json",
         histogram=report("data/processed/paper_c/figures/error_histogram.png", category="Paper C", caption="../report/figure.rst"),
@@ -104,12 +85,11 @@ rule paper_c_summary:
         consistency=report("data/processed/paper_c/figures/consistency.png", category="Paper C", caption="../report/figure.rst"),
     params:
         settings=PAPER_C,
-        labels=[f"{d}/{s}" for d, s in PAPER_C_PAIRS],
-        campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in PAPER_C_PAIRS},
-    priority: PRIORITY["summary"]
+        sources=scenario_sources(PAPER_C_PAIRS),
+    priority: PRIORITY["paper"]
     log:
-        "logs/paper_c/summary.log",
+        "logs/paper_c/paper_c.log",
     conda:
         ENV
     script:
-        "../scripts/paper_c_summary.py"
+        "../scripts/paper_c.py"

@@ -6,8 +6,8 @@ from pathlib import Path
 import pandas as pd
 
 from wsnloc import results
-from wsnloc.report import explanations
 from wsnloc.config import read_yaml
+from wsnloc.report import explanations
 from wsnloc.report.render import build_context, png_data_uri, render
 from wsnloc.report.sections import (paper_a_section, paper_b_section, paper_c_section, paper_d_section,
                                     sensitivity_table, static_bounds_section, study_section, summary)
