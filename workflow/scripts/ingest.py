@@ -12,10 +12,10 @@ from wsnloc.campaign import Campaign
 from wsnloc.data_stage import ingest_shard, summarize_scenario
 from wsnloc.errors import IngestError
 from wsnloc.io.limits import QuarantineLimits
-from wsnloc.workflow import end_job, script_logger
+from wsnloc.workflow import end_job, start_job
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
-log = script_logger(sm.log[0], "ingest")
+log = start_job(sm.log[0], "ingest")
 campaign = Campaign.load(sm.input.campaign)
 limits = QuarantineLimits(per_run=sm.params.max_quarantine_share, per_file=sm.params.max_quarantine_share_per_file)
 try:

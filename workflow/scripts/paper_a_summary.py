@@ -13,10 +13,10 @@ from wsnloc.config import read_yaml
 from wsnloc.experiments import claims as claims_of, paper_a, sensitivity
 from wsnloc.io import tables
 from wsnloc.report import bound_figures, figures
-from wsnloc.workflow import end_job, script_logger
+from wsnloc.workflow import end_job, start_job
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
-log = script_logger(sm.log[0], "paper_a_summary")
+log = start_job(sm.log[0], "paper_a_summary")
 settings = paper_a.Settings.from_config(sm.params.settings)
 paper = read_yaml(sm.input.papers)["A"]
 labels = list(sm.params.labels)

@@ -15,10 +15,10 @@ from wsnloc.experiments import claims as claims_of, paper_b, sensitivity
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import figures
-from wsnloc.workflow import each_scenario, end_job, script_logger
+from wsnloc.workflow import each_scenario, end_job, start_job
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
-log = script_logger(sm.log[0], "paper_b")
+log = start_job(sm.log[0], "paper_b")
 
 
 def run_scenario(label: str, campaign: Campaign, out: dict) -> None:

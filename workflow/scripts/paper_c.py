@@ -16,10 +16,10 @@ from wsnloc.experiments import claims as claims_of, paper_c, sensitivity
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import bound_figures, figures
-from wsnloc.workflow import each_scenario, end_job, script_logger
+from wsnloc.workflow import each_scenario, end_job, start_job
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
-log = script_logger(sm.log[0], "paper_c")
+log = start_job(sm.log[0], "paper_c")
 settings = paper_c.Settings.from_config(sm.params.settings)
 
 

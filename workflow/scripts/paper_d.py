@@ -9,10 +9,10 @@ from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import paper_d, sensitivity
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
-from wsnloc.workflow import end_job, script_logger
+from wsnloc.workflow import end_job, start_job
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
-log = script_logger(sm.log[0], "paper_d")
+log = start_job(sm.log[0], "paper_d")
 campaign = Campaign.load(sm.input.campaign)
 settings = paper_d.Settings.from_config(sm.params.settings)
 settings.check_against(campaign)

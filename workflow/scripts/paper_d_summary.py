@@ -11,10 +11,10 @@ from wsnloc.analysis import nlos_severity
 from wsnloc.experiments import claims as claims_of, paper_d, sensitivity
 from wsnloc.io import tables
 from wsnloc.report import figures
-from wsnloc.workflow import end_job, script_logger
+from wsnloc.workflow import end_job, start_job
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
-log = script_logger(sm.log[0], "paper_d_summary")
+log = start_job(sm.log[0], "paper_d_summary")
 settings = paper_d.Settings.from_config(sm.params.settings)
 labels = list(sm.params.labels)
 

@@ -11,10 +11,10 @@ from wsnloc.report import explanations
 from wsnloc.report.render import build_context, png_data_uri, render
 from wsnloc.report.sections import (paper_a_section, paper_b_section, paper_c_section, paper_d_section,
                                     sensitivity_table, static_bounds_section, study_section, summary)
-from wsnloc.workflow import end_job, script_logger
+from wsnloc.workflow import end_job, start_job
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
-log = script_logger(sm.log[0], "report")
+log = start_job(sm.log[0], "report")
 config = sm.params.config
 
 summaries = [json.loads(Path(p).read_text()) for p in sm.input.summaries]

@@ -5,10 +5,10 @@ from pathlib import Path
 from wsnloc.campaign import Campaign
 from wsnloc.sim import SIMULATORS
 from wsnloc.sim.seeding import run_seed_sequence
-from wsnloc.workflow import SIMULATED_ROOT, end_job, script_logger
+from wsnloc.workflow import SIMULATED_ROOT, end_job, start_job
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
-log = script_logger(sm.log[0], "simulate")
+log = start_job(sm.log[0], "simulate")
 campaigns = {}
 for spec in sm.params.scenarios:
     dataset, scenario = spec["dataset"], spec["scenario"]

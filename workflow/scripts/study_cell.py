@@ -5,10 +5,10 @@ from wsnloc.estimators import registry
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.studies import quality_table, run_cell
-from wsnloc.workflow import end_job, script_logger
+from wsnloc.workflow import end_job, start_job
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
-log = script_logger(sm.log[0], "study_cell")
+log = start_job(sm.log[0], "study_cell")
 cell = sm.params.cell
 name, params = cell["estimator"], cell["parameters"]
 names = registry.get(name).tables(params)

@@ -8,10 +8,10 @@ from wsnloc import results
 from wsnloc.io import tables
 from wsnloc.report import bound_figures, figures
 from wsnloc.studies import bound_summary, results_rows, study_panels
-from wsnloc.workflow import end_job, script_logger
+from wsnloc.workflow import end_job, start_job
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
-log = script_logger(sm.log[0], "study_summary")
+log = start_job(sm.log[0], "study_summary")
 study = sm.wildcards.study
 rows, estimates = [], {}
 for cell, metrics_path, estimates_path in zip(sm.params.cells, sm.input.metrics, sm.input.estimates):

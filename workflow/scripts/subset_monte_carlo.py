@@ -5,10 +5,10 @@ from wsnloc import results
 from wsnloc.analysis.static_bounds import NoiseModel, monte_carlo_rows
 from wsnloc.campaign import Campaign
 from wsnloc.metrics.data_quality import load_runs
-from wsnloc.workflow import end_job, script_logger
+from wsnloc.workflow import end_job, start_job
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
-log = script_logger(sm.log[0], "subset_monte_carlo")
+log = start_job(sm.log[0], "subset_monte_carlo")
 campaign = Campaign.load(sm.input.campaign)
 runs = load_runs(sm.input.tables, ("ranges", "rss", "truth", "anchors"))
 model = NoiseModel(**sm.params.model)

@@ -3,10 +3,10 @@ several shards (with one shard, the ingest job writes them in passing)."""
 
 from wsnloc.campaign import Campaign
 from wsnloc.data_stage import summarize_scenario
-from wsnloc.workflow import end_job, script_logger
+from wsnloc.workflow import end_job, start_job
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
-log = script_logger(sm.log[0], "summarize_data")
+log = start_job(sm.log[0], "summarize_data")
 summarize_scenario(sm.input.tables, sm.input.imu_5hz, Campaign.load(sm.input.campaign), sm.params.label, sm.output,
                    log)
 end_job()
