@@ -13,10 +13,9 @@ from run import script_imports  # noqa: E402  (benchmarks/ is not a package)
 HEAVY = ("scipy.signal", "scipy.stats", "scipy.linalg", "scipy.special", "scipy.optimize", "matplotlib")
 # Jobs whose start-up loads none of HEAVY (ingest filters the IMU in passing, with the numpy
 # polyphase FIR of wsnloc.signal.resample, not scipy.signal; ingest loads matplotlib only at
-# the end, when it writes the scenario's data summary and its figures; papers B and C draw
-# their figures in their one job; the report embeds the figures other jobs drew, the floor
-# plans included).
-LIGHT_JOBS = ("simulate", "ingest", "paper_a", "paper_d", "study_cell", "report")
+# the end, when it writes the scenario's data summary and its figures; each paper's one job
+# draws its figures; the report embeds the figures other jobs drew, the floor plans included).
+LIGHT_JOBS = ("simulate", "ingest", "study_cell", "report")
 
 
 @pytest.mark.parametrize("job", LIGHT_JOBS)

@@ -17,9 +17,9 @@ from wsnloc.workflow import (
 ENV = "../envs/wsnloc.yaml"
 # Job order on few cores (higher first among ready jobs): the data chain (simulate, ingest)
 # first, Newcom++ before Cricket, so that every estimator job is ready early; then the papers'
-# jobs and the short study cells; then the summaries (papers and studies, 3-6 s each) side by
-# side, with the short geometry job (floor plans, static bounds) last to fill the core a summary
-# leaves idle, so that no long job runs alone before the report.
+# jobs (3-7 s each: estimators, then tables and figures) and the short study cells; then the
+# study summary, with the short geometry job (floor plans, static bounds) beside it, so that no
+# long job runs alone before the report.
 PRIORITY = {"simulate_newcom": 6, "simulate_cricket": 5, "ingest": 5, "paper": 4, "cell": 3, "summary": 2,
             "geometry": 1}
 RAW_FILES = {"newcom": ["uwb.log", "zigbee.log", "imu.log", "truth.log"],

@@ -5,34 +5,21 @@ PAPER_D = config["experiments"].get("paper_d")
 PAPER_D_PAIRS = experiment_pairs(PAPER_D)
 
 
+# One job runs every scenario over all its runs, then writes the paper's tables, claims, cost
+# and figures over all of them (read back from the scenarios' files).
+PAPER_D_FILES = scenario_files(PAPER_D_PAIRS, "paper_d", (("estimates", "parquet"), ("metrics", "csv"),
+                                                         ("sensitivity", "csv")))
+
+
 rule paper_d:
     input:
-        tables=lambda w: tables_of(w.dataset, w.scenario),
-        campaign=campaign_file,
-    output:
-        estimates="data/processed/{dataset}/{scenario}/paper_d/estimates.parquet",
-        metrics="data/processed/{dataset}/{scenario}/paper_d/metrics.csv",
-        sensitivity="data/processed/{dataset}/{scenario}/paper_d/sensitivity.csv",
-    params:
-        settings=PAPER_D,
-    priority: PRIORITY["paper"]
-    log:
-        "logs/paper_d/{dataset}-{scenario}.log",
-    conda:
-        ENV
-    script:
-        "../scripts/paper_d.py"
-
-
-rule paper_d_summary:
-    input:
-        metrics=[f"data/processed/{d}/{s}/paper_d/metrics.csv" for d, s in PAPER_D_PAIRS],
-        sensitivity=[f"data/processed/{d}/{s}/paper_d/sensitivity.csv" for d, s in PAPER_D_PAIRS],
-        estimates=[f"data/processed/{d}/{s}/paper_d/estimates.parquet" for d, s in PAPER_D_PAIRS],
+        tables=all_tables(PAPER_D_PAIRS),
+        campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_D_PAIRS}),
         papers="config/papers.yaml",
         nlos_campaign=sweep_campaign(PAPER_D, "nlos_sweep"),
         nlos_tables=sweep_tables(PAPER_D, "nlos_sweep"),
     output:
+        **PAPER_D_FILES,
         results="data/processed/paper_d/results.csv",
         claims="data/processed/paper_d/claims.json",
         cost="data/processed/paper_d/cost.json",
@@ -40,12 +27,12 @@ rule paper_d_summary:
         tracks=report("data/processed/paper_d/figures/trajectories.png", category="Paper D", caption="../report/figure.rst"),
     params:
         settings=PAPER_D,
-        labels=[f"{d}/{s}" for d, s in PAPER_D_PAIRS],
+        sources=scenario_sources(PAPER_D_PAIRS),
         seed=config["seed"],
-    priority: PRIORITY["summary"]
+    priority: PRIORITY["paper"]
     log:
-        "logs/paper_d/summary.log",
+        "logs/paper_d/paper_d.log",
     conda:
         ENV
     script:
-        "../scripts/paper_d_summary.py"
+        "../scripts/paper_d.py"

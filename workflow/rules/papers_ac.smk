@@ -1,42 +1,24 @@
-# Papers A and C. Paper A: one estimator job per scenario over all its runs, then one summary
-# job for the tables, claims and figures over all scenarios. Paper C: one job for all its short
-# scenarios and its summary.
+# Papers A and C: one job per paper (each job pays its start-up once).
 PAPER_A = config["experiments"].get("paper_a")
 PAPER_C = config["experiments"].get("paper_c")
 PAPER_A_PAIRS = experiment_pairs(PAPER_A)
 PAPER_C_PAIRS = experiment_pairs(PAPER_C)
 
 
+# Paper A: one job runs every scenario over all its runs, then writes the paper's tables,
+# claims and figures over all of them (read back from the scenarios' files).
+PAPER_A_FILES = scenario_files(PAPER_A_PAIRS, "paper_a", (("estimates", "parquet"), ("metrics", "csv"),
+                                                         ("quality", "parquet"), ("sensitivity", "csv")))
+
+
 rule paper_a:
     input:
-        tables=lambda w: tables_of(w.dataset, w.scenario),
-        campaign=campaign_file,
-    output:
-        estimates="data/processed/{dataset}/{scenario}/paper_a/estimates.parquet",
-        metrics="data/processed/{dataset}/{scenario}/paper_a/metrics.csv",
-        quality="data/processed/{dataset}/{scenario}/paper_a/quality.parquet",
-        sensitivity="data/processed/{dataset}/{scenario}/paper_a/sensitivity.csv",
-    params:
-        settings=PAPER_A,
-    priority: PRIORITY["paper"]
-    log:
-        "logs/paper_a/{dataset}-{scenario}.log",
-    conda:
-        ENV
-    script:
-        "../scripts/paper_a.py"
-
-
-rule paper_a_summary:
-    input:
-        metrics=[f"data/processed/{d}/{s}/paper_a/metrics.csv" for d, s in PAPER_A_PAIRS],
-        sensitivity=[f"data/processed/{d}/{s}/paper_a/sensitivity.csv" for d, s in PAPER_A_PAIRS],
-        estimates=[f"data/processed/{d}/{s}/paper_a/estimates.parquet" for d, s in PAPER_A_PAIRS],
-        quality=[f"data/processed/{d}/{s}/paper_a/quality.parquet" for d, s in PAPER_A_PAIRS],
+        tables=all_tables(PAPER_A_PAIRS),
         campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_A_PAIRS}),
         papers="config/papers.yaml",
         sweep_campaign=sweep_campaign(PAPER_A, "static_sweep"),
     output:
+        **PAPER_A_FILES,
         results="data/processed/paper_a/results.csv",
         claims="data/processed/paper_a/claims.json",
         cdf=report("data/processed/paper_a/figures/error_cdf.png", category="Paper A", caption="../report/figure.rst"),
@@ -47,16 +29,15 @@ rule paper_a_summary:
         consistency=report("data/processed/paper_a/figures/consistency.png", category="Paper A", caption="../report/figure.rst"),
     params:
         settings=PAPER_A,
-        labels=[f"{d}/{s}" for d, s in PAPER_A_PAIRS],
-        campaign_of={f"{d}/{s}": config["datasets"][d]["campaign"] for d, s in PAPER_A_PAIRS},
+        sources=scenario_sources(PAPER_A_PAIRS),
         seed=config["seed"],
-    priority: PRIORITY["summary"]
+    priority: PRIORITY["paper"]
     log:
-        "logs/paper_a/summary.log",
+        "logs/paper_a/paper_a.log",
     conda:
         ENV
     script:
-        "../scripts/paper_a_summary.py"
+        "../scripts/paper_a.py"
 
 
 # Paper C's scenarios are short (a few seconds each, about half of it job start-up): one job

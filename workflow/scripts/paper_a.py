@@ -1,48 +1,115 @@
-"""Snakemake adapter: paper A's EKF rows on every run of one scenario."""
+"""Snakemake adapter: paper A's EKF rows on every run of each of its scenarios, then the paper's
+tables, claims and figures over all scenarios (read back from the scenarios' files)."""
 
 import json
+from pathlib import Path
 
 import pandas as pd
 
+from wsnloc import results
+from wsnloc.analysis import static_share
 from wsnloc.analysis.filter_quality import grouped_quality
-from wsnloc.analysis.paper_bounds import PAPER_A_KEYS, paper_a_params
+from wsnloc.analysis.paper_bounds import PAPER_A_KEYS, paper_a_main, paper_a_params, paper_bound_outputs
 from wsnloc.campaign import Campaign
+from wsnloc.config import read_yaml
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments import calibration, paper_a, sensitivity
+from wsnloc.experiments import calibration, claims as claims_of, paper_a, sensitivity
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
-from wsnloc.workflow import end_job, start_job
+from wsnloc.report import bound_figures, figures
+from wsnloc.workflow import each_scenario, end_job, start_job
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = start_job(sm.log[0], "paper_a")
-campaign = Campaign.load(sm.input.campaign)
 settings = paper_a.Settings.from_config(sm.params.settings)
-settings.check_against(campaign)
-runs = load_runs(sm.input.tables, paper_a.INPUT_TABLES)
-zigbee = list(campaign.anchors_of("zigbee")["anchor_id"])
-models = calibration.rss_models_for_runs(runs, campaign, zigbee, settings.rss_calibration, settings.rss_model)
-data = {name: RunData(run_tables, campaign, models[name], name) for name, run_tables in runs.items()}
-estimates = [est.assign(run=name) for name, est in zip(runs, paper_a.run_all(list(data.values()), settings))]
-bounded = grouped_quality([(data[name], est) for name, est in zip(runs, estimates)], PAPER_A_KEYS,
-                          paper_a_params(settings))
-metrics, qualities = [], []
-for (name, run_tables), est, (quality, efficiency) in zip(runs.items(), estimates, bounded):
-    qualities.append(quality.assign(run=name))
-    metrics.append(paper_a.run_metrics(est, run_tables["truth"]).merge(efficiency, on=PAPER_A_KEYS).assign(run=name))
-    log.info("%s: RSS model %s", name, json.dumps(models[name]))
-tables.write("estimates_paper_a", pd.concat(estimates, ignore_index=True), sm.output.estimates)
-metrics = pd.concat(metrics, ignore_index=True)
-metrics.to_csv(sm.output.metrics, index=False, float_format="%.6g")
-pd.concat(qualities, ignore_index=True).to_parquet(sm.output.quality, index=False, compression="zstd")
 
 
-def variant_metrics(spec: dict, _, names: list[str]) -> pd.DataFrame:
-    """Every row of the sampled runs under a scaled a-priori setting, stepped together."""
-    estimates = paper_a.run_all([data[name] for name in names], paper_a.Settings.from_config(spec))
-    return pd.concat([paper_a.run_metrics(est, runs[name]["truth"]).assign(run=name)
-                      for name, est in zip(names, estimates)], ignore_index=True)
+def run_scenario(label: str, campaign: Campaign, out: dict) -> None:
+    """Every run of one scenario (RSS models calibrated on another run): estimates, per-run
+    metrics, consistency and sensitivity grid written to out['estimates'], out['metrics'],
+    out['quality'], out['sensitivity']."""
+    settings.check_against(campaign)
+    runs = load_runs(sm.params.sources["tables_of"][label], paper_a.INPUT_TABLES)
+    zigbee = list(campaign.anchors_of("zigbee")["anchor_id"])
+    models = calibration.rss_models_for_runs(runs, campaign, zigbee, settings.rss_calibration, settings.rss_model)
+    data = {name: RunData(run_tables, campaign, models[name], name) for name, run_tables in runs.items()}
+    estimates = [est.assign(run=name) for name, est in zip(runs, paper_a.run_all(list(data.values()), settings))]
+    bounded = grouped_quality([(data[name], est) for name, est in zip(runs, estimates)], PAPER_A_KEYS,
+                              paper_a_params(settings))
+    metrics, qualities = [], []
+    for (name, run_tables), est, (quality, efficiency) in zip(runs.items(), estimates, bounded):
+        qualities.append(quality.assign(run=name))
+        metrics.append(paper_a.run_metrics(est, run_tables["truth"]).merge(efficiency, on=PAPER_A_KEYS).assign(run=name))
+        log.info("%s: RSS model %s", name, json.dumps(models[name]))
+    tables.write("estimates_paper_a", pd.concat(estimates, ignore_index=True), out["estimates"])
+    metrics = pd.concat(metrics, ignore_index=True)
+    metrics.to_csv(out["metrics"], index=False, float_format="%.6g")
+    pd.concat(qualities, ignore_index=True).to_parquet(out["quality"], index=False, compression="zstd")
+
+    def variant_metrics(spec: dict, _, names: list[str]) -> pd.DataFrame:
+        """Every row of the sampled runs under a scaled a-priori setting, stepped together."""
+        estimates = paper_a.run_all([data[name] for name in names], paper_a.Settings.from_config(spec))
+        return pd.concat([paper_a.run_metrics(est, runs[name]["truth"]).assign(run=name)
+                          for name, est in zip(names, estimates)], ignore_index=True)
+
+    grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_a", metrics, variant_metrics)
+    grid.to_csv(out["sensitivity"], index=False, float_format="%.6g")
+    log.info("%s: %d runs done", label, len(runs))
 
 
-grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_a", metrics, variant_metrics)
-grid.to_csv(sm.output.sensitivity, index=False, float_format="%.6g")
+def summarize(campaigns: dict) -> None:
+    """Tables (results.csv), claims and figures of paper A over all its scenarios, from the
+    files run_scenario wrote (metrics as written, to 6 significant digits), with the opt-in
+    static-share sweep."""
+    paper = read_yaml(sm.input.papers)["A"]
+    labels = list(sm.params.sources["labels"])
+    rows, per_run, motions = [], {}, {}
+    for label, path in zip(labels, sm.output.metrics):
+        campaign = campaigns[sm.params.sources["campaign_of"][label]]
+        motions[label] = campaign.section("scenarios", label.split("/", 1)[1])["motion"]
+        per_run[label] = pd.read_csv(path)
+        rows += paper_a.results_rows(per_run[label], label, motions[label], settings, paper)
+    decided = paper_a.claims(per_run, motions, settings)
+    grids = {label: pd.read_csv(path) for label, path in zip(labels, sm.output.sensitivity)}
+    rows += sensitivity.results_rows(paper_a.EXPERIMENT, grids, lambda m: paper_a.claims(m, motions, settings))
+    estimates = {label: tables.read(p) for label, p in zip(labels, sm.output.estimates)}
+    rows += paper_a.setup_rows(estimates, settings)
+    qualities = {label: pd.read_parquet(p) for label, p in zip(labels, sm.output.quality)}
+    bound_rows, bound_panels, consistency_panels = paper_bound_outputs("A", qualities, PAPER_A_KEYS,
+                                                                       paper_a_params(settings), paper_a_main(settings))
+    rows += bound_rows
+    sweep_spec = sm.params.settings.get("static_sweep") or {"runs": 0}
+    sweep = None
+    if sweep_spec["runs"]:
+        dataset, scenario = sweep_spec["scenario"].split("/", 1)
+        sweep = static_share.gain_against_rest(Campaign.load(sm.input.sweep_campaign[0]), scenario, sweep_spec["rests_s"],
+                                               sweep_spec["runs"], sm.params.seed, sm.params.settings, dataset)
+        rows += paper_a.static_sweep_rows(sweep, sweep_spec["scenario"])
+    results.write(rows + claims_of.results_rows(paper_a.EXPERIMENT, decided), sm.output.results)
+    res = results.read(sm.output.results)
+    Path(sm.output.claims).write_text(json.dumps({"claims": decided}, indent=1))
+    Path(sm.output.bounds).write_bytes(bound_figures.pcrb_panels(bound_panels))
+    # Over time, the position ANEES of the main rows (ANIS with its band and verdict: the bound table, results.csv).
+    Path(sm.output.consistency).write_bytes(bound_figures.consistency_panels([p for p in consistency_panels if p[2] == "ANEES"]))
+    Path(sm.output.cdf).write_bytes(figures.error_cdf(paper_a.cdf_panels(estimates)))
+    Path(sm.output.tracks).write_bytes(figures.trajectories(paper_a.trajectory_panels(estimates)))
+    if sweep is not None:
+        Path(sm.output.static).write_bytes(figures.curve_with_interval(
+            {f"hybrid, {sweep_spec['scenario']} ({sweep_spec['runs']} runs per rest)": paper_a.static_sweep_curve(sweep)},
+            "static share of the epochs", "Table II - Table I RMSE [m]",
+            "Paper A: motion detection gain against the static share",
+            {f"paper, {motion}": gain for motion, gain in paper_a.paper_gains(paper, settings).items()}))
+    else:
+        Path(sm.output.static).write_bytes(
+            figures.placeholder("no static-share sweep (experiments.paper_a.static_sweep.runs: 0)"))
+    Path(sm.output.anchors).write_bytes(figures.rmse_vs_anchors(paper_a.anchor_curves(res, settings),
+                                                                 "Paper A: RMSE against the number of anchors"))
+
+
+campaigns = {}
+for label, campaign, out in each_scenario(sm.params.sources, sm.output,
+                                          ("estimates", "metrics", "quality", "sensitivity")):
+    campaigns[sm.params.sources["campaign_of"][label]] = campaign
+    run_scenario(label, campaign, out)
+summarize(campaigns)
 end_job()

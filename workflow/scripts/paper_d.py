@@ -1,45 +1,89 @@
-"""Snakemake adapter: paper D estimators on every run of one scenario."""
+"""Snakemake adapter: paper D estimators on every run of each of its scenarios, then the paper's
+tables, claims, cost and figures over all scenarios (read back from the scenarios' files)."""
 
 import json
+from pathlib import Path
 
 import pandas as pd
 
+from wsnloc import results
+from wsnloc.analysis import nlos_severity
 from wsnloc.campaign import Campaign
+from wsnloc.config import read_yaml
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments import paper_d, sensitivity
+from wsnloc.experiments import claims as claims_of, paper_d, sensitivity
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
-from wsnloc.workflow import end_job, start_job
+from wsnloc.report import figures
+from wsnloc.workflow import each_scenario, end_job, start_job
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = start_job(sm.log[0], "paper_d")
-campaign = Campaign.load(sm.input.campaign)
 settings = paper_d.Settings.from_config(sm.params.settings)
-settings.check_against(campaign)
-runs = load_runs(sm.input.tables, paper_d.INPUT_TABLES)
-models = paper_d.rss_models_for_runs(runs, campaign, settings)
-data = {name: RunData(run_tables, campaign, models[name], name) for name, run_tables in runs.items()}
-estimates = [est.assign(run=name) for name, est in zip(runs, paper_d.run_all(list(data.values()), settings))]
-metrics = []
-for (name, run_tables), est in zip(runs.items(), estimates):
-    metrics.append(paper_d.run_metrics(est, run_tables["truth"])
-                   .assign(run=name, **{f"rss_{k}": v for k, v in models[name].items()}))
-    log.info("%s: RSS model %s", name, json.dumps(models[name]))
-tables.write("estimates_paper_d", pd.concat(estimates, ignore_index=True), sm.output.estimates)
-metrics = pd.concat(metrics, ignore_index=True)
-metrics.to_csv(sm.output.metrics, index=False, float_format="%.6g")
 
 
-def kalman_variant(spec: dict, sigma: str, names: list[str]) -> pd.DataFrame:
-    """Paper D's a-priori sigmas (paper_d.SENSITIVITY_SIGMAS) act on the KF cells only:
-    re-run those (all sampled runs together), keep each run's other cells."""
-    reruns = paper_d.run_all([data[name] for name in names], paper_d.Settings.from_config(spec), stages=("kalman",))
-    return pd.concat([sensitivity.replace_cells(metrics, name, paper_d.run_metrics(rerun, runs[name]["truth"]),
-                                                ["localizer", "technique", "stage"]).assign(run=name)
-                      for name, rerun in zip(names, reruns)], ignore_index=True)
+def run_scenario(label: str, campaign: Campaign, out: dict) -> None:
+    """Every run of one scenario (RSS models calibrated on another run): estimates, per-run
+    metrics and sensitivity grid written to out['estimates'], out['metrics'], out['sensitivity']."""
+    settings.check_against(campaign)
+    runs = load_runs(sm.params.sources["tables_of"][label], paper_d.INPUT_TABLES)
+    models = paper_d.rss_models_for_runs(runs, campaign, settings)
+    data = {name: RunData(run_tables, campaign, models[name], name) for name, run_tables in runs.items()}
+    estimates = [est.assign(run=name) for name, est in zip(runs, paper_d.run_all(list(data.values()), settings))]
+    metrics = []
+    for (name, run_tables), est in zip(runs.items(), estimates):
+        metrics.append(paper_d.run_metrics(est, run_tables["truth"])
+                       .assign(run=name, **{f"rss_{k}": v for k, v in models[name].items()}))
+        log.info("%s: RSS model %s", name, json.dumps(models[name]))
+    tables.write("estimates_paper_d", pd.concat(estimates, ignore_index=True), out["estimates"])
+    metrics = pd.concat(metrics, ignore_index=True)
+    metrics.to_csv(out["metrics"], index=False, float_format="%.6g")
+
+    def kalman_variant(spec: dict, sigma: str, names: list[str]) -> pd.DataFrame:
+        """Paper D's a-priori sigmas (paper_d.SENSITIVITY_SIGMAS) act on the KF cells only:
+        re-run those (all sampled runs together), keep each run's other cells."""
+        reruns = paper_d.run_all([data[name] for name in names], paper_d.Settings.from_config(spec), stages=("kalman",))
+        return pd.concat([sensitivity.replace_cells(metrics, name, paper_d.run_metrics(rerun, runs[name]["truth"]),
+                                                    ["localizer", "technique", "stage"]).assign(run=name)
+                          for name, rerun in zip(names, reruns)], ignore_index=True)
+
+    grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_d", metrics, kalman_variant,
+                                    paper_d.SENSITIVITY_SIGMAS)
+    grid.to_csv(out["sensitivity"], index=False, float_format="%.6g")
+    log.info("%s: %d runs done", label, len(runs))
 
 
-grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_d", metrics, kalman_variant,
-                                paper_d.SENSITIVITY_SIGMAS)
-grid.to_csv(sm.output.sensitivity, index=False, float_format="%.6g")
+def summarize() -> None:
+    """Tables (results.csv), claims, measured cost and figures of paper D over all its
+    scenarios, from the files run_scenario wrote (metrics as written, to 6 significant
+    digits), with the opt-in NLOS-severity sweep."""
+    labels = list(sm.params.sources["labels"])
+
+    per_run = {label: pd.read_csv(path) for label, path in zip(labels, sm.output.metrics)}
+    rows = [row for label in labels for row in paper_d.results_rows(per_run[label], label)]
+    paper_cost_ms = read_yaml(sm.input.papers)["D"]["cost_ms_per_step"]
+    counts = paper_d.operation_counts(settings)
+    decided = paper_d.claims(per_run) + [paper_d.cost_claim(counts, paper_cost_ms)]
+    cost = paper_d.measure_cost(settings)
+    rows += paper_d.cost_rows(cost, paper_cost_ms) + paper_d.operation_rows(counts, paper_cost_ms)
+    grids = {label: pd.read_csv(path) for label, path in zip(labels, sm.output.sensitivity)}
+    rows += nlos_severity.claim_rows(   # claims against NLOS ranging severity (opt-in)
+        paper_d.EXPERIMENT, sm.params.settings.get("nlos_sweep"), (sm.input.nlos_campaign or [""])[0], sm.params.seed,
+        lambda campaign, tables: paper_d.evaluate_runs(tables, campaign, settings), paper_d.claims, sm.input.nlos_tables)
+    rows += sensitivity.results_rows(paper_d.EXPERIMENT, grids, paper_d.claims)
+    estimates = {label: tables.read(p) for label, p in zip(labels, sm.output.estimates)}
+    rows += paper_d.setup_rows(estimates)
+    results.write(rows + claims_of.results_rows(paper_d.EXPERIMENT, decided), sm.output.results)
+    Path(sm.output.claims).write_text(json.dumps({"claims": decided}, indent=1))
+    # Wall-clock measurements live apart, so that everything else is byte-reproducible.
+    Path(sm.output.cost).write_text(json.dumps({"cost_us": cost}, indent=1))
+    log.info("cost per step (us): %s", cost)
+
+    Path(sm.output.cdf).write_bytes(figures.error_cdf(paper_d.cdf_panels(estimates)))
+    Path(sm.output.tracks).write_bytes(figures.trajectories(paper_d.trajectory_panels(estimates)))
+
+
+for label, campaign, out in each_scenario(sm.params.sources, sm.output, ("estimates", "metrics", "sensitivity")):
+    run_scenario(label, campaign, out)
+summarize()
 end_job()
