@@ -45,8 +45,9 @@ def raw_run_dir(config: dict, dataset: str, scenario: str, run: str) -> str:
 def shards_of(config: dict, dataset: str, scenario: str) -> dict[str, list[str]]:
     """The scenario's runs split into `config['shards']` contiguous groups (no empty group).
 
-    Each group is one simulate / ingest / resample job: 1 shard on a laptop, many on a
-    cluster. Shard names are shard-1, shard-2, ...
+    Each group is one ingest (+ IMU resampling) job, and shard k of every simulated scenario of
+    a format one simulation job: 1 shard on a laptop, many on a cluster. Shard names are
+    shard-1, shard-2, ...
     """
     return split_runs(dataset_runs(config, dataset, scenario), config.get("shards", 1))
 

@@ -14,7 +14,7 @@ SUBSET_MONTE_CARLO = monte_carlo_scenarios(config)
 rule geometry:
     input:
         campaigns=sorted({d["campaign"] for d in config["datasets"].values()}),
-        tables=[p for d, s in PAIRS for p in tables_of(d, s)],
+        first_runs=[str(Path(first_run_tables(d)).parent) for d in config["datasets"]],   # their shard folders
     output:
         floor_plans=[f"data/processed/{d}/figures/floor_plan.png" for d in config["datasets"]],
         results=[f"data/processed/{d}/bounds/results.csv" for d in BOUND_DATASETS],

@@ -10,18 +10,18 @@ from wsnloc.workflow import (
     raw_run_dir,
     scenario_pairs,
     shards_of,
-    simulated_runs,
     simulated_shards,
 )
 
 ENV = "../envs/wsnloc.yaml"
 # Job order on few cores (higher first among ready jobs): the data chain (simulate, ingest)
-# first, Newcom++ before Cricket, so that every estimator job is ready early; then the papers'
-# jobs (3-7 s each: estimators, then tables and figures) and the short study cells; then the
-# study summary, with the short geometry job (floor plans, static bounds) beside it, so that no
-# long job runs alone before the report.
-PRIORITY = {"simulate_newcom": 6, "simulate_cricket": 5, "ingest": 5, "paper": 4, "cell": 3, "summary": 2,
-            "geometry": 1}
+# first, Newcom++ before Cricket, so that every estimator job is ready early; then papers A, C
+# and D (5-7 s each: estimators, then tables and figures), then the short study cells and the
+# geometry job (floor plans, static bounds). The study summary waits for every cell: paper B,
+# the shortest paper job, comes last so that it runs beside it instead of leaving a core idle
+# before the report.
+PRIORITY = {"simulate_newcom": 6, "simulate_cricket": 5, "ingest": 5, "paper": 4, "cell": 3, "geometry": 3,
+            "summary": 2, "last_paper": 2}
 RAW_FILES = {"newcom": ["uwb.log", "zigbee.log", "imu.log", "truth.log"],
              "cricket": ["listener.log", "imu.log", "truth.log"]}
 SIMULATED = [name for name, d in config["datasets"].items() if d["source"] == "simulate"]
@@ -62,12 +62,6 @@ def raw_inputs(wildcards):
 
 def campaign_file(wildcards):
     return config["datasets"][wildcards.dataset]["campaign"]
-
-
-def simulated_of(fmt):
-    """Regex of the simulated datasets of one format (never matches when there are none)."""
-    names = [n for n in SIMULATED if config["datasets"][n]["format"] == fmt]
-    return "|".join(names) or "(?!x)x"
 
 
 # With one shard per scenario, the job that ingests a scenario's runs also writes its data
@@ -167,8 +161,8 @@ def campaign_of_label(label):
 
 
 def first_run_tables(dataset):
-    """Table folder of the dataset's first run in path order (scenario, shard, run names): the
+    """Table folder of the dataset's first run, ordered by scenario, shard and run name: the
     run whose true path its floor plan shows."""
-    return min(f"data/processed/{dataset}/{scenario}/tables/{shard}/{run}"
-               for scenario in config["datasets"][dataset]["scenarios"]
-               for shard, runs in shards_of(config, dataset, scenario).items() for run in runs)
+    scenario, shard, run = min((scenario, shard, run) for scenario in config["datasets"][dataset]["scenarios"]
+                               for shard, runs in shards_of(config, dataset, scenario).items() for run in runs)
+    return f"data/processed/{dataset}/{scenario}/tables/{shard}/{run}"

@@ -38,7 +38,7 @@ rule paper_b:
         snr_scenario=next((f"{d}/{s}" for d, s in experiment_pairs(PAPER_B, "simulation_scenarios")), ""),
         seed=config["seed"],
         resample=config["resample"],
-    priority: PRIORITY["paper"]
+    priority: PRIORITY["last_paper"]
     log:
         "logs/paper_b/paper_b.log",
     conda:

@@ -12,7 +12,9 @@ log = start_job(sm.log[0], "simulate")
 campaigns = {}
 for spec in sm.params.scenarios:
     dataset, scenario = spec["dataset"], spec["scenario"]
-    campaign = campaigns.setdefault(spec["campaign"], Campaign.load(spec["campaign"]))
+    if spec["campaign"] not in campaigns:
+        campaigns[spec["campaign"]] = Campaign.load(spec["campaign"])
+    campaign = campaigns[spec["campaign"]]
     simulate_run = SIMULATORS[campaign.format]
     for run in sm.params.runs:
         index = int(run.split("-")[1])           # run-07 -> 7: the seed depends on the run, not the shard

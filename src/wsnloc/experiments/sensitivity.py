@@ -4,9 +4,9 @@ Config `experiments.paper_x.sensitivity`: `sigmas` (config keys of the paper's a
 noise sigmas, dotted for nested keys, e.g. "kalman.accel_sigma_mps2"), `factors` (e.g.
 [0.5, 2]) and `runs` (the first `runs` Monte Carlo runs of each scenario; 0 turns it off).
 One sigma is scaled at a time: setting "range_sigma_m x0.5" is the paper's configuration
-with range_sigma_m halved. The per-scenario jobs re-run the paper's estimators on those
-runs for every setting (the runs already loaded for the main tables); the baseline "x1"
-is the main per-run metrics of the same runs. The summary job decides every claim per
+with range_sigma_m halved. The paper's job re-runs its estimators on those runs of each
+scenario for every setting (the runs already loaded for the main tables); the baseline "x1"
+is the main per-run metrics of the same runs. The same job then decides every claim per
 setting (experiments.claims) and writes results rows:
   table "Sensitivity", row = claim, column = setting, metric "verdict",
   value = claims.VERDICT_CODE (+1 holds, 0 inconclusive, -1 does not hold), runs = runs used.

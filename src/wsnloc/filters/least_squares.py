@@ -78,10 +78,12 @@ class _Point(NamedTuple):
 
 def robust_least_squares(fun: Callable, jac: Callable, x0, rho: Callable = _linear, f_scale: float = 1.0,
                          n_plain: int = 0, ftol: float = 1e-8, xtol: float = 1e-8, gtol: float = 1e-8,
-                         max_iter: int = 100) -> Solution:
+                         max_iter: int | None = None) -> Solution:
     """Minimise C(x) (module docstring) from x0; fun(x) -> f (m,), jac(x) -> J (m, n);
-    rho: one of LOSSES, applied to the residuals from index n_plain on."""
+    rho: one of LOSSES, applied to the residuals from index n_plain on. max_iter: steps tried
+    (one evaluation of fun each) before ConvergenceError; default 100 n, scipy's max_nfev."""
     point = _evaluate(fun, np.asarray(x0, dtype=float), rho, f_scale, n_plain)
+    max_iter = 100 * len(point.x) if max_iter is None else max_iter
     J = _weighted_jacobian(jac(point.x), point, n_plain)
     radius, alpha = _norm(point.x) or 1.0, 0.0
     for n_iter in range(max_iter):
@@ -102,15 +104,15 @@ def robust_least_squares(fun: Callable, jac: Callable, x0, rho: Callable = _line
         ratio = reduction / predicted if predicted > 0 else float(predicted == reduction == 0)
         converged = ((reduction < ftol * point.cost and ratio > 0.25)
                      or step_norm < xtol * (xtol + _norm(point.x)))
+        if reduction > 0:
+            point = trial
+            J = _weighted_jacobian(jac(point.x), point, n_plain)
+        if converged:                                   # (a zero step always is: xtol)
+            return Solution(point.x, point.cost, J, n_iter + 1)
         new_radius = (0.25 * step_norm if ratio < 0.25 else
                       2.0 * radius if ratio > 0.75 and step_norm > 0.95 * radius else radius)
         alpha *= radius / new_radius
         radius = new_radius
-        if reduction > 0:
-            point = trial
-            J = _weighted_jacobian(jac(point.x), point, n_plain)
-        if converged:
-            return Solution(point.x, point.cost, J, n_iter + 1)
     raise ConvergenceError(f"robust least squares: no convergence in {max_iter} steps (cost {point.cost:.6g}, "
                            f"ftol {ftol}, xtol {xtol}, gtol {gtol})")
 
@@ -139,7 +141,7 @@ def _trust_region_step(sv, Vt, suf, m, radius, alpha, rtol=0.01, max_iter=10):
     Gauss-Newton step -Vt^T (suf / sv^2) when J~ has full rank and it fits, else
     dx(alpha) = -Vt^T (suf / (sv^2 + alpha)) with alpha >= 0 found by Newton's method on
     phi(alpha) = ||dx(alpha)|| - radius to |phi| < rtol radius, then scaled onto the boundary."""
-    full_rank = m >= len(sv) and sv[-1] > EPS * m * sv[0]
+    full_rank = m >= Vt.shape[1] and sv[-1] > EPS * m * sv[0]
     if full_rank:
         step = -Vt.T @ (suf / sv**2)
         if _norm(step) <= radius:

@@ -55,8 +55,7 @@ class RangeModel:
         return H
 
     def R(self) -> np.ndarray:
-        variances = np.asarray(self.sigma_m, dtype=float) ** 2         # (m,), or one for all
-        return np.diag(variances) if variances.ndim else np.eye(len(self.anchors)) * variances
+        return np.diag(np.broadcast_to(np.asarray(self.sigma_m, dtype=float) ** 2, (len(self.anchors),)))
 
 
 @dataclass
