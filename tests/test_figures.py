@@ -93,6 +93,18 @@ def test_stacked_consistency_panels_record_no_overlaps():
     assert image.text[OVERLAPS_KEY] == "[]"
 
 
+
+def test_bound_and_anees_figures_keep_the_anees_panels_and_say_when_there_are_none():
+    t = np.arange(50) * 0.5
+    test = consistency_test(np.random.default_rng(1).chisquare(2, size=(5, 50)), 2)
+    panels = [(t, test, "ANEES", "cell: ANEES"), (t, test, "ANIS", "cell: ANIS")]
+    bound = [(t, {"ekf": np.full(50, 0.3)}, np.full(50, 0.2), "PV", "cell")]
+    pcrb_png, anees_png = bound_figures.bound_and_anees_figures(bound, panels)
+    assert pcrb_png == bound_figures.pcrb_panels(bound)
+    assert anees_png == bound_figures.consistency_panels(panels[:1])          # the ANIS panel left out
+    empty = bound_figures.bound_and_anees_figures([], [panels[1]], none="no filter here")
+    assert empty == (figures.placeholder("no filter here"),) * 2
+
 def test_long_curve_title_is_wrapped_inside_the_figure(monkeypatch):
     saved = {}
     monkeypatch.setattr(figures, "to_png", lambda fig, tight=True: saved.setdefault("fig", fig) and b"")

@@ -81,9 +81,9 @@ def summarize(campaigns: dict) -> None:
     results.write(rows + claims_of.results_rows(paper_c.EXPERIMENT, decided), sm.output.results)
     res = results.read(sm.output.results)
     Path(sm.output.claims).write_text(json.dumps({"claims": decided}, indent=1))
-    Path(sm.output.bounds).write_bytes(bound_figures.pcrb_panels(bound_panels))
-    # Over time, the position ANEES of the main rows (ANIS with its band and verdict: the bound table, results.csv).
-    Path(sm.output.consistency).write_bytes(bound_figures.consistency_panels([p for p in consistency_panels if p[2] == "ANEES"]))
+    pcrb_png, anees_png = bound_figures.bound_and_anees_figures(bound_panels, consistency_panels)
+    Path(sm.output.bounds).write_bytes(pcrb_png)
+    Path(sm.output.consistency).write_bytes(anees_png)
     Path(sm.output.histogram).write_bytes(figures.error_histograms(
         paper_c.histogram_panels(estimates, settings), "Paper C: position error per model, all runs (their Fig. 4b)"))
     Path(sm.output.cdf).write_bytes(figures.error_cdf(paper_c.cdf_panels(estimates, settings), xmax=1.5))

@@ -24,13 +24,10 @@ bound_rows, bound_panels, consistency_panels = bound_summary(study, *map(list, z
     else ([], [], [])
 rows += bound_rows
 results.write(rows, sm.output.results)
-none = "no Bayesian filter cell in this study"
-Path(sm.output.bounds).write_bytes(bound_figures.pcrb_panels(bound_panels) if bound_panels
-                                   else figures.placeholder(none))
-# Over time, the position ANEES of each cell (its ANIS, with its band and verdict, is in the table and results.csv).
-anees_panels = [panel for panel in consistency_panels if panel[2] == "ANEES"]
-Path(sm.output.consistency).write_bytes(bound_figures.consistency_panels(anees_panels) if anees_panels
-                                        else figures.placeholder(none))
+pcrb_png, anees_png = bound_figures.bound_and_anees_figures(bound_panels, consistency_panels,
+                                                            none="no Bayesian filter cell in this study")
+Path(sm.output.bounds).write_bytes(pcrb_png)
+Path(sm.output.consistency).write_bytes(anees_png)
 cdf, errors, tracks = study_panels(estimates)
 Path(sm.output.cdf).write_bytes(figures.error_cdf(cdf, xmax=None))
 Path(sm.output.errors).write_bytes(figures.error_over_time(errors))

@@ -15,7 +15,7 @@ from mpl_toolkits.axes_grid1 import make_axes_locatable
 
 from wsnloc.campaign import Campaign
 from wsnloc.metrics.consistency import ConsistencyTest
-from wsnloc.report.figures import LABEL_OFFSET, PNG_DPI, TECH_STYLE, draw_walls, gc_paused, plt, to_png
+from wsnloc.report.figures import LABEL_OFFSET, PNG_DPI, TECH_STYLE, draw_walls, gc_paused, placeholder, plt, to_png
 
 LEGEND_DROP_IN = 0.45      # inches from the bottom of the axes to the legend, below tick labels and x label
 TITLE_WRAP_CHARS = 90      # a 9 pt title line of this many characters fits the 8 in wide figure
@@ -187,3 +187,14 @@ def consistency_over_time(t, test: ConsistencyTest, statistic: str, title: str) 
 def consistency_panels(panels: list[tuple]) -> bytes:
     """consistency_over_time for several cells and statistics: (t, test, statistic, title)."""
     return _stacked(_draw_consistency, panels, 3.6)
+
+
+def bound_and_anees_figures(bound_panels: list[tuple], consistency: list[tuple],
+                            none: str | None = None) -> tuple[bytes, bytes]:
+    """The two bound figures of a paper or study: sqrt(PCRB) beside the RMSE (pcrb_panels) and,
+    over time, the position ANEES (consistency_panels of the "ANEES" panels; the ANIS, with its
+    band and verdict, is in the tables and results.csv). With `none` given, a figure without
+    panels is a placeholder saying so."""
+    anees = [panel for panel in consistency if panel[2] == "ANEES"]
+    return (pcrb_panels(bound_panels) if bound_panels or none is None else placeholder(none),
+            consistency_panels(anees) if anees or none is None else placeholder(none))
