@@ -238,3 +238,28 @@ def test_start_job_freezes_the_imported_objects_and_logs_to_the_rule_log(tmp_pat
         assert "started" in (tmp_path / "logs" / "job.log").read_text()
     finally:
         gc.unfreeze()
+
+
+def test_read_scenario_files_reads_back_each_scenarios_files_as_written(tmp_path):
+    from snakemake.iocontainers import Namedlist      # the class of a script's snakemake.output
+
+    from wsnloc.io import tables
+    from wsnloc.workflow import read_scenario_files
+
+    labels = ["d/s1", "d/s2"]
+    metrics = [tmp_path / f"metrics{i}.csv" for i in range(2)]
+    grids = [tmp_path / f"grid{i}.csv" for i in range(2)]
+    estimates = [tmp_path / f"estimates{i}.parquet" for i in range(2)]
+    for i in range(2):
+        pd.DataFrame({"rmse_m": [1 / 3 + i]}).to_csv(metrics[i], index=False, float_format="%.6g")
+        pd.DataFrame({"setting": ["x1"], "value": [i]}).to_csv(grids[i], index=False)
+    frame = pd.DataFrame({"t": [0.0, 0.5], "x": [1.0, 2.0], "y": [3.0, 4.0], "method": ["a", "a"], "run": ["run-01"] * 2})
+    for path in estimates:
+        frame.to_parquet(path, index=False)
+    outputs = Namedlist(fromdict={"metrics": [str(p) for p in metrics], "sensitivity": [str(p) for p in grids],
+                                  "estimates": [str(p) for p in estimates]})
+    files = read_scenario_files(outputs, labels)
+    assert set(files) == {"metrics", "sensitivity", "estimates"}            # no quality output: not read
+    assert files["metrics"]["d/s2"]["rmse_m"].iloc[0] == 1.33333             # as written, 6 digits
+    assert list(files["sensitivity"]) == labels and files["sensitivity"]["d/s1"]["value"].iloc[0] == 0
+    pd.testing.assert_frame_equal(files["estimates"]["d/s1"], tables.read(estimates[0]))

@@ -84,6 +84,21 @@ def each_scenario(sources: dict, outputs, names: tuple[str, ...]):
         yield label, campaigns[sources["campaign_of"][label]], {name: getattr(outputs, name)[i] for name in names}
 
 
+def read_scenario_files(outputs, labels: list[str]) -> dict[str, dict]:
+    """The per-scenario files a paper's job wrote (the rule's outputs, one list per name,
+    scenario i's file at index i), read back as {name: {label: frame}}: `metrics` and
+    `sensitivity` CSV as written (6 significant digits, so the tables are computed from the
+    numbers on disk), `estimates` with io.tables.read and, where the paper writes it, `quality`."""
+    import pandas as pd
+
+    from wsnloc.io import tables
+
+    readers = {"metrics": pd.read_csv, "sensitivity": pd.read_csv, "estimates": tables.read,
+               "quality": pd.read_parquet}
+    return {name: dict(zip(labels, map(read, getattr(outputs, name))))
+            for name, read in readers.items() if name in outputs.keys()}
+
+
 def start_job(log_path: str, name: str):
     """Start a Snakemake script job, after its imports: freeze the objects created so far and
     return a logger writing to the rule's log file (Snakemake's `log:`).

@@ -17,7 +17,7 @@ from wsnloc.experiments import calibration, claims as claims_of, paper_a, sensit
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import bound_figures, figures
-from wsnloc.workflow import each_scenario, end_job, start_job
+from wsnloc.workflow import each_scenario, end_job, read_scenario_files, start_job
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = start_job(sm.log[0], "paper_a")
@@ -63,19 +63,18 @@ def summarize(campaigns: dict) -> None:
     static-share sweep."""
     paper = read_yaml(sm.input.papers)["A"]
     labels = list(sm.params.sources["labels"])
-    rows, per_run, motions = [], {}, {}
-    for label, path in zip(labels, sm.output.metrics):
+    files = read_scenario_files(sm.output, labels)
+    per_run, estimates = files["metrics"], files["estimates"]
+    rows, motions = [], {}
+    for label in labels:
         campaign = campaigns[sm.params.sources["campaign_of"][label]]
         motions[label] = campaign.section("scenarios", label.split("/", 1)[1])["motion"]
-        per_run[label] = pd.read_csv(path)
         rows += paper_a.results_rows(per_run[label], label, motions[label], settings, paper)
     decided = paper_a.claims(per_run, motions, settings)
-    grids = {label: pd.read_csv(path) for label, path in zip(labels, sm.output.sensitivity)}
-    rows += sensitivity.results_rows(paper_a.EXPERIMENT, grids, lambda m: paper_a.claims(m, motions, settings))
-    estimates = {label: tables.read(p) for label, p in zip(labels, sm.output.estimates)}
+    rows += sensitivity.results_rows(paper_a.EXPERIMENT, files["sensitivity"],
+                                     lambda m: paper_a.claims(m, motions, settings))
     rows += paper_a.setup_rows(estimates, settings)
-    qualities = {label: pd.read_parquet(p) for label, p in zip(labels, sm.output.quality)}
-    bound_rows, bound_panels, consistency_panels = paper_bound_outputs("A", qualities, PAPER_A_KEYS,
+    bound_rows, bound_panels, consistency_panels = paper_bound_outputs("A", files["quality"], PAPER_A_KEYS,
                                                                        paper_a_params(settings), paper_a_main(settings))
     rows += bound_rows
     sweep_spec = sm.params.settings.get("static_sweep") or {"runs": 0}

@@ -15,7 +15,7 @@ from wsnloc.experiments import claims as claims_of, paper_b, sensitivity
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import figures
-from wsnloc.workflow import each_scenario, end_job, start_job
+from wsnloc.workflow import each_scenario, end_job, read_scenario_files, start_job
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = start_job(sm.log[0], "paper_b")
@@ -54,7 +54,8 @@ def summarize() -> None:
     SNR curve and NLOS-severity sweep."""
     paper = read_yaml(sm.input.papers)["B"]
     labels, simulated = list(sm.params.sources["labels"]), set(sm.params.simulated)
-    per_run = {label: pd.read_csv(path) for label, path in zip(labels, sm.output.metrics)}
+    files = read_scenario_files(sm.output, labels)
+    per_run, grids, estimates = files["metrics"], files["sensitivity"], files["estimates"]
     rows = [row for label in labels for row in paper_b.results_rows(per_run[label], label, paper, label in simulated)]
     decided = paper_b.claims(per_run)
     curve = None
@@ -64,7 +65,6 @@ def summarize() -> None:
                                           sm.params.snr_curve["runs"], sm.params.seed, sm.params.resample,
                                           paper_b.scenario_config(sm.params.settings, True)["static_bias_s"], dataset)
         rows += paper_b.snr_rows(curve, sm.params.snr_scenario, paper)
-    grids = {label: pd.read_csv(path) for label, path in zip(labels, sm.output.sensitivity)}
     nlos = sm.params.settings.get("nlos_sweep") or {"runs": 0}   # claims against NLOS ranging severity (opt-in)
     nlos_settings = paper_b.Settings.from_config(
         paper_b.scenario_config(sm.params.settings, nlos.get("scenario") in simulated))
@@ -73,7 +73,6 @@ def summarize() -> None:
         lambda campaign, tables: paper_b.evaluate_runs(tables, campaign, nlos_settings, sm.params.resample), paper_b.claims,
         sm.input.nlos_tables)
     rows += sensitivity.results_rows(paper_b.EXPERIMENT, grids, paper_b.claims)
-    estimates = {label: tables.read(p) for label, p in zip(labels, sm.output.estimates)}
     rows += paper_b.setup_rows(estimates)
     results.write(rows + claims_of.results_rows(paper_b.EXPERIMENT, decided), sm.output.results)
     Path(sm.output.claims).write_text(json.dumps({"claims": decided}, indent=1))

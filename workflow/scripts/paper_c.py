@@ -16,7 +16,7 @@ from wsnloc.experiments import claims as claims_of, paper_c, sensitivity
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import bound_figures, figures
-from wsnloc.workflow import each_scenario, end_job, start_job
+from wsnloc.workflow import each_scenario, end_job, read_scenario_files, start_job
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = start_job(sm.log[0], "paper_c")
@@ -64,18 +64,16 @@ def summarize(campaigns: dict) -> None:
     files run_scenario wrote (metrics as written, to 6 significant digits)."""
     paper = read_yaml(sm.input.papers)["C"]
     labels = list(sm.params.sources["labels"])
-    rows, per_run, speeds = [], {}, {}
-    for label, path in zip(labels, sm.output.metrics):
+    files = read_scenario_files(sm.output, labels)
+    per_run, grids, estimates = files["metrics"], files["sensitivity"], files["estimates"]
+    rows, speeds = [], {}
+    for label in labels:
         speeds[label] = paper_c.speed_label(campaigns[sm.params.sources["campaign_of"][label]], label.split("/", 1)[1])
-        per_run[label] = pd.read_csv(path)
         rows += paper_c.results_rows(per_run[label], label, speeds[label], settings, paper)
     decided = paper_c.claims(per_run, speeds, settings)
-    grids = {label: pd.read_csv(path) for label, path in zip(labels, sm.output.sensitivity)}
     rows += sensitivity.results_rows(paper_c.EXPERIMENT, grids, lambda m: paper_c.claims(m, speeds, settings))
-    estimates = {label: tables.read(p) for label, p in zip(labels, sm.output.estimates)}
     rows += paper_c.setup_rows(estimates, settings)
-    qualities = {label: pd.read_parquet(p) for label, p in zip(labels, sm.output.quality)}
-    bound_rows, bound_panels, consistency_panels = paper_bound_outputs("C", qualities, PAPER_C_KEYS,
+    bound_rows, bound_panels, consistency_panels = paper_bound_outputs("C", files["quality"], PAPER_C_KEYS,
                                                                        paper_c_params(settings), paper_c_main(settings))
     rows += bound_rows
     results.write(rows + claims_of.results_rows(paper_c.EXPERIMENT, decided), sm.output.results)
