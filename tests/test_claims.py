@@ -46,6 +46,18 @@ def test_results_rows_give_the_verdict_code_and_every_comparison():
     assert (part_row["value"], part_row["ci95_low"], part_row["runs"]) == (part.mean_diff, part.ci95_low, 3)
 
 
+
+def test_write_outputs_appends_the_claim_rows_and_writes_the_verdicts(tmp_path):
+    import json
+
+    decided = [claims.decided_record("fixed", True, "counted")]
+    table_row = {"experiment": "Z", "table": "Table I", "row": "x", "column": "c", "scenario": "d/s",
+                 "metric": "rmse_m", "value": 0.5, "ci95_low": 0.4, "ci95_high": 0.6, "runs": 3, "paper_value": None}
+    claims.write_outputs("Z", [table_row], decided, tmp_path / "results.csv", tmp_path / "claims.json")
+    written = results.read(tmp_path / "results.csv")
+    assert written["table"].tolist()[0] == "Table I" and (written["metric"] == "verdict").sum() == 1
+    assert json.loads((tmp_path / "claims.json").read_text()) == {"claims": decided}
+
 def _paper_d_metrics(rng, minmax_offset):
     """Per-run RMSE of every paper D cell: a per-run common level (what pairing removes) plus
     a cell offset; Min-Max sits `minmax_offset` m from multilateration."""

@@ -24,10 +24,10 @@ log = start_job(sm.log[0], "paper_a")
 settings = paper_a.Settings.from_config(sm.params.settings)
 
 
-def run_scenario(label: str, campaign: Campaign, out: dict) -> None:
+def run_scenario(label: str, campaign: Campaign, out: dict) -> str:
     """Every run of one scenario (RSS models calibrated on another run): estimates, per-run
     metrics, consistency and sensitivity grid written to out['estimates'], out['metrics'],
-    out['quality'], out['sensitivity']."""
+    out['quality'], out['sensitivity']. Returns the scenario's motion profile (campaign)."""
     settings.check_against(campaign)
     runs = load_runs(sm.params.sources["tables_of"][label], paper_a.INPUT_TABLES)
     zigbee = list(campaign.anchors_of("zigbee")["anchor_id"])
@@ -39,7 +39,8 @@ def run_scenario(label: str, campaign: Campaign, out: dict) -> None:
     metrics, qualities = [], []
     for (name, run_tables), est, (quality, efficiency) in zip(runs.items(), estimates, bounded):
         qualities.append(quality.assign(run=name))
-        metrics.append(paper_a.run_metrics(est, run_tables["truth"]).merge(efficiency, on=PAPER_A_KEYS).assign(run=name))
+        metrics.append(paper_a.run_metrics(est, run_tables["truth"]).merge(efficiency, on=PAPER_A_KEYS)
+                       .assign(run=name))
         log.info("%s: RSS model %s", name, json.dumps(models[name]))
     tables.write("estimates_paper_a", pd.concat(estimates, ignore_index=True), out["estimates"])
     metrics = pd.concat(metrics, ignore_index=True)
@@ -55,9 +56,10 @@ def run_scenario(label: str, campaign: Campaign, out: dict) -> None:
     grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_a", metrics, variant_metrics)
     grid.to_csv(out["sensitivity"], index=False, float_format="%.6g")
     log.info("%s: %d runs done", label, len(runs))
+    return campaign.section("scenarios", label.split("/", 1)[1])["motion"]
 
 
-def summarize(campaigns: dict) -> None:
+def summarize(motions: dict[str, str]) -> None:
     """Tables (results.csv), claims and figures of paper A over all its scenarios, from the
     files run_scenario wrote (metrics as written, to 6 significant digits), with the opt-in
     static-share sweep."""
@@ -65,11 +67,8 @@ def summarize(campaigns: dict) -> None:
     labels = list(sm.params.sources["labels"])
     files = read_scenario_files(sm.output, labels)
     per_run, estimates = files["metrics"], files["estimates"]
-    rows, motions = [], {}
-    for label in labels:
-        campaign = campaigns[sm.params.sources["campaign_of"][label]]
-        motions[label] = campaign.section("scenarios", label.split("/", 1)[1])["motion"]
-        rows += paper_a.results_rows(per_run[label], label, motions[label], settings, paper)
+    rows = [row for label in labels
+            for row in paper_a.results_rows(per_run[label], label, motions[label], settings, paper)]
     decided = paper_a.claims(per_run, motions, settings)
     rows += sensitivity.results_rows(paper_a.EXPERIMENT, files["sensitivity"],
                                      lambda m: paper_a.claims(m, motions, settings))
@@ -81,12 +80,12 @@ def summarize(campaigns: dict) -> None:
     sweep = None
     if sweep_spec["runs"]:
         dataset, scenario = sweep_spec["scenario"].split("/", 1)
-        sweep = static_share.gain_against_rest(Campaign.load(sm.input.sweep_campaign[0]), scenario, sweep_spec["rests_s"],
-                                               sweep_spec["runs"], sm.params.seed, sm.params.settings, dataset)
+        sweep = static_share.gain_against_rest(Campaign.load(sm.input.sweep_campaign[0]), scenario,
+                                               sweep_spec["rests_s"], sweep_spec["runs"], sm.params.seed,
+                                               sm.params.settings, dataset)
         rows += paper_a.static_sweep_rows(sweep, sweep_spec["scenario"])
-    results.write(rows + claims_of.results_rows(paper_a.EXPERIMENT, decided), sm.output.results)
+    claims_of.write_outputs(paper_a.EXPERIMENT, rows, decided, sm.output.results, sm.output.claims)
     res = results.read(sm.output.results)
-    Path(sm.output.claims).write_text(json.dumps({"claims": decided}, indent=1))
     pcrb_png, anees_png = bound_figures.bound_and_anees_figures(bound_panels, consistency_panels)
     Path(sm.output.bounds).write_bytes(pcrb_png)
     Path(sm.output.consistency).write_bytes(anees_png)
@@ -94,7 +93,8 @@ def summarize(campaigns: dict) -> None:
     Path(sm.output.tracks).write_bytes(figures.trajectories(paper_a.trajectory_panels(estimates)))
     if sweep is not None:
         Path(sm.output.static).write_bytes(figures.curve_with_interval(
-            {f"hybrid, {sweep_spec['scenario']} ({sweep_spec['runs']} runs per rest)": paper_a.static_sweep_curve(sweep)},
+            {f"hybrid, {sweep_spec['scenario']} ({sweep_spec['runs']} runs per rest)":
+             paper_a.static_sweep_curve(sweep)},
             "static share of the epochs", "Table II - Table I RMSE [m]",
             "Paper A: motion detection gain against the static share",
             {f"paper, {motion}": gain for motion, gain in paper_a.paper_gains(paper, settings).items()}))
@@ -105,10 +105,6 @@ def summarize(campaigns: dict) -> None:
                                                                  "Paper A: RMSE against the number of anchors"))
 
 
-campaigns = {}
-for label, campaign, out in each_scenario(sm.params.sources, sm.output,
-                                          ("estimates", "metrics", "quality", "sensitivity")):
-    campaigns[sm.params.sources["campaign_of"][label]] = campaign
-    run_scenario(label, campaign, out)
-summarize(campaigns)
+summarize({label: run_scenario(label, campaign, out) for label, campaign, out
+           in each_scenario(sm.params.sources, sm.output, ("estimates", "metrics", "quality", "sensitivity"))})
 end_job()

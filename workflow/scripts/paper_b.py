@@ -1,12 +1,10 @@
 """Snakemake adapter: paper B estimators on every run of each of its scenarios, then the paper's
 tables, claims and figures over all scenarios (read back from the scenarios' files)."""
 
-import json
 from pathlib import Path
 
 import pandas as pd
 
-from wsnloc import results
 from wsnloc.analysis import imu_snr, nlos_severity
 from wsnloc.campaign import Campaign
 from wsnloc.config import read_yaml
@@ -61,8 +59,9 @@ def summarize() -> None:
     curve = None
     if sm.params.snr_curve["runs"] and sm.params.snr_scenario:
         dataset, scenario = sm.params.snr_scenario.split("/", 1)
-        curve = imu_snr.rmse_against_snr(Campaign.load(sm.input.snr_campaign[0]), scenario, sm.params.snr_curve["snrs_db"],
-                                          sm.params.snr_curve["runs"], sm.params.seed, sm.params.resample,
+        curve = imu_snr.rmse_against_snr(Campaign.load(sm.input.snr_campaign[0]), scenario,
+                                          sm.params.snr_curve["snrs_db"], sm.params.snr_curve["runs"], sm.params.seed,
+                                          sm.params.resample,
                                           paper_b.scenario_config(sm.params.settings, True)["static_bias_s"], dataset)
         rows += paper_b.snr_rows(curve, sm.params.snr_scenario, paper)
     nlos = sm.params.settings.get("nlos_sweep") or {"runs": 0}   # claims against NLOS ranging severity (opt-in)
@@ -70,12 +69,11 @@ def summarize() -> None:
         paper_b.scenario_config(sm.params.settings, nlos.get("scenario") in simulated))
     rows += nlos_severity.claim_rows(
         paper_b.EXPERIMENT, nlos, (sm.input.nlos_campaign or [""])[0], sm.params.seed,
-        lambda campaign, tables: paper_b.evaluate_runs(tables, campaign, nlos_settings, sm.params.resample), paper_b.claims,
-        sm.input.nlos_tables)
+        lambda campaign, tables: paper_b.evaluate_runs(tables, campaign, nlos_settings, sm.params.resample),
+        paper_b.claims, sm.input.nlos_tables)
     rows += sensitivity.results_rows(paper_b.EXPERIMENT, grids, paper_b.claims)
     rows += paper_b.setup_rows(estimates)
-    results.write(rows + claims_of.results_rows(paper_b.EXPERIMENT, decided), sm.output.results)
-    Path(sm.output.claims).write_text(json.dumps({"claims": decided}, indent=1))
+    claims_of.write_outputs(paper_b.EXPERIMENT, rows, decided, sm.output.results, sm.output.claims)
 
     Path(sm.output.tracks).write_bytes(figures.trajectories(paper_b.trajectory_panels(estimates)))
     if curve is not None:
@@ -83,7 +81,8 @@ def summarize() -> None:
         Path(sm.output.snr).write_bytes(figures.curve_with_interval(
             {f"dead reckoning, {sm.params.snr_scenario} ({sm.params.snr_curve['runs']} runs)":
              curve.rename(columns={"snr_db": "x", "rmse_m": "value"})},
-            "accelerometer SNR [dB]", "dead-reckoning RMSE [m]", "Paper B: dead reckoning against the accelerometer SNR",
+            "accelerometer SNR [dB]", "dead-reckoning RMSE [m]",
+            "Paper B: dead reckoning against the accelerometer SNR",
             {"paper: IMU only, simulation (60 dB)": published} if published else None, logy=True))
     else:
         Path(sm.output.snr).write_bytes(figures.placeholder(

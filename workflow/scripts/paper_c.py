@@ -1,7 +1,6 @@
 """Snakemake adapter: paper C's P / PV / PVA EKF on every run of each of its scenarios, then the
 paper's tables, claims and figures over all scenarios (read back from the scenarios' files)."""
 
-import json
 from pathlib import Path
 
 import pandas as pd
@@ -23,9 +22,10 @@ log = start_job(sm.log[0], "paper_c")
 settings = paper_c.Settings.from_config(sm.params.settings)
 
 
-def run_scenario(label: str, campaign: Campaign, out: dict) -> None:
+def run_scenario(label: str, campaign: Campaign, out: dict) -> str:
     """Every run of one scenario: estimates, per-run metrics, consistency and sensitivity grid
-    written to out['estimates'], out['metrics'], out['quality'], out['sensitivity']."""
+    written to out['estimates'], out['metrics'], out['quality'], out['sensitivity']. Returns
+    the scenario's speed label (paper_c.speed_label)."""
     settings.check_against(campaign)
     subsets = paper_c.subsets_of(settings, label)
     runs = load_runs(sm.params.sources["tables_of"][label], paper_c.INPUT_TABLES, sm.params.sources["imu_of"][label])
@@ -57,28 +57,26 @@ def run_scenario(label: str, campaign: Campaign, out: dict) -> None:
                                     tuple(paper_c.SIGMA_MODELS))
     grid.to_csv(out["sensitivity"], index=False, float_format="%.6g")
     log.info("%s: %d runs done", label, len(runs))
+    return paper_c.speed_label(campaign, label.split("/", 1)[1])
 
 
-def summarize(campaigns: dict) -> None:
+def summarize(speeds: dict[str, str]) -> None:
     """Tables (results.csv), claims and figures of paper C over all its scenarios, from the
     files run_scenario wrote (metrics as written, to 6 significant digits)."""
     paper = read_yaml(sm.input.papers)["C"]
     labels = list(sm.params.sources["labels"])
     files = read_scenario_files(sm.output, labels)
     per_run, grids, estimates = files["metrics"], files["sensitivity"], files["estimates"]
-    rows, speeds = [], {}
-    for label in labels:
-        speeds[label] = paper_c.speed_label(campaigns[sm.params.sources["campaign_of"][label]], label.split("/", 1)[1])
-        rows += paper_c.results_rows(per_run[label], label, speeds[label], settings, paper)
+    rows = [row for label in labels
+            for row in paper_c.results_rows(per_run[label], label, speeds[label], settings, paper)]
     decided = paper_c.claims(per_run, speeds, settings)
     rows += sensitivity.results_rows(paper_c.EXPERIMENT, grids, lambda m: paper_c.claims(m, speeds, settings))
     rows += paper_c.setup_rows(estimates, settings)
     bound_rows, bound_panels, consistency_panels = paper_bound_outputs("C", files["quality"], PAPER_C_KEYS,
                                                                        paper_c_params(settings), paper_c_main(settings))
     rows += bound_rows
-    results.write(rows + claims_of.results_rows(paper_c.EXPERIMENT, decided), sm.output.results)
+    claims_of.write_outputs(paper_c.EXPERIMENT, rows, decided, sm.output.results, sm.output.claims)
     res = results.read(sm.output.results)
-    Path(sm.output.claims).write_text(json.dumps({"claims": decided}, indent=1))
     pcrb_png, anees_png = bound_figures.bound_and_anees_figures(bound_panels, consistency_panels)
     Path(sm.output.bounds).write_bytes(pcrb_png)
     Path(sm.output.consistency).write_bytes(anees_png)
@@ -97,10 +95,6 @@ def summarize(campaigns: dict) -> None:
                                                                  "Paper C: RMSE against the number of beacons"))
 
 
-campaigns = {}
-for label, campaign, out in each_scenario(sm.params.sources, sm.output,
-                                          ("estimates", "metrics", "quality", "sensitivity")):
-    campaigns[sm.params.sources["campaign_of"][label]] = campaign
-    run_scenario(label, campaign, out)
-summarize(campaigns)
+summarize({label: run_scenario(label, campaign, out) for label, campaign, out
+           in each_scenario(sm.params.sources, sm.output, ("estimates", "metrics", "quality", "sensitivity"))})
 end_job()

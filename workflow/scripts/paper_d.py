@@ -6,7 +6,6 @@ from pathlib import Path
 
 import pandas as pd
 
-from wsnloc import results
 from wsnloc.analysis import nlos_severity
 from wsnloc.campaign import Campaign
 from wsnloc.config import read_yaml
@@ -69,11 +68,11 @@ def summarize() -> None:
     rows += paper_d.cost_rows(cost, paper_cost_ms) + paper_d.operation_rows(counts, paper_cost_ms)
     rows += nlos_severity.claim_rows(   # claims against NLOS ranging severity (opt-in)
         paper_d.EXPERIMENT, sm.params.settings.get("nlos_sweep"), (sm.input.nlos_campaign or [""])[0], sm.params.seed,
-        lambda campaign, tables: paper_d.evaluate_runs(tables, campaign, settings), paper_d.claims, sm.input.nlos_tables)
+        lambda campaign, tables: paper_d.evaluate_runs(tables, campaign, settings), paper_d.claims,
+        sm.input.nlos_tables)
     rows += sensitivity.results_rows(paper_d.EXPERIMENT, grids, paper_d.claims)
     rows += paper_d.setup_rows(estimates)
-    results.write(rows + claims_of.results_rows(paper_d.EXPERIMENT, decided), sm.output.results)
-    Path(sm.output.claims).write_text(json.dumps({"claims": decided}, indent=1))
+    claims_of.write_outputs(paper_d.EXPERIMENT, rows, decided, sm.output.results, sm.output.claims)
     # Wall-clock measurements live apart, so that everything else is byte-reproducible.
     Path(sm.output.cost).write_text(json.dumps({"cost_us": cost}, indent=1))
     log.info("cost per step (us): %s", cost)

@@ -18,11 +18,14 @@ row (table "Claim parts", metric "difference", value = mean difference with its 
 
 from __future__ import annotations
 
+import json
 import weakref
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from wsnloc import results
 from wsnloc.metrics import verdicts
 from wsnloc.metrics.stats import student_t_quantile
 from wsnloc.metrics.verdicts import Claim, Comparison
@@ -132,6 +135,13 @@ def decided_record(text: str, holds: bool, evidence: str) -> dict:
     """claims.json entry of a claim decided without sampling error (e.g. an operation count)."""
     return {"claim": text, "verdict": verdicts.HOLDS if holds else verdicts.DOES_NOT_HOLD,
             "evidence": evidence, "parts": []}
+
+
+def write_outputs(experiment: str, rows: list[dict], decided: list[dict], results_path, claims_path) -> None:
+    """A paper's results.csv (its table rows, then one row per claim and per comparison:
+    results_rows) and claims.json (the decided claims, as the report reads them)."""
+    results.write(rows + results_rows(experiment, decided), results_path)
+    Path(claims_path).write_text(json.dumps({"claims": decided}, indent=1))
 
 
 def results_rows(experiment: str, records: list[dict], unit: str = "m") -> list[dict]:
