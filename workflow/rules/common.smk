@@ -16,16 +16,22 @@ from wsnloc.workflow import (
 ENV = "../envs/wsnloc.yaml"
 # Job order on few cores (higher first among ready jobs): the data chain (simulate, ingest)
 # first, Newcom++ before Cricket, so that every estimator job is ready early; then papers A, C
-# and D (5-7 s each: estimators, then tables and figures), then the short study cells and the
-# geometry job (floor plans, static bounds). The study summary waits for every cell: paper B,
+# and D (5-10 s each: estimators, then tables and figures) and the geometry job (floor plans,
+# static bounds), then the short study cells. The study summary waits for every cell: paper B,
 # the shortest paper job, comes last so that it runs beside it instead of leaving a core idle
 # before the report.
-PRIORITY = {"simulate_newcom": 6, "simulate_cricket": 5, "ingest": 5, "paper": 4, "cell": 3, "geometry": 3,
+PRIORITY = {"simulate_newcom": 6, "simulate_cricket": 5, "ingest": 5, "paper": 4, "geometry": 4, "cell": 3,
             "summary": 2, "last_paper": 2}
 RAW_FILES = {"newcom": ["uwb.log", "zigbee.log", "imu.log", "truth.log"],
              "cricket": ["listener.log", "imu.log", "truth.log"]}
 SIMULATED = [name for name, d in config["datasets"].items() if d["source"] == "simulate"]
 PAIRS = scenario_pairs(config)
+# Simulated scenarios by format ({format: [(dataset, scenario)]}): one simulation job and one
+# ingest job per format and shard cover them all, since a format's logs are written together.
+SIMULATED_PAIRS = {fmt: [(d, s) for d, s in PAIRS if d in SIMULATED and config["datasets"][d]["format"] == fmt]
+                   for fmt in ("newcom", "cricket")}
+# Real-log datasets: one ingest job per scenario and shard (rule ingest); never-matching when none.
+REAL_DATASETS = "|".join(d for d in config["datasets"] if d not in SIMULATED) or "(?!)"
 
 
 wildcard_constraints:
@@ -47,17 +53,22 @@ def imu_of(dataset, scenario):
     return processed_dirs(config, dataset, scenario, "imu_5hz")
 
 
-def raw_inputs(wildcards):
-    """Raw files of the runs of one shard (simulated or real; generic: what is there)."""
-    dataset = config["datasets"][wildcards.dataset]
+def raw_files(dataset, scenario, runs):
+    """Raw files of the given runs of a scenario (simulated or real; generic: what is there)."""
+    fmt = config["datasets"][dataset]["format"]
     files = []
-    for run in shard_runs(wildcards):
-        run_dir = raw_run_dir(config, wildcards.dataset, wildcards.scenario, run)
-        if dataset["format"] == "generic":
+    for run in runs:
+        run_dir = raw_run_dir(config, dataset, scenario, run)
+        if fmt == "generic":
             files += sorted(str(p) for p in Path(run_dir).iterdir() if p.suffix in (".csv", ".parquet"))
         else:
-            files += [f"{run_dir}/{name}" for name in RAW_FILES[dataset["format"]]]
+            files += [f"{run_dir}/{name}" for name in RAW_FILES[fmt]]
     return files
+
+
+def raw_inputs(wildcards):
+    """Raw files of the runs of one shard of the wildcards' scenario."""
+    return raw_files(wildcards.dataset, wildcards.scenario, shard_runs(wildcards))
 
 
 def campaign_file(wildcards):
@@ -76,6 +87,21 @@ SUMMARY_FILES = {
 }
 # The shard in the paths of the ingest rule, whose summary outputs have none: with one shard, its name.
 ONE_SHARD = "shard-1" if SUMMARY_IN_INGEST else "{shard}"
+
+
+def ingest_task(dataset, scenario, shard, keep_dir):
+    """One scenario's shard in an ingest job (read by workflow/scripts/ingest.py): its format,
+    campaign, runs and their raw folders, its table and 5 Hz IMU folders, its data-summary
+    files when the job writes them (SUMMARY_FILES) and where a failed run's quarantine is kept."""
+    runs = shards_of(config, dataset, scenario)[shard]
+    spec = config["datasets"][dataset]
+    return {"label": f"{dataset}/{scenario}", "format": spec["format"], "campaign": spec["campaign"], "runs": runs,
+            "raw_dirs": [raw_run_dir(config, dataset, scenario, run) for run in runs],
+            "tables": f"data/processed/{dataset}/{scenario}/tables/{shard}",
+            "imu_5hz": f"data/processed/{dataset}/{scenario}/imu_5hz/{shard}",
+            "summary": {name: path.format(dataset=dataset, scenario=scenario) for name, path in SUMMARY_FILES.items()}
+                       if SUMMARY_IN_INGEST else {},
+            "keep_dir": keep_dir}
 
 
 def experiment_pairs(spec, key="scenarios"):

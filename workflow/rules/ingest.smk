@@ -1,11 +1,49 @@
 # Raw logs -> one Parquet file per run and table, with a quarantine of unusable lines, and
-# the IMU resampled in passing (~500 Hz -> uniform grid -> anti-aliasing low-pass -> 5 Hz);
-# one job per shard of the scenario's runs. With one shard the job also writes the scenario's
-# data summary (it holds all the runs). A run over the quarantine limits fails the job and
-# leaves its quarantine table in logs/ingest/<job>/ (outputs of failed jobs are deleted).
+# the IMU resampled in passing (~500 Hz -> uniform grid -> anti-aliasing low-pass -> 5 Hz).
+# With one shard the job also writes each scenario's data summary (it holds all the runs).
+# A run over the quarantine limits fails the job and leaves its quarantine table in
+# logs/ingest/<job>/ (outputs of failed jobs are deleted).
+#
+# Simulated logs: one job per format and shard over every simulated scenario of that format,
+# as the simulation job that writes them (each job pays its start-up once, not per scenario).
+# Real logs: one job per scenario and shard (rule ingest), so that new or edited logs of one
+# scenario re-ingest only that scenario.
+
+INGEST_PARAMS = {
+    "limits": {"per_run": config["ingest"]["max_quarantine_share"],
+               "per_file": config["ingest"]["max_quarantine_share_per_file"]},
+    "resample": config["resample"],
+}
+
+for _format, _pairs in SIMULATED_PAIRS.items():
+    for _shard in simulated_shards(config) if _pairs else {}:
+        _tasks = [ingest_task(d, s, _shard, f"logs/ingest/{_format}-{_shard}/{d}-{s}") for d, s in _pairs]
+
+        rule:
+            name:
+                f"ingest_{_format}_{_shard.replace('-', '')}"
+            input:
+                raw=[f for d, s in _pairs for f in raw_files(d, s, simulated_shards(config)[_shard])],
+                campaigns=sorted({task["campaign"] for task in _tasks}),
+            output:
+                tables=[directory(task["tables"]) for task in _tasks],
+                imu_5hz=[directory(task["imu_5hz"]) for task in _tasks],
+                summaries=[path for task in _tasks for path in task["summary"].values()],
+            params:
+                tasks=_tasks,
+                **INGEST_PARAMS,
+            priority: PRIORITY["ingest"]
+            log:
+                f"logs/ingest/{_format}-{_shard}.log",
+            conda:
+                ENV
+            script:
+                "../scripts/ingest.py"
 
 
 rule ingest:
+    wildcard_constraints:
+        dataset=REAL_DATASETS,
     input:
         raw=raw_inputs,
         campaign=campaign_file,
@@ -14,13 +52,9 @@ rule ingest:
         imu_5hz=directory(f"data/processed/{{dataset}}/{{scenario}}/imu_5hz/{ONE_SHARD}"),
         **(SUMMARY_FILES if SUMMARY_IN_INGEST else {}),
     params:
-        format=lambda w: config["datasets"][w.dataset]["format"],
-        runs=lambda w: shard_runs(w),
-        raw_dirs=lambda w: [raw_run_dir(config, w.dataset, w.scenario, r) for r in shard_runs(w)],
-        max_quarantine_share=config["ingest"]["max_quarantine_share"],
-        max_quarantine_share_per_file=config["ingest"]["max_quarantine_share_per_file"],
-        resample=config["resample"],
-        label="{dataset}/{scenario}",
+        tasks=lambda w: [ingest_task(w.dataset, w.scenario, w.get("shard", "shard-1"),
+                                     f"logs/ingest/{w.dataset}-{w.scenario}-{w.get('shard', 'shard-1')}")],
+        **INGEST_PARAMS,
     priority: PRIORITY["ingest"]
     log:
         f"logs/ingest/{{dataset}}-{{scenario}}-{ONE_SHARD}.log",

@@ -3,8 +3,7 @@
 # simulated scenario of that format: each job pays its start-up once, not once per scenario.
 # Only datasets with `source: simulate` are written here, so real logs are never overwritten.
 
-for _format in ("newcom", "cricket"):
-    _pairs = [(d, s) for d, s in PAIRS if d in SIMULATED and config["datasets"][d]["format"] == _format]
+for _format, _pairs in SIMULATED_PAIRS.items():
     for _shard, _runs in (simulated_shards(config) if _pairs else {}).items():
 
         rule:

@@ -1,12 +1,12 @@
-"""Snakemake adapter: ingest one shard of a scenario's runs into Parquet tables, resample
-each run's IMU (config `resample`) in passing and, when the shard holds all the scenario's
-runs, write the scenario's data summary (see wsnloc.data_stage).
+"""Snakemake adapter: ingest one shard of the runs of each of the job's scenarios into Parquet
+tables, resample each run's IMU (config `resample`) in passing and, when the shard holds all
+the scenario's runs, write the scenario's data summary (see wsnloc.data_stage).
 
 A run over the quarantine limits fails the job; its quarantine table is kept beside the
-job's log (logs/ingest/<job>/<run>.quarantine.csv), which Snakemake does not delete.
+job's log (the task's keep_dir, logs/ingest/<job>/...), which Snakemake does not delete.
 """
 
-from pathlib import Path
+from types import SimpleNamespace
 
 from wsnloc.campaign import Campaign
 from wsnloc.data_stage import ingest_shard, summarize_scenario
@@ -16,14 +16,19 @@ from wsnloc.workflow import end_job, start_job
 
 sm = snakemake  # noqa: F821  (injected by Snakemake)
 log = start_job(sm.log[0], "ingest")
-campaign = Campaign.load(sm.input.campaign)
-limits = QuarantineLimits(per_run=sm.params.max_quarantine_share, per_file=sm.params.max_quarantine_share_per_file)
-try:
-    ingest_shard(sm.params.format, dict(zip(sm.params.runs, sm.params.raw_dirs)), campaign, sm.output.tables,
-                 sm.output.imu_5hz, limits, sm.params.resample, Path(sm.log[0]).with_suffix(""), log)
-except IngestError as exc:
-    log.error("%s", exc)
-    raise
-if "summary" in sm.output.keys():
-    summarize_scenario(sm.output.tables, sm.output.imu_5hz, campaign, sm.params.label, sm.output, log)
+limits = QuarantineLimits(**sm.params.limits)
+campaigns = {}
+for task in sm.params.tasks:
+    if task["campaign"] not in campaigns:
+        campaigns[task["campaign"]] = Campaign.load(task["campaign"])
+    campaign = campaigns[task["campaign"]]
+    try:
+        ingest_shard(task["format"], dict(zip(task["runs"], task["raw_dirs"])), campaign, task["tables"],
+                     task["imu_5hz"], limits, sm.params.resample, task["keep_dir"], log)
+    except IngestError as exc:
+        log.error("%s: %s", task["label"], exc)
+        raise
+    if task["summary"]:
+        summarize_scenario(task["tables"], task["imu_5hz"], campaign, task["label"], SimpleNamespace(**task["summary"]),
+                           log)
 end_job()
