@@ -108,8 +108,9 @@ def workflow_copy(tree: Path, name: str, runs: int | None, small: bool) -> Path:
         shutil.rmtree(target)
     target.mkdir(parents=True)
     shutil.copy(tree / "Snakefile", target)
-    shutil.copytree(tree / "workflow", target / "workflow")
-    shutil.copytree(tree / "config", target / "config")
+    for folder in ("workflow", "config", "profiles"):     # profiles/default: Snakemake's workflow profile
+        if (tree / folder).is_dir():
+            shutil.copytree(tree / folder, target / folder)
     path = target / "config" / "config.yaml"
     config = yaml.safe_load(path.read_text())
     if runs is not None:
@@ -195,7 +196,9 @@ def script_imports(script: Path) -> str:
 
 def bench_job_imports(trees: dict[str, Path]) -> dict[str, dict[str, float]]:
     """Per workflow script and tree: minimum over 3 runs of a fresh interpreter doing only the
-    script's imports (s); the trees alternate, so that a change of load hits both alike."""
+    script's imports (s), the start-up of a job in an interpreter of its own (a Snakemake
+    `script:` job, or a job off Linux); the trees alternate, so that a change of load hits both
+    alike."""
     out = {label: {} for label in trees}
     for script in sorted((ROOT / "workflow" / "scripts").glob("*.py")):
         for _ in range(3):
@@ -205,6 +208,24 @@ def bench_job_imports(trees: dict[str, Path]) -> dict[str, dict[str, float]]:
                     t = python(script_imports(path), tree / "src")[0]
                     out[label][script.stem] = min(t, out[label].get(script.stem, t))
     return out
+
+
+def job_server_round_trip(repeats: int = 20) -> float:
+    """Seconds from run_script to its return for an empty script in a running job server
+    (request, fork, exit, reply): the start-up of a job of the workflow; best of `repeats`,
+    in a fresh interpreter whose server has run the workflow scripts' imports."""
+    code = (
+        "import tempfile, time; from pathlib import Path\n"
+        "from wsnloc.job_server import run_script, script_imports, start_server\n"
+        f"preload = script_imports(sorted(Path({str(ROOT / 'workflow' / 'scripts')!r}).glob('*.py')))\n"
+        "start_server(preload)\n"
+        "script = Path(tempfile.mkdtemp()) / 'empty.py'; script.write_text('')\n"
+        "run_script(script, preload); time.sleep(3.0)   # the server has imported meanwhile\n"
+        "best = float('inf')\n"
+        f"for _ in range({repeats}):\n"
+        "    t = time.perf_counter(); run_script(script, preload); best = min(best, time.perf_counter() - t)\n"
+        "print(best)\n")
+    return float(python(code, ROOT / "src")[1])
 
 
 def seconds_per_simulated_run(tree: Path) -> float:
@@ -423,7 +444,11 @@ def write(r: dict, path: Path, command: str) -> None:
         "Job wall time per rule (median cold build, from Snakemake's log, 1 s resolution):", "",
         "| rule | jobs | job time [s] |", "|---|---|---|",
         *[f"| {rule} | {jobs} | {seconds:.0f} |" for rule, (jobs, seconds) in w["per_rule"].items()],
-        "", "## Start-up of each job: its script's module-level imports in a fresh interpreter", "",
+        "", "## Start-up of a job", "",
+        f"In the job server (wsnloc.job_server, current code): {r['round_trip'] * 1e3:.1f} ms from `run_script` to its "
+        "return for an empty script (request, fork, exit, reply; best of 20), "
+        f"{r['round_trip'] / floor:.4f} import floors. In an interpreter of its own (a Snakemake `script:` job, as "
+        "in the previous code, or a job off Linux), a job first runs its script's module-level imports:", "",
         "| script | current [s] | previous [s] |", "|---|---|---|",
         *[f"| {name} | {t:.2f} | {imports_before.get(name, float('nan')):.2f} |" for name, t in imports_now.items()],
         f"| sum | {sum(imports_now.values()):.2f} | {sum(imports_before.values()):.2f} |",
@@ -479,6 +504,7 @@ def main() -> int:
         "filters": bench_filters(args.repeats),
         "estimators": bench_estimators(args.repeats),
         "imports": bench_job_imports({"current": ROOT, "previous": previous}),
+        "round_trip": job_server_round_trip(),
         "sim": bench_simulator({"current": ROOT, "previous": previous}),
         "workflow": bench_workflow(args.repeats, args.small),
         "mc_repeats": args.mc_repeats,

@@ -5,7 +5,6 @@ nothing to do, a damaged raw line ends up in quarantine and is counted in the re
 and a bad config value stops the run before any job with the key named.
 """
 
-import os
 import re
 import subprocess
 import sys
@@ -202,28 +201,6 @@ def test_compile_bytecode_writes_each_module_once(tmp_path):
     written = [c.stat().st_mtime_ns for c in caches]
     compile_bytecode(package)                      # up to date: nothing rewritten
     assert [c.stat().st_mtime_ns for c in caches] == written
-
-
-@pytest.mark.parametrize("fails", [False, True])
-def test_end_job_exits_zero_with_logs_and_streams_flushed(tmp_path, fails):
-    log = tmp_path / "job.log"
-    script = tmp_path / "job.py"
-    script.write_text(
-        "import sys\n"
-        "from wsnloc.workflow import end_job, start_job\n"
-        f"log = start_job({str(log)!r}, 'job')\n"
-        "log.info('written')\n"
-        "sys.stdout.write('out, no newline')\n"
-        f"{'raise RuntimeError(' + repr('boom') + ')' if fails else ''}\n"
-        "end_job()\n"
-        "print('never printed')\n")
-    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}   # stdout block-buffered
-    result = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, env=env)
-    assert "written" in log.read_text()
-    if fails:                                      # an error before end_job keeps its exit status
-        assert result.returncode == 1 and "boom" in result.stderr
-    else:
-        assert result.returncode == 0 and result.stdout == "out, no newline"
 
 
 def test_start_job_freezes_the_imported_objects_and_logs_to_the_rule_log(tmp_path):

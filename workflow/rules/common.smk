@@ -3,6 +3,7 @@ from pathlib import Path
 
 
 from wsnloc.estimators import registry as _registry
+from wsnloc.job_server import run_script, script_imports, start_server
 from wsnloc.studies import cell_params, estimator_of, reads_rss, study_cells
 from wsnloc.workflow import (
     dataset_runs,
@@ -13,7 +14,24 @@ from wsnloc.workflow import (
     simulated_shards,
 )
 
-ENV = "../envs/wsnloc.yaml"
+# Every rule runs its script (workflow/scripts/) in a child forked from one job server that
+# has run the scripts' imports (wsnloc.job_server): no job pays an interpreter's start-up. The
+# server starts here, so that it imports while Snakemake builds the DAG (a dry run starts it
+# too, and stops it at exit).
+SCRIPTS = Path(workflow.basedir) / "workflow" / "scripts"
+SCRIPT_IMPORTS = script_imports(sorted(SCRIPTS.glob("*.py")))
+start_server(SCRIPT_IMPORTS)
+
+
+def script_file(name):
+    """The script of a rule: one of its inputs, so that editing it re-runs the rule's jobs."""
+    return str(SCRIPTS / f"{name}.py")
+
+
+def run_job(input, output, params, wildcards, log):
+    """A rule's `run:` block: its script (input.script) in the job server, with a `snakemake`
+    object of the rule's input, output, params, wildcards and log."""
+    run_script(input.script, SCRIPT_IMPORTS, input=input, output=output, params=params, wildcards=wildcards, log=log)
 # Job order on few cores (higher first among ready jobs): the data chain (simulate, ingest)
 # first, Newcom++ before Cricket, so that every estimator job is ready early; then papers A, C
 # and D (5-10 s each: estimators, then tables and figures) and the geometry job (floor plans,

@@ -23,6 +23,7 @@ for _format, _pairs in SIMULATED_PAIRS.items():
             name:
                 f"ingest_{_format}_{_shard.replace('-', '')}"
             input:
+                script=script_file("ingest"),
                 raw=[f for d, s in _pairs for f in raw_files(d, s, simulated_shards(config)[_shard])],
                 campaigns=sorted({task["campaign"] for task in _tasks}),
             output:
@@ -35,16 +36,15 @@ for _format, _pairs in SIMULATED_PAIRS.items():
             priority: PRIORITY["ingest"]
             log:
                 f"logs/ingest/{_format}-{_shard}.log",
-            conda:
-                ENV
-            script:
-                "../scripts/ingest.py"
+            run:
+                run_job(input, output, params, wildcards, log)
 
 
 rule ingest:
     wildcard_constraints:
         dataset=REAL_DATASETS,
     input:
+        script=script_file("ingest"),
         raw=raw_inputs,
         campaign=campaign_file,
     output:
@@ -58,7 +58,5 @@ rule ingest:
     priority: PRIORITY["ingest"]
     log:
         f"logs/ingest/{{dataset}}-{{scenario}}-{ONE_SHARD}.log",
-    conda:
-        ENV
-    script:
-        "../scripts/ingest.py"
+    run:
+        run_job(input, output, params, wildcards, log)

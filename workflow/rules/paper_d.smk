@@ -13,6 +13,7 @@ PAPER_D_FILES = scenario_files(PAPER_D_PAIRS, "paper_d", (("estimates", "parquet
 
 rule paper_d:
     input:
+        script=script_file("paper_d"),
         tables=all_tables(PAPER_D_PAIRS),
         campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_D_PAIRS}),
         papers="config/papers.yaml",
@@ -32,7 +33,5 @@ rule paper_d:
     priority: PRIORITY["paper"]
     log:
         "logs/paper_d/paper_d.log",
-    conda:
-        ENV
-    script:
-        "../scripts/paper_d.py"
+    run:
+        run_job(input, output, params, wildcards, log)

@@ -9,6 +9,7 @@ STUDY_OUTPUTS = ["results.csv", "figures/error_cdf.png", "figures/error_over_tim
 
 rule report:
     input:
+        script=script_file("report"),
         summaries=scenario_outputs("data/processed/{dataset}/{scenario}/data_summary.json"),
         results=scenario_outputs("data/processed/{dataset}/{scenario}/data_results.csv"),
         figures=scenario_outputs("data/processed/{dataset}/{scenario}/figures/range_error.png")
@@ -85,7 +86,5 @@ rule report:
         studies=STUDIES,
     log:
         "logs/report/report.log",
-    conda:
-        ENV
-    script:
-        "../scripts/report.py"
+    run:
+        run_job(input, output, params, wildcards, log)

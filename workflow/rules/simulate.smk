@@ -10,6 +10,7 @@ for _format, _pairs in SIMULATED_PAIRS.items():
             name:
                 f"simulate_{_format}_{_shard.replace('-', '')}"
             input:
+                script=script_file("simulate"),
                 campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in _pairs}),
             output:
                 [f"data/raw/{d}/{s}/{run}/{file}" for d, s in _pairs for run in _runs
@@ -22,7 +23,5 @@ for _format, _pairs in SIMULATED_PAIRS.items():
             priority: PRIORITY[f"simulate_{_format}"]
             log:
                 f"logs/simulate/{_format}-{_shard}.log",
-            conda:
-                ENV
-            script:
-                "../scripts/simulate.py"
+            run:
+                run_job(input, output, params, wildcards, log)

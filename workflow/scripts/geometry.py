@@ -10,9 +10,9 @@ from wsnloc.analysis.static_bounds import NoiseModel, floor_maps, path_rows, sub
 from wsnloc.campaign import Campaign
 from wsnloc.io import tables
 from wsnloc.report import bound_figures, figures
-from wsnloc.workflow import end_job, start_job
+from wsnloc.workflow import start_job
 
-sm = snakemake  # noqa: F821  (injected by Snakemake)
+sm = snakemake  # noqa: F821  (injected by wsnloc.job_server: the rule's input, output, params, wildcards, log)
 log = start_job(sm.log[0], "geometry")
 
 
@@ -47,4 +47,3 @@ for i, (dataset, spec) in enumerate(sm.params.datasets.items()):
         k = bounded.index(dataset)
         static_bounds(dataset, campaign, sm.params.bounds[dataset],
                       {name: getattr(sm.output, name)[k] for name in ("maps", "results", "ranking")})
-end_job()

@@ -12,9 +12,9 @@ from wsnloc.campaign import Campaign
 from wsnloc.data_stage import ingest_shard, summarize_scenario
 from wsnloc.errors import IngestError
 from wsnloc.io.limits import QuarantineLimits
-from wsnloc.workflow import end_job, start_job
+from wsnloc.workflow import start_job
 
-sm = snakemake  # noqa: F821  (injected by Snakemake)
+sm = snakemake  # noqa: F821  (injected by wsnloc.job_server: the rule's input, output, params, wildcards, log)
 log = start_job(sm.log[0], "ingest")
 limits = QuarantineLimits(**sm.params.limits)
 campaigns = {}
@@ -31,4 +31,3 @@ for task in sm.params.tasks:
     if task["summary"]:
         summarize_scenario(task["tables"], task["imu_5hz"], campaign, task["label"], SimpleNamespace(**task["summary"]),
                            log)
-end_job()

@@ -17,9 +17,9 @@ from wsnloc.experiments import calibration, claims as claims_of, paper_a, sensit
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import bound_figures, figures
-from wsnloc.workflow import each_scenario, end_job, read_scenario_files, start_job
+from wsnloc.workflow import each_scenario, read_scenario_files, start_job
 
-sm = snakemake  # noqa: F821  (injected by Snakemake)
+sm = snakemake  # noqa: F821  (injected by wsnloc.job_server: the rule's input, output, params, wildcards, log)
 log = start_job(sm.log[0], "paper_a")
 settings = paper_a.Settings.from_config(sm.params.settings)
 
@@ -107,4 +107,3 @@ def summarize(motions: dict[str, str]) -> None:
 
 summarize({label: run_scenario(label, campaign, out) for label, campaign, out
            in each_scenario(sm.params.sources, sm.output, ("estimates", "metrics", "quality", "sensitivity"))})
-end_job()

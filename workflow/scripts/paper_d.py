@@ -14,9 +14,9 @@ from wsnloc.experiments import claims as claims_of, paper_d, sensitivity
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import figures
-from wsnloc.workflow import each_scenario, end_job, read_scenario_files, start_job
+from wsnloc.workflow import each_scenario, read_scenario_files, start_job
 
-sm = snakemake  # noqa: F821  (injected by Snakemake)
+sm = snakemake  # noqa: F821  (injected by wsnloc.job_server: the rule's input, output, params, wildcards, log)
 log = start_job(sm.log[0], "paper_d")
 settings = paper_d.Settings.from_config(sm.params.settings)
 
@@ -84,4 +84,3 @@ def summarize() -> None:
 for label, campaign, out in each_scenario(sm.params.sources, sm.output, ("estimates", "metrics", "sensitivity")):
     run_scenario(label, campaign, out)
 summarize()
-end_job()

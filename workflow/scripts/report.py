@@ -11,9 +11,9 @@ from wsnloc.report import explanations
 from wsnloc.report.render import build_context, png_data_uri, render
 from wsnloc.report.sections import (paper_a_section, paper_b_section, paper_c_section, paper_d_section,
                                     sensitivity_table, static_bounds_section, study_section, summary)
-from wsnloc.workflow import end_job, start_job
+from wsnloc.workflow import start_job
 
-sm = snakemake  # noqa: F821  (injected by Snakemake)
+sm = snakemake  # noqa: F821  (injected by wsnloc.job_server: the rule's input, output, params, wildcards, log)
 log = start_job(sm.log[0], "report")
 config = sm.params.config
 
@@ -72,4 +72,3 @@ context["summary"] = summary(context["papers"])
 html = render(sm.input.template, context)
 Path(sm.output.html).write_text(html, encoding="utf-8")
 log.info("report: %d bytes, %d results rows", len(html), len(all_results))
-end_job()

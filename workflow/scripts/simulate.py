@@ -5,9 +5,9 @@ from pathlib import Path
 from wsnloc.campaign import Campaign
 from wsnloc.sim import SIMULATORS
 from wsnloc.sim.seeding import run_seed_sequence
-from wsnloc.workflow import SIMULATED_ROOT, end_job, start_job
+from wsnloc.workflow import SIMULATED_ROOT, start_job
 
-sm = snakemake  # noqa: F821  (injected by Snakemake)
+sm = snakemake  # noqa: F821  (injected by wsnloc.job_server: the rule's input, output, params, wildcards, log)
 log = start_job(sm.log[0], "simulate")
 campaigns = {}
 for spec in sm.params.scenarios:
@@ -22,4 +22,3 @@ for spec in sm.params.scenarios:
         out = simulate_run(campaign, scenario, seeds, Path(SIMULATED_ROOT) / dataset / scenario / run,
                            meta={"run": run, "base_seed": sm.params.seed, "dataset": dataset})
         log.info("simulated %s", out)
-end_job()

@@ -5,9 +5,9 @@ from wsnloc.estimators import registry
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.studies import quality_table, run_cell
-from wsnloc.workflow import end_job, start_job
+from wsnloc.workflow import start_job
 
-sm = snakemake  # noqa: F821  (injected by Snakemake)
+sm = snakemake  # noqa: F821  (injected by wsnloc.job_server: the rule's input, output, params, wildcards, log)
 log = start_job(sm.log[0], "study_cell")
 cell = sm.params.cell
 name, params = cell["estimator"], cell["parameters"]
@@ -22,4 +22,3 @@ metrics.to_csv(sm.output.metrics, index=False, float_format="%.6g")
 quality_table(estimates).to_parquet(sm.output.quality, index=False, compression="zstd")
 log.info("%s on %s: %d runs x %d subsets, parameters %s", cell_name, sm.params.label, len(runs),
          len(cell["subsets"]), params)
-end_job()

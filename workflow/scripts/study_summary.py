@@ -8,9 +8,9 @@ from wsnloc import results
 from wsnloc.io import tables
 from wsnloc.report import bound_figures, figures
 from wsnloc.studies import bound_summary, results_rows, study_panels
-from wsnloc.workflow import end_job, start_job
+from wsnloc.workflow import start_job
 
-sm = snakemake  # noqa: F821  (injected by Snakemake)
+sm = snakemake  # noqa: F821  (injected by wsnloc.job_server: the rule's input, output, params, wildcards, log)
 log = start_job(sm.log[0], "study_summary")
 study = sm.wildcards.study
 rows, estimates = [], {}
@@ -33,4 +33,3 @@ Path(sm.output.cdf).write_bytes(figures.error_cdf(cdf, xmax=None))
 Path(sm.output.errors).write_bytes(figures.error_over_time(errors))
 Path(sm.output.tracks).write_bytes(figures.trajectories(tracks))
 log.info("study %s: %d cells, %d results rows", study, len(estimates), len(rows))
-end_job()

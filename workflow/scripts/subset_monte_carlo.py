@@ -5,9 +5,9 @@ from wsnloc import results
 from wsnloc.analysis.static_bounds import NoiseModel, monte_carlo_rows
 from wsnloc.campaign import Campaign
 from wsnloc.metrics.data_quality import load_runs
-from wsnloc.workflow import end_job, start_job
+from wsnloc.workflow import start_job
 
-sm = snakemake  # noqa: F821  (injected by Snakemake)
+sm = snakemake  # noqa: F821  (injected by wsnloc.job_server: the rule's input, output, params, wildcards, log)
 log = start_job(sm.log[0], "subset_monte_carlo")
 campaign = Campaign.load(sm.input.campaign)
 runs = load_runs(sm.input.tables, ("ranges", "rss", "truth", "anchors"))
@@ -25,4 +25,3 @@ for tech, sizes in sm.params.sizes.items():
         for failure in failures:
             log.warning("no RMSE: %s", failure)
 results.write(rows, sm.output.results)
-end_job()
