@@ -22,7 +22,6 @@ run in scratch copies under benchmarks/out/ (git-ignored), never in the working 
 from __future__ import annotations
 
 import argparse
-import ast
 import datetime
 import os
 import platform
@@ -37,6 +36,9 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
+from wsnloc.job_server import script_imports  # noqa: E402  (this tree's wsnloc, on sys.path above)
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "benchmarks" / "out"
@@ -188,12 +190,6 @@ def bench_workflow(repeats: int, small: bool) -> dict:
             "alone_s": last_job_alone_s(median["log"]), "noop_s": statistics.median(noops)}
 
 
-def script_imports(script: Path) -> str:
-    """The module-level import statements of a workflow script, as one line of code."""
-    tree = ast.parse(script.read_text())
-    return "; ".join(ast.unparse(node) for node in tree.body if isinstance(node, (ast.Import, ast.ImportFrom)))
-
-
 def bench_job_imports(trees: dict[str, Path]) -> dict[str, dict[str, float]]:
     """Per workflow script and tree: minimum over 3 runs of a fresh interpreter doing only the
     script's imports (s), the start-up of a job in an interpreter of its own (a Snakemake
@@ -205,25 +201,30 @@ def bench_job_imports(trees: dict[str, Path]) -> dict[str, dict[str, float]]:
             for label, tree in trees.items():
                 path = tree / "workflow" / "scripts" / script.name
                 if path.exists():
-                    t = python(script_imports(path), tree / "src")[0]
+                    t = python("; ".join(script_imports([path])), tree / "src")[0]
                     out[label][script.stem] = min(t, out[label].get(script.stem, t))
     return out
 
 
 def job_server_round_trip(repeats: int = 20) -> float:
-    """Seconds from run_script to its return for an empty script in a running job server
+    """Seconds from JobServer.run to its return for an empty script in a running job server
     (request, fork, exit, reply): the start-up of a job of the workflow; best of `repeats`,
-    in a fresh interpreter whose server has run the workflow scripts' imports."""
+    in a fresh interpreter, once its server has run the workflow scripts' imports (polled
+    with a job that looks for the last of them)."""
     code = (
         "import tempfile, time; from pathlib import Path\n"
-        "from wsnloc.job_server import run_script, script_imports, start_server\n"
-        f"preload = script_imports(sorted(Path({str(ROOT / 'workflow' / 'scripts')!r}).glob('*.py')))\n"
-        "start_server(preload)\n"
-        "script = Path(tempfile.mkdtemp()) / 'empty.py'; script.write_text('')\n"
-        "run_script(script, preload); time.sleep(3.0)   # the server has imported meanwhile\n"
+        "from wsnloc.job_server import JobServer, script_imports\n"
+        f"jobs = JobServer(script_imports(sorted(Path({str(ROOT / 'workflow' / 'scripts')!r}).glob('*.py'))))\n"
+        "folder = Path(tempfile.mkdtemp()); empty, probe = folder / 'empty.py', folder / 'probe.py'\n"
+        "empty.write_text('')\n"
+        "probe.write_text('import sys; open(snakemake.output[0], \"w\").write(str(sorted(sys.modules)))')\n"
+        "last = jobs.preload[-1].split()[1]\n"
+        "modules = folder / 'modules'\n"
+        "while not (modules.exists() and repr(last) in modules.read_text()):\n"
+        "    jobs.run(probe, output=[str(modules)]); time.sleep(0.1)\n"
         "best = float('inf')\n"
         f"for _ in range({repeats}):\n"
-        "    t = time.perf_counter(); run_script(script, preload); best = min(best, time.perf_counter() - t)\n"
+        "    t = time.perf_counter(); jobs.run(empty); best = min(best, time.perf_counter() - t)\n"
         "print(best)\n")
     return float(python(code, ROOT / "src")[1])
 
@@ -494,7 +495,6 @@ def main() -> int:
     args = parser.parse_args()
     if len(args.mc_runs) < 2 or min(args.mc_runs) < 2:
         parser.error("--mc-runs needs at least two run counts, each >= 2 (RSS calibration uses another run)")
-    sys.path.insert(0, str(ROOT / "src"))           # the filter benchmarks import this tree's wsnloc
     OUT.mkdir(parents=True, exist_ok=True)
     previous = export_revision(args.previous)
     results = {

@@ -32,7 +32,7 @@ rule geometry:
     log:
         "logs/geometry.log",
     run:
-        run_job(input, output, params, wildcards, log)
+        run_job(input, output, params, wildcards, log, threads, resources)
 
 
 rule subset_monte_carlo:
@@ -52,4 +52,4 @@ rule subset_monte_carlo:
     log:
         "logs/subset_monte_carlo/{dataset}-{scenario}.log",
     run:
-        run_job(input, output, params, wildcards, log)
+        run_job(input, output, params, wildcards, log, threads, resources)

@@ -3,7 +3,7 @@ from pathlib import Path
 
 
 from wsnloc.estimators import registry as _registry
-from wsnloc.job_server import run_script, script_imports, start_server
+from wsnloc.job_server import JobServer, script_imports
 from wsnloc.studies import cell_params, estimator_of, reads_rss, study_cells
 from wsnloc.workflow import (
     dataset_runs,
@@ -15,12 +15,10 @@ from wsnloc.workflow import (
 )
 
 # Every rule runs its script (workflow/scripts/) in a child forked from one job server that
-# has run the scripts' imports (wsnloc.job_server): no job pays an interpreter's start-up. The
-# server starts here, so that it imports while Snakemake builds the DAG (a dry run starts it
-# too, and stops it at exit).
+# has run the scripts' imports (wsnloc.job_server): no job pays an interpreter's start-up.
+# The server starts at the first job; the snakemake objects' classes unpickle in the jobs.
 SCRIPTS = Path(workflow.basedir) / "workflow" / "scripts"
-SCRIPT_IMPORTS = script_imports(sorted(SCRIPTS.glob("*.py")))
-start_server(SCRIPT_IMPORTS)
+JOBS = JobServer(["import snakemake.iocontainers"] + script_imports(sorted(SCRIPTS.glob("*.py"))))
 
 
 def script_file(name):
@@ -28,10 +26,15 @@ def script_file(name):
     return str(SCRIPTS / f"{name}.py")
 
 
-def run_job(input, output, params, wildcards, log):
-    """A rule's `run:` block: its script (input.script) in the job server, with a `snakemake`
-    object of the rule's input, output, params, wildcards and log."""
-    run_script(input.script, SCRIPT_IMPORTS, input=input, output=output, params=params, wildcards=wildcards, log=log)
+def run_job(input, output, params, wildcards, log, threads, resources):
+    """A rule's `run:` block: its script (input.script) with a `snakemake` object of the rule's
+    input, output, params, wildcards, log, threads and resources; forked from the job server
+    in Snakemake's main process, in a fresh interpreter in a process that runs one job (a
+    cluster job, or a run without the workflow profile's force-use-threads)."""
+    JOBS.run(input.script, fork=workflow.is_main_process, threads=threads, input=input, output=output,
+             params=params, wildcards=wildcards, log=log, resources=resources)
+
+
 # Job order on few cores (higher first among ready jobs): the data chain (simulate, ingest)
 # first, Newcom++ before Cricket, so that every estimator job is ready early; then papers A, C
 # and D (5-10 s each: estimators, then tables and figures) and the geometry job (floor plans,

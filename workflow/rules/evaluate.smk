@@ -18,4 +18,4 @@ if not SUMMARY_IN_INGEST:
         log:
             "logs/summarize_data/{dataset}-{scenario}.log",
         run:
-            run_job(input, output, params, wildcards, log)
+            run_job(input, output, params, wildcards, log, threads, resources)

@@ -37,7 +37,7 @@ for _format, _pairs in SIMULATED_PAIRS.items():
             log:
                 f"logs/ingest/{_format}-{_shard}.log",
             run:
-                run_job(input, output, params, wildcards, log)
+                run_job(input, output, params, wildcards, log, threads, resources)
 
 
 rule ingest:
@@ -59,4 +59,4 @@ rule ingest:
     log:
         f"logs/ingest/{{dataset}}-{{scenario}}-{ONE_SHARD}.log",
     run:
-        run_job(input, output, params, wildcards, log)
+        run_job(input, output, params, wildcards, log, threads, resources)

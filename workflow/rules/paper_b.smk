@@ -43,4 +43,4 @@ rule paper_b:
     log:
         "logs/paper_b/paper_b.log",
     run:
-        run_job(input, output, params, wildcards, log)
+        run_job(input, output, params, wildcards, log, threads, resources)

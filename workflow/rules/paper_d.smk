@@ -34,4 +34,4 @@ rule paper_d:
     log:
         "logs/paper_d/paper_d.log",
     run:
-        run_job(input, output, params, wildcards, log)
+        run_job(input, output, params, wildcards, log, threads, resources)

@@ -36,7 +36,7 @@ rule paper_a:
     log:
         "logs/paper_a/paper_a.log",
     run:
-        run_job(input, output, params, wildcards, log)
+        run_job(input, output, params, wildcards, log, threads, resources)
 
 
 # Paper C's scenarios are short (a few seconds each, about half of it job start-up): one job
@@ -71,4 +71,4 @@ rule paper_c:
     log:
         "logs/paper_c/paper_c.log",
     run:
-        run_job(input, output, params, wildcards, log)
+        run_job(input, output, params, wildcards, log, threads, resources)

@@ -87,4 +87,4 @@ rule report:
     log:
         "logs/report/report.log",
     run:
-        run_job(input, output, params, wildcards, log)
+        run_job(input, output, params, wildcards, log, threads, resources)

@@ -24,4 +24,4 @@ for _format, _pairs in SIMULATED_PAIRS.items():
             log:
                 f"logs/simulate/{_format}-{_shard}.log",
             run:
-                run_job(input, output, params, wildcards, log)
+                run_job(input, output, params, wildcards, log, threads, resources)

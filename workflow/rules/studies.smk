@@ -17,7 +17,7 @@ rule study_cell:
     log:
         "logs/studies/{study}/{dataset}-{scenario}-{cell}.log",
     run:
-        run_job(input, output, params, wildcards, log)
+        run_job(input, output, params, wildcards, log, threads, resources)
 
 
 rule study_summary:
@@ -43,4 +43,4 @@ rule study_summary:
     log:
         "logs/studies/{study}/summary.log",
     run:
-        run_job(input, output, params, wildcards, log)
+        run_job(input, output, params, wildcards, log, threads, resources)
