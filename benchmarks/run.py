@@ -446,7 +446,7 @@ def write(r: dict, path: Path, command: str) -> None:
         "| rule | jobs | job time [s] |", "|---|---|---|",
         *[f"| {rule} | {jobs} | {seconds:.0f} |" for rule, (jobs, seconds) in w["per_rule"].items()],
         "", "## Start-up of a job", "",
-        f"In the job server (wsnloc.job_server, current code): {r['round_trip'] * 1e3:.1f} ms from `run_script` to its "
+        f"In the job server (wsnloc.job_server, current code): {r['round_trip'] * 1e3:.1f} ms from `JobServer.run` to its "
         "return for an empty script (request, fork, exit, reply; best of 20), "
         f"{r['round_trip'] / floor:.4f} import floors. In an interpreter of its own (a Snakemake `script:` job, as "
         "in the previous code, or a job off Linux), a job first runs its script's module-level imports:", "",
