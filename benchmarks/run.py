@@ -37,10 +37,10 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
-from wsnloc.job_server import script_imports  # noqa: E402  (this tree's wsnloc, on sys.path above)
-
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "src"))          # this tree's wsnloc (job server, filters, estimators)
+from wsnloc.job_server import script_imports  # noqa: E402  (after the line above)
+
 OUT = ROOT / "benchmarks" / "out"
 IMPORT_FLOOR = "import numpy, pandas, pyarrow.parquet, scipy.signal, matplotlib.pyplot"
 SIM_SCENARIO = ("newcom", "variable")

@@ -1,7 +1,7 @@
 """Run the workflow's jobs in children forked from one pre-loaded Python process.
 
 A Snakemake `script:` job starts a new interpreter, which imports numpy, pandas, pyarrow and
-wsnloc (and matplotlib in the figure jobs) again before it does any work: 0.5-1.2 s of CPU per
+wsnloc (and matplotlib in the figure jobs) again before it does any work: 0.5-1.3 s of CPU per
 job, about a seventh of the default build. Instead, each rule's `run:` block calls
 `JobServer.run(...)`. At the first job, the JobServer of the Snakemake process starts the
 server (`python -m wsnloc.job_server STATEMENT ...`), which runs the import statements of
