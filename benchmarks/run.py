@@ -376,12 +376,12 @@ BATCH_RUNS = 50
 
 
 def batched_ekf(anchors: np.ndarray, ranges: np.ndarray, F: np.ndarray, Q: np.ndarray):
-    """A function stepping estimators.batched's EKF over ranges (runs, steps, m) to `anchors`
+    """A function stepping estimators.array_ekf's EKF over ranges (runs, steps, m) to `anchors`
     (range sigma 0.3 m, start [5, 5, 0, 0], P0 = I, as the filterpy EKF above); it checks
     once that run 0 ends where filterpy ends on the same ranges."""
     from filterpy.kalman import ExtendedKalmanFilter as FpEKF
 
-    from wsnloc.estimators.batched import Measurements, predict, update
+    from wsnloc.estimators.array_ekf import Measurements, predict, update
     from wsnloc.filters.measurement_models import RangeModel
 
     runs, steps, m = ranges.shape

@@ -1,4 +1,5 @@
-"""Batched epoch-mode EKF: all runs stepped together give registry.run's estimates, run by run."""
+"""Cells stepped together (batched, core.epoch_loop with the array EKF bank) give registry.run's
+estimates, run by run (registry.run of one cell runs the filter objects of core.FilterBank)."""
 
 
 import numpy as np
@@ -8,7 +9,7 @@ import pytest
 from synthetic import SQUARE, bursts, run_data, tables_for, walk
 from conftest import ROOT
 from wsnloc.campaign import Campaign
-from wsnloc.estimators import batched, bayes, registry
+from wsnloc.estimators import array_ekf, batched, bayes, core, registry
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import paper_a, paper_c
 from wsnloc.io.cricket import ingest_run as ingest_cricket
@@ -31,6 +32,14 @@ SETTINGS_C = dict(epoch_s=0.5, table_1_subset="6: B1..B6",
                   table_2_scenario="cricket/speed_40", range_sigma_m=0.05, max_range_m=12.0, p_sigma_m=0.15,
                   pv_accel_sigma_mps2=0.3, pva_accel_sigma_mps2=0.1, pva_bias_walk_sigma=0.01, initial_sigma_m=0.5,
                   initial_speed_sigma_mps=0.3, initial_bias_sigma_mps2=0.05, static_bias_s=4.0)
+
+
+def _arrays(monkeypatch, call):
+    """call() with every group of bare epoch-mode EKF cells, even of one or two cells, run as the
+    array EKF (array_ekf.ArrayEKF); registry.run of one cell outside it runs the filter objects."""
+    with monkeypatch.context() as patch:
+        patch.setattr(bayes, "ARRAY_MIN_CELLS", 1)
+        return call()
 
 
 @pytest.fixture(scope="module")
@@ -71,31 +80,33 @@ CASES = {
 
 
 @pytest.mark.parametrize("case", CASES)
-def test_batched_equals_registry_run_one_run_at_a_time(campaign, simulated_runs, case):
+def test_batched_equals_registry_run_one_run_at_a_time(campaign, simulated_runs, case, monkeypatch):
     params = dict(CASES[case], update="epoch", preliminary_filter=True, max_range_m=50.0)
     single = [registry.run("ekf", data, params) for data in _datas(simulated_runs, campaign)]
     batch = batched.run_many("ekf", _datas(simulated_runs, campaign), params)
     _assert_same(batch, single)
+    alone = [_arrays(monkeypatch, lambda: registry.run("ekf", data, params)) for data in _datas(simulated_runs, campaign)]
+    _assert_same(alone, single)
     assert all(len(s) > 100 for s in single)
 
 
-def test_coasting_resets_are_counted_per_run():
+def test_coasting_resets_are_counted_per_run(monkeypatch):
     """A gap longer than the coasting limit in one run only: that run resets, the other does not."""
     t, ids = bursts(60.0)
     gap = (t > 20.0) & (t < 35.0)
     with_gap = run_data(tables_for(t[~gap], ids[~gap], walk))
     without = run_data(tables_for(t, ids, walk))
     params = {"anchors": "all", "max_coast_s": 5.0}
-    batch = batched.run_many("ekf", [with_gap, without], params)
+    batch = _arrays(monkeypatch, lambda: batched.run_many("ekf", [with_gap, without], params))
     single = [registry.run("ekf", d, params) for d in (with_gap, without)]
     _assert_same(batch, single)
     assert [b.attrs["resets"] for b in batch] == [1, 0]
 
 
-def test_noise_free_ranges_are_tracked():
+def test_noise_free_ranges_are_tracked(monkeypatch):
     """The epoch mode outputs at t_k what was measured at t_k - T (the ranges of the bursts)."""
     t, ids = bursts(60.0)
-    (est,) = batched.run_many("ekf", [run_data(tables_for(t, ids, walk))], {"anchors": "all"})
+    (est,) = _arrays(monkeypatch, lambda: batched.run_many("ekf", [run_data(tables_for(t, ids, walk))], {"anchors": "all"}))
     error = np.hypot(*(est[["x", "y"]].to_numpy() - walk(est["t"].to_numpy() - 0.5)).T)
     assert np.median(error[20:]) < 0.02
 
@@ -107,8 +118,8 @@ def test_other_estimators_fall_back_to_one_run_at_a_time():
                          ("ekf", {"update": "sequential"})):
         params = dict(params, anchors="all")
         _assert_same(batched.run_many(name, datas, params), [registry.run(name, datas[0], params)])
-    with pytest.raises(ValueError, match="epoch-mode EKF"):
-        batched.run_epoch_ekf([(datas[0], registry.get("tracker").resolve({}))])
+    assert not array_ekf.supports(registry.get("tracker").resolve({}))
+    assert array_ekf.supports(registry.get("ekf").resolve({}))
 
 
 def test_padded_measurements_change_nothing():
@@ -118,12 +129,12 @@ def test_padded_measurements_change_nothing():
     anchors = np.array(list(SQUARE.values())[:3])
 
     def measurements(width):
-        m = batched.Measurements.empty(1, 1, width)
+        m = array_ekf.Measurements.empty(1, 1, width)
         m.count[0, 0] = 3
         m.anchors[0, 0, :3], m.variance[0, 0, :3], m.z[0, 0, :3] = anchors, 0.09, [7.0, 12.0, 15.0]
         return m.at(0, np.array([0]))
 
-    narrow, wide = batched.update(x, P, measurements(3)), batched.update(x, P, measurements(8))
+    narrow, wide = array_ekf.update(x, P, measurements(3)), array_ekf.update(x, P, measurements(8))
     for a, b in zip(narrow, wide):
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
 
@@ -140,8 +151,8 @@ def test_position_update_equals_the_full_joseph_update(dim):
     H_p, y = rng.normal(0.0, 1.0, (runs, width, 2)), rng.normal(0.0, 2.0, (runs, width))
     variance = rng.choice([0.09, 25.0], (runs, width))
     H = np.concatenate([H_p, np.zeros((runs, width, dim - 2))], axis=2)
-    full = batched.joseph_update(x, P, y, H, variance[:, :, None] * np.eye(width))
-    for a, b in zip(batched.position_update(x, P, y, H_p, 1.0 / variance), full):
+    full = array_ekf.joseph_update(x, P, y, H, variance[:, :, None] * np.eye(width))
+    for a, b in zip(array_ekf.position_update(x, P, y, H_p, 1.0 / variance), full):
         np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-12)
 
 
@@ -219,7 +230,7 @@ def test_track_frames_equal_registry_finish_of_the_filter_frame(campaign, simula
     """Track.finished() is registry.finish(Track.frame()); Track.of reads a frame back."""
     data = _datas(simulated_runs, campaign)[0]
     p = registry.get("ekf").resolve({"update": "epoch", "motion_detection": True}, "")
-    track = batched.epoch_ekf_tracks([(data, p)])[0]
+    track = bayes.run_filters([(data, p)])[0]
     assert track.frame()["n_meas"].dtype == int
     finished = registry.finish(track.frame())
     pd.testing.assert_frame_equal(track.finished(), finished, check_exact=True)
@@ -263,7 +274,7 @@ def test_stacked_equals_the_labelled_frames_concatenated(campaign, simulated_run
     tracks = batched.cell_tracks("ekf", [(d, p) for d in datas] + [(datas[0], dict(p, motion="p"))])
     tracks.append(batched.Track(tracks[0].rows, {**tracks[0].attrs, "resets": -1}))     # other attrs
     labels = {"model": ["PV", "PV", "P", "PV"], "run": ["a", "b", "a", "c"]}
-    for columns in (tuple(bayes.COLUMNS), ("t", "x", "y")):
+    for columns in (tuple(core.COLUMNS), ("t", "x", "y")):
         for chosen in ([0, 1, 2], [0, 2], [1], [0, 3]):
             picked = [tracks[i] for i in chosen]
             names = {name: [values[i] for i in chosen] for name, values in labels.items()}

@@ -8,7 +8,7 @@ covariance (see filters.sliding_window for the residuals and the loss).
 Initiator: the first window with at least 4 ranges spread over at least one knot interval
 (so that the knots' velocity is observable: ranges at a single time leave it free and
 the normal equations singular) whose per-anchor means give a multilateration fix starts
-there at rest. Coasting limit: after `max_coast_s` seconds
+there at rest. Coasting limit (core.CoastingDeleter): after `max_coast_s` seconds
 without a range the solution is dropped (counted as a reset) and restarted by the initiator.
 """
 
@@ -17,29 +17,29 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from wsnloc.estimators.bayes import Track
+from wsnloc.estimators.core import COLUMNS, CoastingDeleter, Track
 from wsnloc.estimators.measurements import MeasurementSource
 from wsnloc.estimators.run_data import RunData
 from wsnloc.filters.sliding_window import STATE, SlidingWindowEstimator
 
 
 def sliding_window(data: RunData, p: dict) -> pd.DataFrame:
-    """Estimates (bayes.COLUMNS; n_meas = ranges in the window, nis NaN) of one run."""
+    """Estimates (core.COLUMNS; n_meas = ranges in the window, nis NaN) of one run."""
     source = MeasurementSource(data, "toa", p["anchors"], p["range_sigma_m"], p["preliminary_filter"],
                                p["max_range_m"], None)
     records = source.records()
     anchors_xy, dz = data.positions(records.anchor), data.height_offsets(records.anchor)
     times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
     window = p["window_s"]
-    track, solver, last_range = Track(), None, -np.inf
+    deleter = CoastingDeleter(p["max_coast_s"])
+    rows, resets, solver, last_range = [], 0, None, -np.inf
     for t_k in times:
         a = int(np.searchsorted(records.t, t_k - window, side="left"))
         b = int(np.searchsorted(records.t, t_k, side="right"))
         if b > a:
             last_range = records.t[b - 1]
-        if solver is not None and t_k - last_range > p["max_coast_s"]:
-            solver = None
-            track.resets += 1
+        if solver is not None and deleter.delete(t_k, last_range, False):
+            solver, resets = None, resets + 1
         initial = None
         if solver is None:
             spread = b - a >= STATE and records.t[b - 1] - records.t[a] >= p["knot_s"]
@@ -51,5 +51,6 @@ def sliding_window(data: RunData, p: dict) -> pd.DataFrame:
             initial = np.array([fix[0], fix[1], 0.0, 0.0])
         estimate = solver.estimate(t_k, records.t[a:b], anchors_xy[a:b], dz[a:b], records.value[a:b],
                                    p["range_sigma_m"], initial)
-        track.emit(t_k, estimate.x, estimate.P, estimate.n_ranges, np.nan)
-    return track.frame()
+        P = estimate.P
+        rows.append((t_k, estimate.x[0], estimate.x[1], P[0, 0], P[0, 1], P[1, 1], estimate.n_ranges, np.nan))
+    return Track(np.array(rows, dtype=float).reshape(len(rows), len(COLUMNS)), {"resets": resets}).frame()

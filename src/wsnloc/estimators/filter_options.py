@@ -8,7 +8,13 @@ with the KalmanFilter interface (x, P, predict(F, Q, u, B), update(z, H, R, hx))
   the campaign walls crossed by the straight line from the current position estimate to
   anchor i (so links through walls, which carry excess path and multipath, weigh less).
 
-The adapter counts the measurements offered and gated over a run (across track restarts)
+The gate and the robust update are one pluggable component, the **updater**
+(`default_updater(p)`): a callable updater(filt, z, H, R, hx) -> bool mask of the measurements
+used, which updates `filt` (x, P, update(z, H, R, hx)) with the model linearised at the prior
+(robust.robust_update with the configured gate and loss by default; pass another as `updater`
+to configured_factory / ConfiguredFilter for another gate or likelihood). The adapter counts
+the measurements offered and gated over a run (across track restarts), judges the track lost
+from the gate's recent rejections (`lost`, which the deleter reads: core.CoastingDeleter)
 and exposes the calibration states; bayes.run_filter copies them to the estimates' attrs.
 """
 
@@ -16,6 +22,8 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass, field
+from functools import partial
+from typing import Callable
 
 import numpy as np
 
@@ -67,19 +75,26 @@ class UpdateCounts:
                 "gate_track_losses": self.track_losses, **self.calibration}
 
 
-class ConfiguredFilter:
-    """A filter with the configured update options (see the module docstring)."""
+def default_updater(p: dict) -> Callable:
+    """The configured gate and robust update: robust.robust_update with gate_probability,
+    robust_loss and robust_c (0: the loss's default tuning)."""
+    loss = p["robust_loss"]
+    options = robust.UpdateOptions(p["gate_probability"], loss, p["robust_c"] or robust.DEFAULT_TUNING.get(loss, 0.0))
+    return partial(robust.robust_update, options=options)
 
-    def __init__(self, filt, p: dict, counts: UpdateCounts, campaign=None):
+
+class ConfiguredFilter:
+    """A filter with the configured update options (see the module docstring); `updater`: the
+    gate and robust update (default default_updater(p))."""
+
+    def __init__(self, filt, p: dict, counts: UpdateCounts, campaign=None, updater: Callable | None = None):
         self.filt, self.counts, self.campaign = filt, counts, campaign
         self.loss_share = p["gate_loss_share"]
         self.recent: deque = deque(maxlen=LOSS_WINDOW)          # (offered, gated) of the last updates
         self.lost = False
         self.mode = p["range_self_calibration"]
         self.extra = len(self_calibration.extra_states(self.mode))
-        loss = p["robust_loss"]
-        self.options = robust.UpdateOptions(p["gate_probability"], loss,
-                                            p["robust_c"] or robust.DEFAULT_TUNING.get(loss, 0.0))
+        self.updater = updater or default_updater(p)
         self.per_wall = p["range_sigma_per_wall_m"]
         self.used = 0
 
@@ -108,7 +123,7 @@ class ConfiguredFilter:
         rejects most measurements is guarding a track that has left the target)."""
         hx, H = self_calibration.linearise(model, self.filt.x, self.mode)
         R = self.noise(model)
-        keep = robust.robust_update(self.filt, model.z, H, R, hx, self.options)
+        keep = self.updater(self.filt, model.z, H, R, hx)
         self.used = int(keep.sum())
         self.counts.offered += len(keep)
         self.counts.gated += len(keep) - self.used
@@ -116,7 +131,7 @@ class ConfiguredFilter:
         self.recent.append((len(keep), len(keep) - self.used))
         offered, gated = (sum(column) for column in zip(*self.recent))
         if len(self.recent) == LOSS_WINDOW and gated > self.loss_share * offered:
-            self.lost = True            # the loop drops the track (see bayes._update)
+            self.lost = True            # the deleter drops the track (core.update_step, CoastingDeleter)
             self.counts.track_losses += 1
 
     def noise(self, model) -> np.ndarray:
@@ -146,9 +161,10 @@ OFF = {"gate_probability": 0.0, "robust_loss": "none", "range_self_calibration":
        "range_sigma_per_wall_m": 0.0}
 
 
-def configured_factory(make, p: dict, counts: UpdateCounts, campaign=None):
-    """Wrap a filter factory make(x0, P0, motion) so that its filters have the update options;
-    with every option off, the factory itself (any filter, linearised or not)."""
+def configured_factory(make, p: dict, counts: UpdateCounts, campaign=None, updater: Callable | None = None):
+    """Wrap a filter factory make(x0, P0, motion) so that its filters have the update options
+    (updater: the gate and robust update, default default_updater(p)); with every option off,
+    the factory itself (any filter, linearised or not)."""
     active = [k for k, off in OFF.items() if p[k] != off]
     if not active:
         return make
@@ -163,7 +179,7 @@ def configured_factory(make, p: dict, counts: UpdateCounts, campaign=None):
         if not hasattr(filt, "update"):
             raise ConfigError(f"config key '{active[0]}': the update options need a linearised filter with "
                               f"update(z, H, R, hx) (filter {p['filter']!r} has none)")
-        return ConfiguredFilter(filt, p, counts, campaign)
+        return ConfiguredFilter(filt, p, counts, campaign, updater)
     return factory
 
 

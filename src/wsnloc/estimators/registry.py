@@ -20,13 +20,13 @@ import numpy as np
 import pandas as pd
 
 from wsnloc.errors import ConfigError
-from wsnloc.estimators import batch, bayes, filter_options, fixes, inertial, range_calibration, trackers
+from wsnloc.estimators import batch, bayes, core, filter_options, fixes, inertial, range_calibration, trackers
 from wsnloc.estimators.motion import MOTIONS
 from wsnloc.estimators.parameters import Param, resolve
 from wsnloc.estimators.run_data import RunData
 from wsnloc.estimators.measurements import KINDS
 
-OUTPUT_COLUMNS = ["t", "x", "y", "p_xx", "p_xy", "p_yy", "n_meas", "nis"]
+OUTPUT_COLUMNS = core.COLUMNS
 
 # ---- parameter groups ------------------------------------------------------------------
 COMMON = (

@@ -1,0 +1,281 @@
+"""The filter core: one loop per update mode, written once, and the components it is made of.
+
+As in Stone Soup's trackers, the loop only sequences; what it does at each step is passed in:
+- an **initiator** (`WindowInitiator`): when and where a track starts,
+  initiate(source, t, motion) -> (x0, P0) or None;
+- a **deleter** (`CoastingDeleter`): when a track is dropped (a reset; the initiator restarts
+  it), delete(t, last_update, lost) -> bool (element-wise on arrays);
+- a **bank** of filters, one per run, that predicts and updates: `FilterBank` (any filter of
+  bayes.FILTERS, with the measurement-update options of filter_options, whose gate and robust
+  update are themselves a pluggable `updater`) or the array EKF (estimators.array_ekf: the bare
+  EKF of many runs in a few array operations per epoch). A bank has
+  start(i, x0, P0, motion), predict(rows, F, Q, B, u), update(rows, k) -> (used, nis, lost),
+  estimates(rows) -> (rows, 5) [x, y, p_xx, p_xy, p_yy] and track(i) (an object with x, P).
+
+Update modes
+- `epoch_loop`: runs on a leading run axis (a single run is a batch of one). Run r's k-th
+  epoch is step k; per epoch: start the tracks not running (initiator; the start is output
+  as the estimate of that epoch, n_meas 0), predict the others over the period T (skipped in
+  static epochs: motion detection, paper A), update them with the epoch's measurements, set
+  their last update time when a measurement was used and drop those the deleter deletes;
+  output the rest at t_k.
+- `sequential_loop` (one run): predicts to each measurement group's own time and updates with
+  it (records sharing a time stamp update together); before each group and at each output
+  time t_k the deleter is asked; output at t_k predicted from the last update
+  (x(t_k) = F(t_k - t) x (+ B u), P(t_k) = F P F^T + Q(t_k - t), not stored).
+Both return a `Track` per run: rows of COLUMNS and the number of resets.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+COLUMNS = ["t", "x", "y", "p_xx", "p_xy", "p_yy", "n_meas", "nis"]
+
+
+# ---- components ----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class WindowInitiator:
+    """Starts a track the first time the measurements of the last `window_s` seconds
+    (per-anchor means, MeasurementSource.window_fix) give a multilateration fix: x0 = [fix, 0...]
+    (speed and bias 0), P0 = the motion model's initial covariance."""
+
+    window_s: float
+
+    def initiate(self, source, t: float, motion) -> tuple[np.ndarray, np.ndarray] | None:
+        fix = source.window_fix(t, self.window_s)
+        if fix is None:
+            return None
+        x0 = np.zeros(motion.dim)
+        x0[:2] = fix
+        return x0, motion.initial_covariance()
+
+
+@dataclass(frozen=True)
+class CoastingDeleter:
+    """Coasting limit: a track is deleted after more than `max_coast_s` seconds without an
+    update (t - last_update > max_coast_s), or when its updater found it lost (the gate
+    rejecting most measurements, filter_options.ConfiguredFilter.lost), so a long gap shows as
+    lower availability instead of unbounded drift. Works on scalars and on arrays of runs."""
+
+    max_coast_s: float
+
+    def delete(self, t, last_update, lost):
+        return lost | (t - last_update > self.max_coast_s)
+
+
+def predict_step(filt, F: np.ndarray, Q: np.ndarray, B: np.ndarray | None, u: np.ndarray | None) -> tuple:
+    """Predict `filt` with (F, Q) and the input B u when there is one and u is finite; returns
+    the step (F, Q, B, u) used (B, u None without input), as the smoother records it."""
+    if B is not None and u is not None and np.all(np.isfinite(u)):
+        filt.predict(F, Q, u=u, B=B)
+        return F, Q, B, u
+    filt.predict(F, Q)
+    return F, Q, None, None
+
+
+def update_step(filt, model) -> tuple[int, float, bool]:
+    """Measurement update of one filter with a measurement model: (used, nis, lost). used: the
+    measurements the update kept (`filt.used` of a gated filter, else all); 0 when the gate
+    rejected every one (no update) or found the track lost; nis NaN when none was used."""
+    filt.update_model(model)
+    lost = getattr(filt, "lost", False)
+    used = 0 if lost else getattr(filt, "used", len(model.z))
+    return used, (filt.nis if used else np.nan), lost
+
+
+# ---- what a loop reads and writes ----------------------------------------------------------------
+@dataclass
+class RunInputs:
+    """What the loops read of one run: epoch end times t_k (s), measurement source, static
+    epochs (motion detection) and PVA inputs per epoch (None without)."""
+
+    times: np.ndarray
+    source: object
+    static: np.ndarray
+    inputs: np.ndarray | None
+
+
+@dataclass
+class Track:
+    """One run's estimates as a filter gives them: `rows` (estimates, COLUMNS) as floats
+    (n_meas a count) and the frame's `attrs` (resets and the update counters)."""
+
+    rows: np.ndarray
+    attrs: dict
+
+    @classmethod
+    def of(cls, estimates: pd.DataFrame) -> "Track":
+        """The Track of an estimator's frame, as registry.finish would leave it: the columns
+        it lacks NaN, rows sorted by time (stable) when they are not."""
+        n = len(estimates)
+        rows = np.column_stack([estimates[c].to_numpy(float) if c in estimates else np.full(n, np.nan)
+                                for c in COLUMNS])
+        if not estimates["t"].is_monotonic_increasing:
+            rows = rows[np.argsort(rows[:, 0], kind="stable")]
+        return cls(rows, dict(estimates.attrs))
+
+    def frame(self) -> pd.DataFrame:
+        """The filter's frame: COLUMNS, n_meas as int (column by column: a frame of one float
+        block cast afterwards costs several times more), attrs."""
+        frame = pd.DataFrame({name: self.rows[:, j].astype(int) if name == "n_meas" else self.rows[:, j]
+                              for j, name in enumerate(COLUMNS)})
+        frame.attrs.update(self.attrs)
+        return frame
+
+    def finished(self) -> pd.DataFrame:
+        """registry.finish(self.frame()) built at once: every column float, in time order already."""
+        frame = pd.DataFrame({name: self.rows[:, j] for j, name in enumerate(COLUMNS)})
+        frame.attrs = dict(self.attrs)
+        return frame
+
+
+class FilterBank:
+    """One filter object per run (made by makes[i](x0, P0, motion) at each start), stepped one
+    after the other; the measurements of run i's epoch k are models[i][k] (None: none)."""
+
+    def __init__(self, makes: list, models: list[list]):
+        self.makes, self.models = makes, models
+        self.filters: list = [None] * len(makes)
+
+    def start(self, i: int, x0: np.ndarray, P0: np.ndarray, motion) -> None:
+        self.filters[i] = self.makes[i](x0, P0, motion)
+
+    def track(self, i: int):
+        return self.filters[i]
+
+    def predict(self, rows: np.ndarray, F, Q, B, u: np.ndarray | None) -> list[tuple]:
+        """predict_step of each row's filter; the steps used."""
+        return [predict_step(self.filters[i], F, Q, B, None if u is None else u[j]) for j, i in enumerate(rows)]
+
+    def update(self, rows: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        steps = [(0, np.nan, False) if self.models[i][k] is None else update_step(self.filters[i], self.models[i][k])
+                 for i in rows]
+        used, nis, lost = (np.array(column) for column in zip(*steps)) if steps else ([], [], [])
+        return np.asarray(used, dtype=int), np.asarray(nis, dtype=float), np.asarray(lost, dtype=bool)
+
+    def estimates(self, rows: np.ndarray) -> np.ndarray:
+        return np.array([_position(self.filters[i].x, self.filters[i].P) for i in rows]).reshape(len(rows), 5)
+
+
+def _position(x: np.ndarray, P: np.ndarray) -> tuple:
+    return x[0], x[1], P[0, 0], P[0, 1], P[1, 1]
+
+
+# ---- the loops -----------------------------------------------------------------------------------
+def epoch_loop(bank, runs: list[RunInputs], motion, period: float, initiator, deleter,
+               forward=None) -> list[tuple[np.ndarray, int]]:
+    """(estimate rows (COLUMNS), resets) of every run, stepped together (module docstring).
+    forward: a smoothing.ForwardPass recording a single run's filter (a FilterBank of one)."""
+    if forward is not None and len(runs) != 1:
+        raise ValueError("the forward pass records one run")
+    n_runs = len(runs)
+    lengths = np.array([len(r.times) for r in runs], dtype=int)
+    n_epochs = int(lengths.max(initial=0))
+    times, static = np.full((n_runs, n_epochs), np.nan), np.ones((n_runs, n_epochs), bool)
+    with_input = any(r.inputs is not None for r in runs)
+    inputs = np.full((n_runs, n_epochs, 2), np.nan) if with_input else None
+    for i, r in enumerate(runs):
+        times[i, :len(r.times)], static[i, :len(r.times)] = r.times, r.static
+        if r.inputs is not None:
+            inputs[i, :len(r.times)] = r.inputs
+    F, Q, B = motion.matrices(period)
+    here = np.arange(n_epochs)[None, :] < lengths[:, None]
+    live, last_update, resets = np.zeros(n_runs, bool), np.full(n_runs, -np.inf), np.zeros(n_runs, int)
+    out = np.full((n_runs, n_epochs, len(COLUMNS)), np.nan)
+    emitted = np.zeros((n_runs, n_epochs), bool)
+    for k in range(n_epochs):
+        t, tracking = times[:, k], here[:, k] & live
+        waiting = here[:, k] & ~live
+        if waiting.any():
+            for i in np.flatnonzero(waiting):
+                prior = initiator.initiate(runs[i].source, t[i], motion)
+                if prior is None:
+                    continue
+                bank.start(i, *prior, motion)
+                live[i], last_update[i], emitted[i, k] = True, t[i], True
+                out[i, k, :7] = (t[i], *bank.estimates([i])[0], 0)
+                if forward is not None:
+                    forward.start(bank.track(i))
+                    forward.output()
+        rows = np.flatnonzero(tracking)
+        if not len(rows):
+            continue
+        moving = rows[~static[rows, k]]
+        steps = bank.predict(moving, F, Q, B, None if inputs is None else inputs[moving, k])
+        used, nis, lost = bank.update(rows, k)
+        updated = rows[used > 0]
+        last_update[updated] = t[updated]
+        drop = deleter.delete(t[rows], last_update[rows], lost)
+        if drop.any():
+            live[rows[drop]] = False
+            resets[rows[drop]] += 1
+            rows, used, nis = rows[~drop], used[~drop], nis[~drop]
+        emitted[rows, k] = True
+        out[rows, k, 0], out[rows, k, 1:6], out[rows, k, 6], out[rows, k, 7] = t[rows], bank.estimates(rows), used, nis
+        if forward is not None and len(rows):
+            forward.node(bank.track(0), steps[0] if len(moving) else None)
+            forward.output()
+    return [(out[i, emitted[i]], int(resets[i])) for i in range(n_runs)]
+
+
+def sequential_loop(make, run: RunInputs, motion, initiator, deleter, forward=None) -> tuple[np.ndarray, int]:
+    """(estimate rows (COLUMNS), resets) of one run in sequential mode (module docstring);
+    make(x0, P0, motion): a filter."""
+    source, times, static, inputs = run.source, run.times, run.static, run.inputs
+    records = source.records()
+    bounds = records.groups()
+    epoch_of = np.minimum(np.searchsorted(times, records.t, side="left"), len(times) - 1)   # (t_k - T, t_k]
+    rows, resets, filt, t_filter, last_update = [], 0, None, -np.inf, -np.inf
+    g = 0
+    for k, t_k in enumerate(times):
+        n_meas, nis = 0, np.nan
+        while g < len(bounds) - 1 and records.t[bounds[g]] <= t_k:
+            a, b = bounds[g], bounds[g + 1]
+            t = records.t[a]
+            g += 1
+            if filt is not None and deleter.delete(t, last_update, False):
+                filt, resets = None, resets + 1
+            if filt is None:
+                prior = initiator.initiate(source, t, motion)
+                if prior is not None:
+                    filt, t_filter, last_update = make(*prior, motion), t, t
+                    if forward is not None:
+                        forward.start(filt)
+                continue
+            step = None
+            if t > t_filter and not static[epoch_of[a]]:
+                F, Q, B = motion.matrices(t - t_filter)
+                step = predict_step(filt, F, Q, B, None if inputs is None else inputs[epoch_of[a]])
+            t_filter = max(t, t_filter)
+            used, group_nis, lost = update_step(filt, source.model(*records.split(a, b)))
+            if used:
+                n_meas, nis, last_update = n_meas + used, group_nis, t
+            if deleter.delete(t, last_update, lost):
+                filt, resets = None, resets + 1
+                continue
+            if forward is not None:
+                forward.node(filt, step)
+        if filt is None:
+            continue
+        if deleter.delete(t_k, last_update, False):
+            filt, resets = None, resets + 1
+            continue
+        u = None if inputs is None else inputs[k]
+        if forward is not None:       # smoothing: the output time becomes a node of the recorded chain
+            if t_k > t_filter and not static[k]:
+                F, Q, B = motion.matrices(t_k - t_filter)
+                forward.node(filt, predict_step(filt, F, Q, B, u))
+                t_filter = t_k
+            forward.output()
+        x, P = filt.x[:motion.dim], filt.P[:motion.dim, :motion.dim]      # without calibration states
+        if t_k > t_filter and not static[k]:
+            F, Q, B = motion.matrices(t_k - t_filter)
+            x, P = F @ x, F @ P @ F.T + Q
+            if B is not None and u is not None and np.all(np.isfinite(u)):
+                x = x + B @ u
+        rows.append((t_k, *_position(x, P), n_meas, nis))
+    return np.array(rows, dtype=float).reshape(len(rows), len(COLUMNS)), resets
