@@ -28,7 +28,7 @@ from wsnloc import results
 from wsnloc.analysis.filter_bounds import is_bayesian
 from wsnloc.analysis.filter_quality import QUALITY_COLUMNS, cell_outputs, run_quality
 from wsnloc.campaign import Campaign
-from wsnloc.errors import ConfigError, WsnlocError
+from wsnloc.errors import ConfigError, WsnlocError, did_you_mean
 from wsnloc.estimators import registry
 from wsnloc.estimators.run_data import ALL_ANCHORS, RunData
 from wsnloc.experiments import calibration
@@ -76,17 +76,18 @@ def validate_studies(config: dict) -> None:
         where = f"studies.{study}"
         for label in spec["scenarios"]:
             if label not in declared:
-                raise ConfigError(f"config key '{where}.scenarios': {label!r} is not a declared dataset/scenario "
-                                  f"(declared: {', '.join(sorted(declared))})")
+                raise ConfigError(f"config key '{where}.scenarios': {label!r} is not a declared dataset/scenario"
+                                  f"{did_you_mean(label, declared)} (declared: {', '.join(sorted(declared))})")
         for key, layer in (spec.get("overrides") or {}).items():
             if key not in {d for d in config["datasets"]} | declared:
-                raise ConfigError(f"config key '{where}.overrides.{key}': not a declared dataset or dataset/scenario")
+                raise ConfigError(f"config key '{where}.overrides.{key}': not a declared dataset or dataset/scenario"
+                                  f"{did_you_mean(key, set(config['datasets']) | declared)}")
             known = set(spec["estimators"]) | {p.name for c in spec["estimators"]
                                                for p in registry.get(estimator_of(spec, c)).params}
             for name in layer or {}:
                 if name not in known:
                     raise ConfigError(f"config key '{where}.overrides.{key}.{name}': neither an estimator cell of "
-                                      f"this study nor a parameter of its estimators")
+                                      f"this study nor a parameter of its estimators{did_you_mean(name, known)}")
         for label in spec["scenarios"]:
             dataset, scenario = label.split("/", 1)
             for cell in spec["estimators"]:

@@ -123,8 +123,8 @@ def to_png(fig, tight: bool = True, palette: bool = True) -> bytes:
     canvas is saved as is. tight True: the box savefig(bbox_inches="tight") would save (the
     tight bounding box padded by savefig.pad_inches), its corners moved out to whole pixels
     (_tight_render).
-    palette: an indexed PNG (_save_palette_png); False for continuous colour maps, which
-    256 colours would band: 24-bit RGB."""
+    palette: an indexed PNG (_save_palette_png); False: 24-bit RGB, for images of more than
+    256 distinct colours that matter (photographs; a matplotlib colour map has 256)."""
     fig.set_dpi(PNG_DPI)
     if tight:
         rgba, overlaps = _tight_render(fig)
@@ -303,7 +303,8 @@ def range_error_figure(errors: pd.DataFrame, title: str, max_points: int = 6000)
 
 @gc_paused
 def rss_vs_distance(rss: pd.DataFrame, fit: dict, configured: dict, title: str, max_points: int = 6000) -> bytes:
-    """RSS (dBm) against log distance, coloured by walls crossed, with the fitted path-loss line."""
+    """RSS (dBm) against log distance, coloured by walls crossed (five colours: 0 to 4 or more),
+    with the fitted path-loss line; an indexed PNG (to_png)."""
     if len(rss) == 0:
         return placeholder("no RSS measurements in this dataset")
     fig, ax = plt.subplots(figsize=(7, 4))
@@ -323,7 +324,7 @@ def rss_vs_distance(rss: pd.DataFrame, fit: dict, configured: dict, title: str, 
     ax.set_ylabel("RSS [dBm]")
     ax.set_title(title)
     ax.legend(fontsize=7, loc="lower left")
-    return to_png(fig, palette=False)
+    return to_png(fig)
 
 
 @gc_paused
