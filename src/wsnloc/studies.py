@@ -239,6 +239,22 @@ def study_panels(estimates: dict[tuple[str, str], pd.DataFrame]) -> tuple[dict, 
     return cdf, errors, tracks
 
 
+def estimator_panels(rows: list[dict], stats) -> dict:
+    """Panels of report.figures.estimator_bars from a study's results rows: per scenario, per
+    cell (and subset, where the study has several), the `stats` that are position errors in m
+    (value, ci95_low, ci95_high)."""
+    subsets = {row["table"] for row in rows}
+    panels: dict = {}
+    for row in rows:
+        if row["column"] in stats and row["metric"] == f"{row['column']}_m":
+            label = row["row"] if len(subsets) == 1 else f"{row['row']} [{row['table']}]"
+            panels.setdefault(row["scenario"], {}).setdefault(label, {})[row["column"]] = (
+                row["value"], row["ci95_low"], row["ci95_high"])
+    order = [s for s in stats]
+    return {title: {label: {s: cells[s] for s in order if s in cells} for label, cells in labels.items()}
+            for title, labels in panels.items()}
+
+
 def quality_table(estimates: pd.DataFrame) -> pd.DataFrame:
     """The QUALITY_TABLE columns of a cell's estimates (empty unless the cell is a Bayesian filter)."""
     if "pcrb_m2" not in estimates:
