@@ -70,9 +70,10 @@ def _describe(error: jsonschema.ValidationError) -> str:
         allowed = set(error.schema.get("properties", {}))
         unknown = sorted(k for k in error.instance if k not in allowed)
         prefix = f"{where}." if error.absolute_path else ""
-        keys = ", ".join(f"'{prefix}{k}'{did_you_mean(k, allowed)}" for k in unknown)
+        keys = ", ".join(f"'{prefix}{k}'" for k in unknown)
+        close = "".join(did_you_mean(k, allowed) for k in unknown) if len(unknown) == 1 else ""
         hint = f" (allowed here: {', '.join(sorted(allowed))})" if allowed else ""
-        return f"config key {keys}: unknown key{hint}"
+        return f"config key {keys}: unknown key{close}{hint}"
     if error.validator == "required":
         missing = error.message.split("'")[1] if "'" in error.message else error.message
         prefix = f"{where}." if error.absolute_path else ""

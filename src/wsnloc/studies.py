@@ -83,7 +83,8 @@ def validate_studies(config: dict) -> None:
                 raise ConfigError(f"config key '{where}.overrides.{key}': not a declared dataset or dataset/scenario"
                                   f"{did_you_mean(key, set(config['datasets']) | declared)}")
             known = set(spec["estimators"]) | {p.name for c in spec["estimators"]
-                                               for p in registry.get(estimator_of(spec, c)).params}
+                                               for p in registry.get(estimator_of(spec, c),
+                                                                        f"{where}.estimators.{c}.estimator").params}
             for name in layer or {}:
                 if name not in known:
                     raise ConfigError(f"config key '{where}.overrides.{key}.{name}': neither an estimator cell of "

@@ -466,6 +466,9 @@ def curve_with_interval(curves: dict[str, pd.DataFrame], xlabel: str, ylabel: st
     return fitted_png(fig)
 
 
+BAR_LABEL = {"rmse": "RMSE"}
+
+
 @gc_paused
 def estimator_bars(panels: dict[str, dict[str, dict[str, tuple[float, float, float]]]], unit: str = "m") -> bytes:
     """Grouped horizontal bars, one panel per title (a scenario), one group per label (an
@@ -484,7 +487,7 @@ def estimator_bars(panels: dict[str, dict[str, dict[str, tuple[float, float, flo
             y = np.arange(len(labels)) + (k - (len(names) - 1) / 2) * height
             error = np.vstack([value - low, high - value])
             error = np.where(np.isfinite(error), error, 0.0)
-            ax.barh(y[shown], value[shown], height=height * 0.95, label=stat,
+            ax.barh(y[shown], value[shown], height=height * 0.95, label=BAR_LABEL.get(stat, stat),
                     xerr=error[:, shown], error_kw={"elinewidth": 0.8, "capsize": 2, "ecolor": "0.2"})
         ticks = [label + ("" if all(np.isfinite(v[0]) for v in labels[label].values()) else " (not finite)")
                  for label in labels]
