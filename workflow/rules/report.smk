@@ -80,7 +80,8 @@ rule report:
     output:
         html=report("reports/index.html", category="Report", caption="../report/page.rst"),
         results=report("reports/results.csv", category="Report", caption="../report/page.rst"),
-        pages=directory("reports/pages"),     # one page per study, paper and dataset, provenance; their figures
+        pages=report(directory("reports/pages"), category="Report", htmlindex="provenance.html",
+                     caption="../report/page.rst"),   # a page per study, paper and dataset, provenance; their figures
     params:
         config=config,
         paper_d_labels=[f"{d}/{s}" for d, s in PAPER_D_PAIRS],
