@@ -260,7 +260,8 @@ def cell_settings(spec: dict, cell: str, label: str) -> list[str]:
 def study_section(results: pd.DataFrame, study: str, spec: dict, figures: dict[str, str],
                   headline: list[str] = ("median", "p75", "rmse")) -> dict:
     """Context of one study's section: the settings of each cell per scenario; per anchor
-    subset, cells x scenarios with the `headline` statistics (config report.cell_stats) and
+    subset, cells x scenarios with the `headline` statistics (config report.cell_stats), the
+    best cell of each headline column marked (`best`: lowest error, highest availability), and
     every statistic (for the detail); the figures."""
     from wsnloc.studies import EXPERIMENT_PREFIX, estimator_of
 
@@ -270,6 +271,14 @@ def study_section(results: pd.DataFrame, study: str, spec: dict, figures: dict[s
     for subset in dict.fromkeys(sel["table"]):
         in_subset = sel[sel["table"] == subset]
         rows = [{"label": cell, "cells": [_study_cell(in_subset, cell, sc) for sc in scenarios]} for cell in cells]
+        for k in range(len(scenarios)):            # the best cell of each headline column (highest availability)
+            for stat in headline:
+                values = [r["cells"][k][stat]["value"] for r in rows]
+                finite = [v for v in values if v is not None and np.isfinite(v)]
+                if len(finite) > 1:
+                    best = max(finite) if stat == "availability" else min(finite)
+                    for r, v in zip(rows, values):
+                        r["cells"][k][stat]["best"] = v == best
         tables.append({"subset": subset, "scenarios": scenarios, "rows": rows})
     estimators = [{"cell": c, "estimator": estimator_of(spec, c),
                    "settings": [cell_settings(spec, c, sc) for sc in scenarios]} for c in cells]
