@@ -14,6 +14,14 @@ from wsnloc.config import read_yaml, validate
 from wsnloc.errors import ConfigError, did_you_mean
 from wsnloc.studies import validate_studies
 
+DEFAULT_KIND = {"simulate": "simulated", "logs": "measured"}   # datasets.<name>.kind by source (schema)
+
+
+def dataset_kind(spec: dict) -> str:
+    """What a dataset's data are: its `kind`, else DEFAULT_KIND of its source."""
+    return spec.get("kind") or DEFAULT_KIND[spec["source"]]
+
+
 SUBSET_KEYS = {
     "paper_a": ("rows[].uwb", "rows[].zigbee"),
     "paper_b": ("uwb_subset",),
@@ -48,8 +56,7 @@ def _check_datasets(config: dict) -> dict:
         if not Path(dataset["campaign"]).is_file():
             raise ConfigError(f"config key 'datasets.{name}.campaign': no such file {dataset['campaign']!r}")
         campaigns[name] = campaign = Campaign.load(dataset["campaign"])
-        default_kind = "simulated" if dataset["source"] == "simulate" else "measured"
-        kind = dataset.setdefault("kind", default_kind)
+        kind = dataset.setdefault("kind", dataset_kind(dataset))
         if (kind == "simulated") != (dataset["source"] == "simulate"):
             raise ConfigError(f"config key 'datasets.{name}.kind': {kind!r} does not fit source "
                               f"{dataset['source']!r} (simulate: simulated; logs: measured or synthetic)")

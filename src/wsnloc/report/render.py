@@ -15,6 +15,7 @@ import pandas as pd
 import yaml
 
 from wsnloc.config import config_hash
+from wsnloc.validation import dataset_kind
 
 PACKAGES = ("wsnloc", "snakemake", "numpy", "scipy", "pandas", "pyarrow", "filterpy", "matplotlib", "jinja2")
 
@@ -107,7 +108,7 @@ def data_banner(config: dict) -> list[str]:
     synthetic or measured; default from its source) and where they came from."""
     lines = []
     for name, spec in config["datasets"].items():
-        kind = spec.get("kind") or ("simulated" if spec["source"] == "simulate" else "measured")
+        kind = dataset_kind(spec)
         if kind == "simulated":
             lines.append(f"{name}: SIMULATED campaign (wsnloc simulator, {config['runs']} runs per scenario, "
                          f"base seed {config['seed']}) — not the papers' measurements.")
@@ -221,7 +222,7 @@ def build_context(config: dict, summaries: list[dict], results: pd.DataFrame, fi
                 "figures": {k: figure(v) for k, v in figures.get(label, {}).items()},
             })
         has = dataset_has(spec, [sc["summary"] for sc in scenarios])
-        kind = spec.get("kind") or ("simulated" if spec["source"] == "simulate" else "measured")
+        kind = dataset_kind(spec)
         datasets.append({"name": name, "spec": spec, "scenarios": scenarios, "kind": kind, "has": has,
                          "has_list": [{"imu": "IMU", "rss": "RSS", "walls": "walls"}[k] for k, v in has.items() if v],
                          "banner": next(line for line in data_banner({**config, "datasets": {name: spec}})),
