@@ -84,5 +84,27 @@ def test_cli_without_browser_still_checks_text_and_figures(tmp_path, capsys):
 def test_browser_check_reports_overlaps_and_empty_intervals(tmp_path):
     bad = page(tmp_path, f"{img(overlapping_figure(), 'Fig. 3 of D')}<p>0.41 [, ]</p>")
     problems = check_report(bad, sections=())["problems"]
-    assert "figure 'Fig. 3 of D': text 'Min-Max UWB' overlaps 'multilateration'" in problems
-    assert any(p.startswith("empty interval") for p in problems)
+    assert "page.html: figure 'Fig. 3 of D': text 'Min-Max UWB' overlaps 'multilateration'" in problems
+    assert any(p.startswith("page.html: empty interval") for p in problems)
+
+
+@pytest.mark.skipif(browser_available() is not None, reason=f"headless browser unavailable: {browser_available()}")
+def test_browser_check_follows_the_summary_to_every_page(tmp_path):
+    """A report of a summary and pages/: broken fragments, unlinked pages, long numbers and
+    overlapping figure files are found on the pages the summary links to."""
+    (tmp_path / "pages" / "figures").mkdir(parents=True)
+    (tmp_path / "pages" / "figures" / "bad.png").write_bytes(overlapping_figure())
+    (tmp_path / "index.html").write_text('<html><body><a href="pages/study-a.html#results">a</a>'
+                                         '<a href="pages/study-a.html#nowhere">b</a><a href="pages/gone.html">c</a></body></html>')
+    (tmp_path / "pages" / "study-a.html").write_text(
+        '<html><body><h2 id="results">a</h2><img alt="cdf" src="figures/bad.png">'
+        '<p>ANEES 69811100000000002039197455862640538550272</p><a href="../index.html">back</a></body></html>')
+    (tmp_path / "pages" / "orphan.html").write_text("<html><body>not linked</body></html>")
+    outcome = check_report(tmp_path / "index.html", sections=(), screenshots=tmp_path / "shots")
+    problems = "\n".join(outcome["problems"])
+    assert outcome["pages"] == ["index.html", "pages/study-a.html"]
+    assert "index.html: link file://" in problems and "no element with id 'nowhere'" in problems
+    assert "pages/gone.html reaches no file" in problems and "page pages/orphan.html is not linked from the summary" in problems
+    assert "pages/study-a.html: figure 'cdf': text 'Min-Max UWB' overlaps 'multilateration'" in problems
+    assert "pages/study-a.html: number of 41 digits" in problems
+    assert "network request" not in problems and (tmp_path / "shots" / "pages_study-a.png").is_file()

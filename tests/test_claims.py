@@ -121,11 +121,11 @@ def test_paper_c_speed_claim_compares_independent_scenarios():
 
 def test_cells_show_the_difference_only_where_the_paper_lies_outside_our_interval():
     res = results.frame([
-        results.row_over_runs([0.40, 0.42, 0.44], experiment="A", table="T", row="r", column="in", scenario="s",
+        results.row_over_runs([0.40, 0.41, 0.42, 0.43, 0.44], experiment="A", table="T", row="r", column="in", scenario="s",
                               metric="rmse_m", paper_value=0.43),
-        results.row_over_runs([0.40, 0.42, 0.44], experiment="A", table="T", row="r", column="out", scenario="s",
+        results.row_over_runs([0.40, 0.41, 0.42, 0.43, 0.44], experiment="A", table="T", row="r", column="out", scenario="s",
                               metric="rmse_m", paper_value=0.60),
-        results.row_over_runs([0.40, 0.42, 0.44], experiment="A", table="T", row="r", column="none", scenario="s",
+        results.row_over_runs([0.40, 0.41, 0.42, 0.43, 0.44], experiment="A", table="T", row="r", column="none", scenario="s",
                               metric="rmse_m")])
     inside, outside, none = (_cell(res, column=c) for c in ("in", "out", "none"))
     assert inside["inside"] and inside["delta"] is None

@@ -153,7 +153,7 @@ def test_subset_the_campaign_lacks_is_named(config, edit, key, value):
 def test_simulated_scenario_the_campaign_lacks_is_named(config):
     config["datasets"]["cricket"]["scenarios"].append("speed_80")
     with pytest.raises(ConfigError, match=r"'datasets.cricket.scenarios': 'speed_80' is not a scenario of "
-                                          r"config/campaigns/cricket.yaml \(defined there: speed_20, speed_40"):
+                                          r"config/campaigns/cricket.yaml (\(did you mean [^)]*\) )?\(defined there: speed_20, speed_40"):
         validate_config(config, SCHEMA)
 
 
@@ -204,3 +204,39 @@ def test_nlos_sweep_default_is_on_and_its_levels_are_campaign_classes(config):
         assert sweep["runs"] >= 2          # paper D's other_run RSS calibration needs a donor run
         for name, level in sweep["levels"].items():
             level_campaign(campaign, level, f"experiments.{paper}.nlos_sweep.levels.{name}")
+
+
+def test_misspelled_key_and_enum_value_get_did_you_mean(config):
+    config["rnus"] = 3
+    with pytest.raises(ConfigError, match=r"'rnus': unknown key \(did you mean 'runs'\?\)"):
+        validate_config(config, SCHEMA)
+    del config["rnus"]
+    config["datasets"]["newcom"]["source"] = "simulat"
+    with pytest.raises(ConfigError, match=r"'datasets.newcom.source': .*did you mean 'simulate'\?"):
+        validate_config(config, SCHEMA)
+
+
+def test_misspelled_estimator_and_parameter_get_did_you_mean(config):
+    config["studies"]["workbench"]["estimators"]["ekf"] = {"range_sigma": 0.2}
+    with pytest.raises(ConfigError, match=r"'studies.workbench.estimators.ekf.range_sigma': unknown parameter "
+                                          r"\(did you mean 'range_sigma_m'"):
+        validate_config(config, SCHEMA)
+    config["studies"]["workbench"]["estimators"]["ekf"] = {"estimator": "trackr"}
+    with pytest.raises(ConfigError, match=r"'studies.workbench.estimators.ekf.estimator': unknown estimator 'trackr' "
+                                          r"\(did you mean 'tracker'"):
+        validate_config(config, SCHEMA)
+
+
+def test_unlike_names_get_no_suggestion(config):
+    config["studies"]["workbench"]["estimators"]["ekf"] = {"zzz_qqq": 1}
+    with pytest.raises(ConfigError) as error:
+        validate_config(config, SCHEMA)
+    assert "did you mean" not in str(error.value) and "unknown parameter (this estimator has:" in str(error.value)
+
+
+def test_dataset_kind_defaults_from_source_and_must_fit_it(config):
+    validate_config(config, SCHEMA)
+    assert config["datasets"]["newcom"]["kind"] == "simulated"
+    config["datasets"]["newcom"]["kind"] = "measured"
+    with pytest.raises(ConfigError, match=r"'datasets.newcom.kind': 'measured' does not fit source 'simulate'"):
+        validate_config(config, SCHEMA)

@@ -143,7 +143,8 @@ def test_grouped_quality_keeps_each_rows_values_and_index():
 
 def test_study_cells_carry_bound_and_consistency_only_for_bayesian_filters():
     """studies.run_cell on synthetic runs: a filter cell gets sqrt_pcrb / efficiency metrics and a
-    quality table, whose summary gives ANEES / ANIS rows (band in ci95) and figure panels; a
+    quality table, whose summary gives ANEES / ANIS rows (chi-square band in band_low / band_high,
+    no ci95) and figure panels; a
     solver cell gets neither."""
     from wsnloc.studies import bound_summary, quality_table, results_rows, run_cell
 
@@ -160,7 +161,8 @@ def test_study_cells_carry_bound_and_consistency_only_for_bayesian_filters():
     rows, bound_panels, consistency_panels = bound_summary("s", [{"label": "site/walk", "cell": "ekf_epoch",
                                                                   "parameters": p}], [quality])
     anees = next(r for r in rows if r["column"] == "anees")
-    assert anees["ci95_low"] < 2.0 < anees["ci95_high"] and anees["runs"] == 3 and anees["table"] == "all"
+    assert anees["band_low"] < 2.0 < anees["band_high"] and anees["runs"] == 3 and anees["table"] == "all"
+    assert anees["ci95_low"] is None and anees["ci95_high"] is None
     assert {r["column"] for r in rows} == {"anees", "anis"} and len(bound_panels) == 1 and len(consistency_panels) == 2
     assert {"sqrt_pcrb", "efficiency"} <= {r["column"] for r in results_rows("s", "ekf_epoch", "site/walk", metrics)}
     solver, solver_metrics = run_cell("site/walk", "minmax", "minmax", registry.get("minmax").resolve({}), ["all"],

@@ -1,14 +1,20 @@
-"""The report: values from logs and config are escaped; the browser check catches problems."""
+"""The report: values from logs and config are escaped; one number formatter; honest data
+labels and sections; study cells show their settings; the browser check catches problems."""
 
+import math
+
+import numpy as np
 import pytest
 
 from wsnloc import results
 from wsnloc.io.newcom import ingest_run
 from wsnloc.metrics.data_quality import summarize
 from wsnloc.report.browser_check import browser_available, check_report
-from wsnloc.report.render import build_context, render
+from wsnloc.report.render import build_context, data_banner, fmt_number, render_pages
 
 from conftest import ROOT
+
+TEMPLATES = ROOT / "workflow" / "templates"
 
 EVIL = "<script>alert(1)</script>"
 
@@ -24,10 +30,70 @@ def test_log_and_config_text_is_escaped(campaign, simulated_run):
               "datasets": {"newcom": {"format": "newcom", "campaign": "c.yaml", "source": "simulate",
                                       "scenarios": ["constant"], "raw_dir": EVIL}}}
     context = build_context(config, [summary], results.frame(rows), {}, {})
-    context["papers"], context["studies"] = [], []
-    html = render(ROOT / "workflow" / "templates" / "report.html.j2", context)
+    pages = render_pages(TEMPLATES, context)
+    html = "".join(pages.values())
     assert EVIL not in html
-    assert "&lt;script&gt;alert(1)&lt;/script&gt;" in html
+    assert "&lt;script&gt;alert(1)&lt;/script&gt;" in pages["index.html"]           # the title
+    assert "&lt;script&gt;alert(1)&lt;/script&gt;" in pages["pages/data-newcom.html"]   # anchor id, log line
+    assert set(pages) == {"index.html", "pages/data-newcom.html", "pages/provenance.html"}
+
+
+def test_one_formatter_for_every_number():
+    assert [fmt_number(v) for v in (0.03188, 1.2345, 207.4, 12345.6, 0.0, 20, None, np.nan)] == [
+        "0.0319", "1.23", "207", "12346", "0", "20", "", ""]
+    assert fmt_number(6.98e40) == "6.98e40" and fmt_number(6.98e40, diverged=True) == "diverged"
+    assert fmt_number(math.inf) == "not finite" and fmt_number(0.1234, signed=True) == "+0.123"
+    assert fmt_number(0.5, unit="m") == "0.500\u2009m" and fmt_number(3.1e-5) == "3.10e-5"
+    assert all(len(fmt_number(10.0 ** k * 1.2345)) <= 13 for k in range(-12, 60))
+
+
+def test_banner_says_whether_data_are_simulated_synthetic_or_measured():
+    config = {"runs": 3, "seed": 1, "datasets": {
+        "a": {"source": "simulate"}, "b": {"source": "logs", "raw_dir": "raw/b", "kind": "synthetic"},
+        "c": {"source": "logs", "raw_dir": "raw/c"}}}
+    a, b, c = data_banner(config)
+    assert a.startswith("a: SIMULATED") and b == "b: SYNTHETIC (not measured) logs from raw/b."
+    assert c == "c: MEASURED logs from raw/c."
+
+
+def test_data_page_shows_imu_rss_and_walls_only_where_the_dataset_has_them(campaign, simulated_run, tmp_path):
+    tables, inventory = ingest_run(simulated_run, campaign)
+    summary, rows, _ = summarize({"run-01": tables}, {}, campaign, "newcom/constant")
+    for run in summary["per_run"]:
+        run.update(imu=0, rss=0)
+    bare = tmp_path / "bare.yaml"
+    bare.write_text("name: bare\n")          # a campaign file without walls
+    config = {"runs": 1, "seed": 1, "report": {"title": "t"},
+              "datasets": {"newcom": {"format": "newcom", "campaign": str(bare), "source": "logs", "kind": "synthetic",
+                                      "scenarios": ["constant"], "raw_dir": "r"}}}
+    context = build_context(config, [summary], results.frame(rows), {}, {})
+    assert context["datasets"][0]["has"] == {"imu": False, "rss": False, "walls": False}
+    page = render_pages(TEMPLATES, context)["pages/data-newcom.html"]
+    assert "IMU resampling" not in page and "IMU samples" not in page and "RSS samples" not in page
+    assert "SYNTHETIC (not measured)" in page and "The floor plan has no walls" in page
+
+
+def test_study_page_shows_each_cells_settings_not_dict_reprs():
+    from wsnloc.report.sections import study_section
+
+    spec = {"scenarios": ["newcom/constant"], "runs": 5,
+            "estimators": {"tracker": {}, "gated": {"estimator": "ekf", "gate_probability": 0.999}},
+            "overrides": {"newcom": {"max_range_m": 50.0, "gated": {"range_sigma_m": 0.2}}}}
+    rows = [results.row_over_runs([0.2, 0.21, 0.22, 0.2, 0.19], experiment="study:s", table="all", row=cell,
+                                  column=stat, scenario="newcom/constant", metric=f"{stat}_m")
+            for cell in spec["estimators"] for stat in ("median", "p75", "rmse")]
+    section = study_section(results.frame(rows), "s", spec, {}, ["median", "p75", "rmse"])
+    settings = {e["cell"]: e["settings"][0] for e in section["estimators"]}
+    assert settings["tracker"] == ["max_range_m = 50"]
+    assert sorted(settings["gated"]) == ["gate_probability = 0.999", "max_range_m = 50", "range_sigma_m = 0.2"]
+    context = {"title": "t", "banner": [], "datasets": [], "papers": [], "studies": [section], "summary": [],
+               "experiments": [], "provenance": {"built": "", "git_commit": "", "config_hash": "", "packages": {},
+                                                 "config_yaml": "", "checksums": []}}
+    pages = render_pages(TEMPLATES, context)
+    study = pages["pages/study-s.html"]
+    assert "max_range_m = 50" in study and "registry defaults" not in study and "{&#39;" not in study
+    assert "0.204 <span" in study and "mean over 5 runs with 95% interval" in study
+    assert 'href="pages/study-s.html"' in pages["index.html"]
 
 
 needs_browser = pytest.mark.skipif(browser_available() is not None,

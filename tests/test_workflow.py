@@ -17,6 +17,12 @@ import yaml
 from conftest import ROOT, SMALL_WORKBENCH, small_workflow, snakemake
 
 
+def report_html(workdir) -> str:
+    """The report's summary page and every page beside it (reports/pages), in that order."""
+    reports = workdir / "reports"
+    return "".join(p.read_text() for p in [reports / "index.html", *sorted((reports / "pages").glob("*.html"))])
+
+
 @pytest.fixture(scope="module")
 def workdir(tmp_path_factory):
     work = small_workflow(tmp_path_factory.mktemp("workflow"))
@@ -28,12 +34,12 @@ def workdir(tmp_path_factory):
 def test_builds_report_and_results(workdir):
     results = pd.read_csv(workdir / "reports" / "results.csv")
     assert list(results.columns) == ["experiment", "table", "row", "column", "scenario", "metric",
-                                     "value", "ci95_low", "ci95_high", "runs", "paper_value"]
+                                     "value", "ci95_low", "ci95_high", "band_low", "band_high", "runs", "paper_value"]
     los_bias = results[(results["table"] == "Range error") & (results["row"] == "LOS")
                        & (results["column"] == "median error") & (results["scenario"] == "newcom/constant")]
     assert len(los_bias) == 1 and abs(los_bias["value"].iloc[0]) < 0.1 and los_bias["runs"].iloc[0] == 2
-    html = (workdir / "reports" / "index.html").read_text()
-    assert "SIMULATED campaign" in html and "data:image/png;base64," in html
+    html = report_html(workdir)
+    assert "SIMULATED campaign" in html and list((workdir / "reports" / "pages" / "figures").glob("*.png"))
     assert all(f'id="paper-{p}"' in html for p in "ABCD") and "cricket/speed_40" in html
     assert 'id="study-workbench"' in html
     study = results[results["experiment"] == "study:workbench"]
@@ -60,7 +66,7 @@ def test_builds_report_and_results(workdir):
         assert (rows["metric"] == "efficiency_ratio").any() and (rows["column"] == "anees").any()
     ranks = results[(results["experiment"] == "bounds") & (results["column"] == "rank")].set_index("row")["value"]
     assert ranks[["UWB=9", "ZigBee=17", "3: B1,B3,B4", "4: B1,B3,B4,B6"]].tolist() == [170, 2750, 16, 5]
-    assert 'id="bounds-newcom"' in html and 'id="bounds-cricket"' in html and "RMSE/sqrt(PCRB)" in html
+    assert 'id="bounds-newcom"' in html and 'id="bounds-cricket"' in html and "RMSE / sqrt(PCRB)" in html
     assert "http://" not in html and "https://" not in html.replace("https://json-schema.org", "")
 
 
@@ -72,13 +78,14 @@ def test_verdicts_sensitivity_and_explanations_reach_results_and_report(workdir)
     assert set(verdicts["value"]) <= {-1, 0, 1}
     sensitivity = results[results["table"] == "Sensitivity"]
     assert set(sensitivity["experiment"]) == {"A", "B", "C", "D"} and "x1" in set(sensitivity["column"])
-    html = (workdir / "reports" / "index.html").read_text()
-    assert html.index('id="overview"') < html.index('id="paper-A"') < html.index('id="study-workbench"') \
-        < min(html.index('id="data-newcom"'), html.index('id="data-cricket"')) < html.index('id="provenance"')
+    summary = (workdir / "reports" / "index.html").read_text()
+    links = [f'href="pages/{page}.html"' for page in ("study-workbench", "paper-A", "data-newcom", "provenance")]
+    assert 'id="overview"' in summary                     # the navigation: studies, papers, data, provenance
+    assert summary.index(links[0]) < summary.index(links[1]) < summary.index(links[2]) < summary.index(links[3])
+    html = report_html(workdir)
     assert all(f'id="why-{p}"' in html and f'id="sensitivity-{p}"' in html for p in "ABCD")
     assert "paper: —" not in html
-    start = html.index('<section id="data-cricket"')
-    cricket = html[start:html.index("<section", start + 1)]
+    cricket = (workdir / "reports" / "pages" / "data-cricket.html").read_text()
     assert "ZigBee" not in cricket and "status 0" not in cricket
 
 
@@ -108,7 +115,7 @@ def test_damaged_line_is_quarantined_and_counted(workdir):
     results = pd.read_csv(workdir / "reports" / "results.csv")
     quarantined = results[(results["table"] == "Inventory") & (results["scenario"] == "newcom/constant")]
     assert quarantined["value"].iloc[0] == pytest.approx(0.5)          # one line over two runs
-    html = (workdir / "reports" / "index.html").read_text()
+    html = report_html(workdir)
     assert "99999999 U0#damaged" in html and f"<td>{n_lines + 1}</td>" in html
 
 
@@ -128,7 +135,7 @@ def test_report_in_a_headless_browser(workdir):
     if reason:
         pytest.skip(f"headless browser check unavailable: {reason}")
     outcome = check_report(workdir / "reports" / "index.html", workdir / "reports" / "screenshot.png")
-    assert outcome["problems"] == [] and outcome["images"] > 10
+    assert outcome["problems"] == [] and outcome["images"] > 10 and "pages/study-workbench.html" in outcome["pages"]
     assert (workdir / "reports" / "screenshot.png").stat().st_size > 10_000
 
 
@@ -182,7 +189,7 @@ def test_real_data_study_runs_by_uncommenting_the_config(tmp_path):
     results = pd.read_csv(work / "reports" / "results.csv")
     study = results[results["experiment"] == "study:realdata"]
     assert study["row"].nunique() >= 6 and set(study["scenario"]) == {"cucudasluv/los", "cucudasluv/nlos"}
-    assert 'id="study-realdata"' in (work / "reports" / "index.html").read_text()
+    assert 'id="study-realdata"' in (work / "reports" / "pages" / "study-realdata.html").read_text()
 
 
 def test_compile_bytecode_writes_each_module_once(tmp_path):

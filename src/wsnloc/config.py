@@ -15,7 +15,7 @@ from typing import Any
 import jsonschema
 import yaml
 
-from wsnloc.errors import ConfigError
+from wsnloc.errors import ConfigError, did_you_mean
 
 # libyaml's parser when PyYAML was built with it (same safe schema, ~10x faster than the pure
 # Python one: every job reads its campaign file).
@@ -71,12 +71,15 @@ def _describe(error: jsonschema.ValidationError) -> str:
         unknown = sorted(k for k in error.instance if k not in allowed)
         prefix = f"{where}." if error.absolute_path else ""
         keys = ", ".join(f"'{prefix}{k}'" for k in unknown)
+        close = "".join(did_you_mean(k, allowed) for k in unknown) if len(unknown) == 1 else ""
         hint = f" (allowed here: {', '.join(sorted(allowed))})" if allowed else ""
-        return f"config key {keys}: unknown key{hint}"
+        return f"config key {keys}: unknown key{close}{hint}"
     if error.validator == "required":
         missing = error.message.split("'")[1] if "'" in error.message else error.message
         prefix = f"{where}." if error.absolute_path else ""
         return f"config key '{prefix}{missing}': required but missing"
+    if error.validator == "enum" and isinstance(error.instance, str):
+        return f"config key '{where}': {error.message}{did_you_mean(error.instance, error.validator_value)}"
     return f"config key '{where}': {error.message}"
 
 

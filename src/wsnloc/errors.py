@@ -17,3 +17,12 @@ class IngestError(WsnlocError):
 
     Single unusable lines never raise: they go to the quarantine table.
     """
+
+
+def did_you_mean(name: str, known) -> str:
+    """' (did you mean 'x'?)' for the known names closest to a misspelled one (difflib's
+    ratio >= 0.6, at most three), else ''."""
+    import difflib
+
+    close = difflib.get_close_matches(str(name), [str(k) for k in known], n=3)
+    return f" (did you mean {' or '.join(repr(c) for c in close)}?)" if close else ""

@@ -1,8 +1,13 @@
 """The results contract: reports/results.csv, one row per reported number.
 
 Columns: experiment, table, row, column, scenario, metric, value, ci95_low, ci95_high,
-runs, paper_value (empty where not applicable). The report and outside tooling read this
-file, never internal objects.
+band_low, band_high, runs, paper_value (empty where not applicable). The report and outside
+tooling read this file, never internal objects.
+
+ci95_low / ci95_high: the 95% interval of a mean over Monte Carlo runs (metrics.stats.mean_interval,
+inside the metric's range, empty with fewer than MIN_INTERVAL_RUNS runs). band_low / band_high:
+the 95% acceptance band of a test statistic (ANEES, ANIS: chi-square, metrics.consistency), not
+an interval of the value.
 """
 
 from __future__ import annotations
@@ -11,21 +16,39 @@ from pathlib import Path
 
 import pandas as pd
 
-from wsnloc.metrics.stats import mean_ci95
+from wsnloc.metrics.stats import mean_interval
 
 COLUMNS = ["experiment", "table", "row", "column", "scenario", "metric",
-           "value", "ci95_low", "ci95_high", "runs", "paper_value"]
+           "value", "ci95_low", "ci95_high", "band_low", "band_high", "runs", "paper_value"]
 KEY = COLUMNS[:6]      # the labels that name a number: no two rows of a file share them
+
+SIGNED_METRICS = ("P0_dBm", "range_error_m", "rmse_gain_m", "range_offset_m", "verdict")   # and difference_*
+
+
+def metric_domain(metric: str) -> str:
+    """The range of a metric's per-run values, for mean_interval: 'share' (in [0, 1]: names
+    ending in share, availability), 'real' (signed: SIGNED_METRICS, differences), else
+    'nonnegative' (errors, bounds, ratios, counts, times)."""
+    if metric.endswith("share") or metric == "availability":
+        return "share"
+    if metric in SIGNED_METRICS or metric.startswith("difference"):
+        return "real"
+    return "nonnegative"
 
 
 def row_over_runs(per_run_values, *, experiment: str, table: str, row: str, column: str,
                   scenario: str, metric: str, paper_value: float | None = None) -> dict:
-    """A results row whose value is the mean over runs with its 95% interval."""
+    """A results row whose value is the mean over runs with its 95% interval (mean_interval
+    on the metric's domain, metric_domain)."""
     values = [v for v in per_run_values if pd.notna(v)]
-    mean, low, high = mean_ci95(values)
+    try:
+        mean, low, high = mean_interval(values, metric_domain(metric))
+    except ValueError as exc:
+        raise ValueError(f"results row {experiment}/{table}/{row}/{column} ({metric}): {exc}") from None
     return {"experiment": experiment, "table": table, "row": row, "column": column,
             "scenario": scenario, "metric": metric, "value": mean, "ci95_low": low,
-            "ci95_high": high, "runs": len(values), "paper_value": paper_value}
+            "ci95_high": high, "band_low": None, "band_high": None, "runs": len(values),
+            "paper_value": paper_value}
 
 
 def single_row(value, *, experiment: str, table: str, row: str, column: str, scenario: str,
@@ -33,7 +56,7 @@ def single_row(value, *, experiment: str, table: str, row: str, column: str, sce
     """A results row for a number that is not a Monte Carlo mean (a count, a measured time)."""
     return {"experiment": experiment, "table": table, "row": row, "column": column,
             "scenario": scenario, "metric": metric, "value": value, "ci95_low": None,
-            "ci95_high": None, "runs": None, "paper_value": paper_value}
+            "ci95_high": None, "band_low": None, "band_high": None, "runs": None, "paper_value": paper_value}
 
 
 def frame(rows: list[dict]) -> pd.DataFrame:

@@ -28,7 +28,7 @@ from wsnloc import results
 from wsnloc.analysis.filter_bounds import is_bayesian
 from wsnloc.analysis.filter_quality import QUALITY_COLUMNS, cell_outputs, run_quality
 from wsnloc.campaign import Campaign
-from wsnloc.errors import ConfigError, WsnlocError
+from wsnloc.errors import ConfigError, WsnlocError, did_you_mean
 from wsnloc.estimators import registry
 from wsnloc.estimators.run_data import ALL_ANCHORS, RunData
 from wsnloc.experiments import calibration
@@ -76,17 +76,19 @@ def validate_studies(config: dict) -> None:
         where = f"studies.{study}"
         for label in spec["scenarios"]:
             if label not in declared:
-                raise ConfigError(f"config key '{where}.scenarios': {label!r} is not a declared dataset/scenario "
-                                  f"(declared: {', '.join(sorted(declared))})")
+                raise ConfigError(f"config key '{where}.scenarios': {label!r} is not a declared dataset/scenario"
+                                  f"{did_you_mean(label, declared)} (declared: {', '.join(sorted(declared))})")
         for key, layer in (spec.get("overrides") or {}).items():
             if key not in {d for d in config["datasets"]} | declared:
-                raise ConfigError(f"config key '{where}.overrides.{key}': not a declared dataset or dataset/scenario")
+                raise ConfigError(f"config key '{where}.overrides.{key}': not a declared dataset or dataset/scenario"
+                                  f"{did_you_mean(key, set(config['datasets']) | declared)}")
             known = set(spec["estimators"]) | {p.name for c in spec["estimators"]
-                                               for p in registry.get(estimator_of(spec, c)).params}
+                                               for p in registry.get(estimator_of(spec, c),
+                                                                        f"{where}.estimators.{c}.estimator").params}
             for name in layer or {}:
                 if name not in known:
                     raise ConfigError(f"config key '{where}.overrides.{key}.{name}': neither an estimator cell of "
-                                      f"this study nor a parameter of its estimators")
+                                      f"this study nor a parameter of its estimators{did_you_mean(name, known)}")
         for label in spec["scenarios"]:
             dataset, scenario = label.split("/", 1)
             for cell in spec["estimators"]:
@@ -236,6 +238,22 @@ def study_panels(estimates: dict[tuple[str, str], pd.DataFrame]) -> tuple[dict, 
         truth = first[["true_x", "true_y"]].rename(columns={"true_x": "x", "true_y": "y"})
         tracks.setdefault(title, (truth, {}))[1][cell] = first
     return cdf, errors, tracks
+
+
+def estimator_panels(rows: list[dict], stats) -> dict:
+    """Panels of report.figures.estimator_bars from a study's results rows: per scenario, per
+    cell (and subset, where the study has several), the `stats` that are position errors in m
+    (value, ci95_low, ci95_high)."""
+    subsets = {row["table"] for row in rows}
+    panels: dict = {}
+    for row in rows:
+        if row["column"] in stats and row["metric"] == f"{row['column']}_m":
+            label = row["row"] if len(subsets) == 1 else f"{row['row']} [{row['table']}]"
+            panels.setdefault(row["scenario"], {}).setdefault(label, {})[row["column"]] = (
+                row["value"], row["ci95_low"], row["ci95_high"])
+    order = [s for s in stats]
+    return {title: {label: {s: cells[s] for s in order if s in cells} for label, cells in labels.items()}
+            for title, labels in panels.items()}
 
 
 def quality_table(estimates: pd.DataFrame) -> pd.DataFrame:

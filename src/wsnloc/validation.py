@@ -11,8 +11,16 @@ from pathlib import Path
 
 from wsnloc.campaign import Campaign
 from wsnloc.config import read_yaml, validate
-from wsnloc.errors import ConfigError
+from wsnloc.errors import ConfigError, did_you_mean
 from wsnloc.studies import validate_studies
+
+DEFAULT_KIND = {"simulate": "simulated", "logs": "measured"}   # datasets.<name>.kind by source (schema)
+
+
+def dataset_kind(spec: dict) -> str:
+    """What a dataset's data are: its `kind`, else DEFAULT_KIND of its source."""
+    return spec.get("kind") or DEFAULT_KIND[spec["source"]]
+
 
 SUBSET_KEYS = {
     "paper_a": ("rows[].uwb", "rows[].zigbee"),
@@ -38,7 +46,8 @@ def _values_at(node, path: str, prefix: str):
 
 
 def _check_datasets(config: dict) -> dict:
-    """Campaign files load, simulated scenarios exist in them, real logs are on disk.
+    """Campaign files load, simulated scenarios exist in them, real logs are on disk; each
+    dataset's `kind` defaults from its source (simulate: simulated, logs: measured).
 
     Returns the loaded campaign of each dataset.
     """
@@ -47,12 +56,17 @@ def _check_datasets(config: dict) -> dict:
         if not Path(dataset["campaign"]).is_file():
             raise ConfigError(f"config key 'datasets.{name}.campaign': no such file {dataset['campaign']!r}")
         campaigns[name] = campaign = Campaign.load(dataset["campaign"])
+        kind = dataset.setdefault("kind", dataset_kind(dataset))
+        if (kind == "simulated") != (dataset["source"] == "simulate"):
+            raise ConfigError(f"config key 'datasets.{name}.kind': {kind!r} does not fit source "
+                              f"{dataset['source']!r} (simulate: simulated; logs: measured or synthetic)")
         if dataset["source"] == "simulate":
             defined = campaign.spec.get("scenarios", {})
             for scenario in dataset["scenarios"]:
                 if scenario not in defined:
                     raise ConfigError(f"config key 'datasets.{name}.scenarios': {scenario!r} is not a scenario of "
-                                      f"{dataset['campaign']} (defined there: {', '.join(defined) or 'none'})")
+                                      f"{dataset['campaign']}{did_you_mean(scenario, defined)} "
+                                      f"(defined there: {', '.join(defined) or 'none'})")
             continue
         if not dataset.get("raw_dir"):
             raise ConfigError(f"config key 'datasets.{name}.raw_dir': required when source is 'logs'")
@@ -75,7 +89,8 @@ def _check_experiments(config: dict, campaigns: dict) -> None:
             for label in spec.get(key, []):
                 if label not in declared:
                     raise ConfigError(f"config key 'experiments.{experiment}.{key}': {label!r} is not a declared "
-                                      f"dataset/scenario (declared: {', '.join(sorted(declared))})")
+                                      f"dataset/scenario{did_you_mean(label, declared)} "
+                                      f"(declared: {', '.join(sorted(declared))})")
                 used.append(label.split("/")[0])
         if "table_2_scenario" in spec and spec["table_2_scenario"] not in spec["scenarios"]:
             raise ConfigError(f"config key 'experiments.{experiment}.table_2_scenario': "

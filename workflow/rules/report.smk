@@ -1,10 +1,13 @@
-# One self-contained HTML report and the results contract (reports/results.csv).
+# The HTML report, reports/index.html (the summary) with reports/pages/ (a page per study, paper
+# and dataset, provenance, and the figures they share), and the results contract (reports/results.csv).
 # The page, results.csv and the papers' figures are also registered with Snakemake's
 # report(), so `snakemake --report report.zip` packages them with the run's provenance.
 report: "../report/workflow.rst"
 
+import glob
+
 STUDY_OUTPUTS = ["results.csv", "figures/error_cdf.png", "figures/error_over_time.png", "figures/trajectories.png",
-                 "figures/pcrb_vs_rmse.png", "figures/consistency.png"]
+                 "figures/pcrb_vs_rmse.png", "figures/consistency.png", "figures/estimators.png"]
 
 
 rule report:
@@ -16,7 +19,7 @@ rule report:
         + scenario_outputs("data/processed/{dataset}/{scenario}/figures/rss_distance.png")
         + scenario_outputs("data/processed/{dataset}/{scenario}/figures/imu_resampling.png"),
         floor_plans=[f"data/processed/{d}/figures/floor_plan.png" for d in config["datasets"]],
-        template="workflow/templates/report.html.j2",
+        templates=sorted(glob.glob("workflow/templates/*.html.j2")),
         papers="config/papers.yaml",
         paper_a=(
             [
@@ -77,6 +80,8 @@ rule report:
     output:
         html=report("reports/index.html", category="Report", caption="../report/page.rst"),
         results=report("reports/results.csv", category="Report", caption="../report/page.rst"),
+        pages=report(directory("reports/pages"), category="Report", htmlindex="provenance.html",
+                     caption="../report/page.rst"),   # a page per study, paper and dataset, provenance; their figures
     params:
         config=config,
         paper_d_labels=[f"{d}/{s}" for d, s in PAPER_D_PAIRS],

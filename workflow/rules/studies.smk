@@ -35,10 +35,12 @@ rule study_summary:
         tracks="data/processed/studies/{study}/figures/trajectories.png",
         bounds="data/processed/studies/{study}/figures/pcrb_vs_rmse.png",
         consistency="data/processed/studies/{study}/figures/consistency.png",
+        bars="data/processed/studies/{study}/figures/estimators.png",
     params:
         cells=lambda w: [{"label": f"{d}/{s}", "cell": c,
                           "parameters": cell_params(STUDIES[w.study], c, d, s, f"studies.{w.study}")}
                          for d, s, c in STUDY_CELLS[w.study]],
+        bar_stats=config["report"]["cell_stats"],
     priority: PRIORITY["summary"]
     log:
         "logs/studies/{study}/summary.log",

@@ -1,6 +1,8 @@
-"""Snakemake adapter: collect results rows and summaries, render reports/index.html."""
+"""Snakemake adapter: collect results rows and summaries, render the report's pages:
+reports/index.html (the summary) and reports/pages/*.html with their figures."""
 
 import json
+import shutil
 from pathlib import Path
 
 import pandas as pd
@@ -8,7 +10,7 @@ import pandas as pd
 from wsnloc import results
 from wsnloc.config import read_yaml
 from wsnloc.report import explanations
-from wsnloc.report.render import build_context, png_data_uri, render
+from wsnloc.report.render import PAGES_DIR, FigureFiles, build_context, render_pages
 from wsnloc.report.sections import (paper_a_section, paper_b_section, paper_c_section, paper_d_section,
                                     sensitivity_table, static_bounds_section, study_section, summary)
 from wsnloc.workflow import start_job
@@ -24,6 +26,10 @@ result_files = list(sm.input.results) + [p for p in paper_outputs if p.endswith(
 all_results = pd.concat([results.read(p) for p in result_files], ignore_index=True)
 results.write(all_results, sm.output.results)
 
+reports = Path(sm.output.html).parent
+shutil.rmtree(reports / PAGES_DIR, ignore_errors=True)    # no page or figure of an earlier build is left
+figure = FigureFiles(reports)
+
 scenario_figures = {}
 for path in map(Path, sm.input.figures):
     label = f"{path.parents[2].name}/{path.parents[1].name}"
@@ -32,16 +38,16 @@ for path in map(Path, sm.input.figures):
 floor_plans = {Path(p).parents[1].name: Path(p).read_bytes() for p in sm.input.floor_plans}   # rule geometry
 
 final_results = results.read(sm.output.results)
-context = build_context(config, summaries, final_results, scenario_figures, floor_plans)
+context = build_context(config, summaries, final_results, scenario_figures, floor_plans, figure)
 for ds in context["datasets"]:   # static bounds of the dataset (rule geometry), when configured
     maps = [Path(p) for p in sm.input.bounds if p.endswith(".png") and Path(p).parts[2] == ds["name"]]
-    ds["bounds"] = static_bounds_section(final_results, ds["name"], png_data_uri(maps[0].read_bytes())) if maps else None
+    ds["bounds"] = static_bounds_section(final_results, ds["name"], figure(maps[0].read_bytes())) if maps else None
 papers = read_yaml(sm.input.papers)
-context["studies"] = []
 for study, spec in sm.params.studies.items():
     pngs = [Path(p) for p in sm.input.studies if p.endswith(".png") and Path(p).parts[3] == study]
-    figures_uri = {path.stem: png_data_uri(path.read_bytes()) for path in pngs}
-    context["studies"].append(study_section(final_results, study, spec, figures_uri))
+    context["studies"].append(study_section(final_results, study, spec, {path.stem: figure(path.read_bytes())
+                                                                         for path in pngs},
+                                            config["report"]["cell_stats"]))
 
 SECTIONS = {   # paper: (section builder, figure names, labels)
     "A": (paper_a_section, ("error_cdf", "trajectories", "rmse_vs_anchors", "gain_vs_static_share", "pcrb_vs_rmse",
@@ -54,21 +60,23 @@ SECTIONS = {   # paper: (section builder, figure names, labels)
 }
 numbers = explanations.Numbers(final_results, {summary["label"]: summary for summary in summaries})
 
-
-context["papers"] = []
 for paper, (builder, figure_names, labels) in SECTIONS.items():
     files = getattr(sm.input, f"paper_{paper.lower()}")
     if not files:
         continue
     outputs = {Path(p).name: Path(p) for p in files}
     claims = json.loads(outputs["claims.json"].read_text())
-    figures_uri = {name: png_data_uri(outputs[f"{name}.png"].read_bytes()) for name in figure_names}
+    figures_uri = {name: figure(outputs[f"{name}.png"].read_bytes()) for name in figure_names}
     section = builder(final_results, claims, figures_uri, papers[paper], list(labels),
                       config["experiments"][f"paper_{paper.lower()}"])
     section["sensitivity"] = sensitivity_table(final_results, paper, section["claims"])
     section["why"] = explanations.for_paper(paper, numbers, config, list(labels))
     context["papers"].append(section)
 context["summary"] = summary(context["papers"])
-html = render(sm.input.template, context)
-Path(sm.output.html).write_text(html, encoding="utf-8")
-log.info("report: %d bytes, %d results rows", len(html), len(all_results))
+pages = render_pages(Path(sm.input.templates[0]).parent, context)
+for file, html in pages.items():
+    (reports / file).parent.mkdir(parents=True, exist_ok=True)
+    (reports / file).write_text(html, encoding="utf-8")
+size = sum(f.stat().st_size for f in reports.rglob("*") if f.is_file() and f.suffix in (".html", ".png"))
+log.info("report: %d pages and %d figures, %d bytes; %d results rows", len(pages), len(figure.written), size,
+         len(all_results))

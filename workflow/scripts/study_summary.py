@@ -7,7 +7,7 @@ import pandas as pd
 from wsnloc import results
 from wsnloc.io import tables
 from wsnloc.report import bound_figures, figures
-from wsnloc.studies import bound_summary, results_rows, study_panels
+from wsnloc.studies import bound_summary, estimator_panels, results_rows, study_panels
 from wsnloc.workflow import start_job
 
 sm = snakemake  # noqa: F821  (injected by wsnloc.job_server: the rule's input, output, params, wildcards, log)
@@ -32,4 +32,5 @@ cdf, errors, tracks = study_panels(estimates)
 Path(sm.output.cdf).write_bytes(figures.error_cdf(cdf, xmax=None))
 Path(sm.output.errors).write_bytes(figures.error_over_time(errors))
 Path(sm.output.tracks).write_bytes(figures.trajectories(tracks))
+Path(sm.output.bars).write_bytes(figures.estimator_bars(estimator_panels(rows, sm.params.bar_stats)))
 log.info("study %s: %d cells, %d results rows", study, len(estimates), len(rows))

@@ -78,12 +78,12 @@ def run_quality(data: RunData, p: dict, scored: pd.DataFrame) -> tuple[pd.DataFr
 
 def consistency_rows(tests: dict[str, tuple], runs: int, **keys) -> list[dict]:
     """results.csv rows of consistency(...): metric `anees` / `anis`, value the time average,
-    ci95_low / ci95_high its 95% chi-square band (with the time-correlation inflation), runs
+    band_low / band_high its 95% chi-square band (with the time-correlation inflation), runs
     the number of Monte Carlo runs; keys: experiment, table, row, scenario (column = the statistic)."""
     out = []
     for name, (_, test) in tests.items():
         row = results.single_row(test.time_average, column=name.lower(), metric=name.lower(), **keys)
-        row.update(ci95_low=test.time_low, ci95_high=test.time_high, runs=runs)
+        row.update(band_low=test.time_low, band_high=test.time_high, runs=runs)
         out.append(row)
     return out
 

@@ -2,7 +2,8 @@
 
 Every estimator of the registry declares its parameters with a default and a unit; a
 study or the command line overrides some of them. Unknown names and values of the wrong
-kind are refused with a message naming the key (`where`, e.g. the config path).
+kind are refused with a message naming the key (`where`, e.g. the config path) and, for a
+misspelled name or choice, the closest known ones (errors.did_you_mean).
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from wsnloc.errors import ConfigError
+from wsnloc.errors import ConfigError, did_you_mean
 
 
 @dataclass(frozen=True)
@@ -38,7 +39,8 @@ class Param:
         if self.kind is str:
             value = str(value)
             if self.choices and value not in self.choices:
-                raise ConfigError(f"config key '{where}': {value!r} is not one of {', '.join(self.choices)}")
+                raise ConfigError(f"config key '{where}': {value!r} is not one of {', '.join(self.choices)}"
+                                  f"{did_you_mean(value, self.choices)}")
             return value
         try:
             if isinstance(value, bool):
@@ -66,8 +68,8 @@ def resolve(params: tuple[Param, ...], overrides: dict, where: str) -> dict:
     known = {p.name: p for p in params}
     unknown = sorted(set(overrides) - set(known))
     if unknown:
-        raise ConfigError(f"config key '{where}.{unknown[0]}': unknown parameter "
-                          f"(this estimator has: {', '.join(sorted(known))})")
+        raise ConfigError(f"config key '{where}.{unknown[0]}': unknown parameter"
+                          f"{did_you_mean(unknown[0], known)} (this estimator has: {', '.join(sorted(known))})")
     return {name: p.check(overrides[name], f"{where}.{name}") if name in overrides else p.default
             for name, p in known.items()}
 

@@ -19,7 +19,7 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from wsnloc.errors import ConfigError
+from wsnloc.errors import ConfigError, did_you_mean
 from wsnloc.estimators import batch, bayes, core, filter_options, fixes, inertial, range_calibration, trackers
 from wsnloc.estimators.motion import MOTIONS
 from wsnloc.estimators.parameters import Param, resolve
@@ -266,7 +266,7 @@ DEFAULT_ESTIMATOR = "tracker"
 
 def get(name: str, where: str = "estimator") -> Estimator:
     if name not in ESTIMATORS:
-        raise ConfigError(f"config key '{where}': unknown estimator {name!r} "
+        raise ConfigError(f"config key '{where}': unknown estimator {name!r}{did_you_mean(name, ESTIMATORS)} "
                           f"(registered: {', '.join(ESTIMATORS)})")
     return ESTIMATORS[name]
 

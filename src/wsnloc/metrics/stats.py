@@ -144,6 +144,54 @@ def mean_ci95(values) -> tuple[float, float, float]:
     return mean, mean - half, mean + half
 
 
+MIN_INTERVAL_RUNS = 5
+"""Fewest runs a results row gets a 95% interval from: with 2-4 runs the Student-t quantile
+(12.7, 4.3, 3.2) times a standard deviation estimated from as few values gives an interval
+that says little but looks precise; the mean is still reported, with its number of runs."""
+
+DOMAINS = ("real", "nonnegative", "share")
+
+
+def mean_interval(values, domain: str = "real", min_runs: int = MIN_INTERVAL_RUNS) -> tuple[float, float, float]:
+    """Mean over runs and a two-sided 95% interval of it that stays inside the metric's range.
+
+    NaN values are ignored; with fewer than `min_runs` values the interval is (nan, nan).
+    With m the mean, s the standard deviation, n the runs, se = s / sqrt(n), t = t_{0.975, n-1}:
+      real:         m -+ t se                                   (mean_ci95)
+      nonnegative:  m exp(-+ t se / m)     (Student-t interval of ln m by the delta method,
+                                            d ln m = dm / m; always > 0, wider above the mean)
+      share:        expit(logit m -+ t se / (m (1 - m)))        (the same on the logit scale,
+                                            d logit m = dm / (m (1 - m)); inside [0, 1])
+    A mean on the boundary (m = 0; or m = 0 or 1 for a share) means every run gave that value:
+    the interval is [m, m]. ValueError when a value lies outside the domain (a signed metric
+    declared non-negative).
+    """
+    if domain not in DOMAINS:
+        raise ValueError(f"mean_interval: domain must be one of {', '.join(DOMAINS)}, got {domain!r}")
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if len(v) == 0:
+        return float("nan"), float("nan"), float("nan")
+    low_limit = -math.inf if domain == "real" else 0.0
+    high_limit = 1.0 if domain == "share" else math.inf
+    if v.min() < low_limit or v.max() > high_limit:
+        raise ValueError(f"mean_interval: values outside the {domain} range [{low_limit}, {high_limit}] "
+                         f"(min {v.min():g}, max {v.max():g})")
+    mean = float(v.mean())
+    if len(v) < max(2, min_runs):
+        return mean, float("nan"), float("nan")
+    t_se = student_t_quantile(0.975, len(v) - 1) * float(v.std(ddof=1)) / math.sqrt(len(v))
+    if domain == "real":
+        return mean, mean - t_se, mean + t_se
+    if mean <= low_limit or mean >= high_limit or t_se == 0.0:
+        return mean, mean, mean
+    if domain == "nonnegative":
+        factor = math.exp(t_se / mean)
+        return mean, mean / factor, mean * factor
+    centre, half = math.log(mean / (1.0 - mean)), t_se / (mean * (1.0 - mean))
+    return mean, 1.0 / (1.0 + math.exp(-(centre - half))), 1.0 / (1.0 + math.exp(-(centre + half)))
+
+
 ERROR_STATS = ("rmse", "mean", "median", "p75", "p90", "p95", "max", "n")
 
 

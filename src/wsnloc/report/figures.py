@@ -123,8 +123,8 @@ def to_png(fig, tight: bool = True, palette: bool = True) -> bytes:
     canvas is saved as is. tight True: the box savefig(bbox_inches="tight") would save (the
     tight bounding box padded by savefig.pad_inches), its corners moved out to whole pixels
     (_tight_render).
-    palette: an indexed PNG (_save_palette_png); False for continuous colour maps, which
-    256 colours would band: 24-bit RGB."""
+    palette: an indexed PNG (_save_palette_png); False: 24-bit RGB, for images of more than
+    256 distinct colours that matter (photographs; a matplotlib colour map has 256)."""
     fig.set_dpi(PNG_DPI)
     if tight:
         rgba, overlaps = _tight_render(fig)
@@ -303,7 +303,8 @@ def range_error_figure(errors: pd.DataFrame, title: str, max_points: int = 6000)
 
 @gc_paused
 def rss_vs_distance(rss: pd.DataFrame, fit: dict, configured: dict, title: str, max_points: int = 6000) -> bytes:
-    """RSS (dBm) against log distance, coloured by walls crossed, with the fitted path-loss line."""
+    """RSS (dBm) against log distance, coloured by walls crossed (five colours: 0 to 4 or more),
+    with the fitted path-loss line; an indexed PNG (to_png)."""
     if len(rss) == 0:
         return placeholder("no RSS measurements in this dataset")
     fig, ax = plt.subplots(figsize=(7, 4))
@@ -323,7 +324,7 @@ def rss_vs_distance(rss: pd.DataFrame, fit: dict, configured: dict, title: str, 
     ax.set_ylabel("RSS [dBm]")
     ax.set_title(title)
     ax.legend(fontsize=7, loc="lower left")
-    return to_png(fig, palette=False)
+    return to_png(fig)
 
 
 @gc_paused
@@ -462,4 +463,39 @@ def curve_with_interval(curves: dict[str, pd.DataFrame], xlabel: str, ylabel: st
     ax.set_title(textwrap.fill(title, CURVE_TITLE_CHARS), fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
+    return fitted_png(fig)
+
+
+BAR_LABEL = {"rmse": "RMSE"}
+
+
+@gc_paused
+def estimator_bars(panels: dict[str, dict[str, dict[str, tuple[float, float, float]]]], unit: str = "m") -> bytes:
+    """Grouped horizontal bars, one panel per title (a scenario), one group per label (an
+    estimator cell) and one bar per statistic: its value with the 95% interval as an error bar
+    where there is one (panels: title -> label -> statistic -> (value, low, high)). A value
+    that is not finite is left out, with "(not finite)" after the label."""
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.4 * len(panels), 0.9 + 0.42 * max(
+        [len(labels) for labels in panels.values()] or [1]) * 1.6), squeeze=False)
+    for ax, (title, labels) in zip(axes[0], panels.items()):
+        names = list(dict.fromkeys(stat for stats in labels.values() for stat in stats))
+        height = 0.8 / max(1, len(names))
+        for k, stat in enumerate(names):
+            rows = [labels[label].get(stat, (np.nan,) * 3) for label in labels]
+            value, low, high = (np.array(column, dtype=float) for column in zip(*rows)) if rows else ([],) * 3
+            shown = np.isfinite(value)
+            y = np.arange(len(labels)) + (k - (len(names) - 1) / 2) * height
+            error = np.vstack([value - low, high - value])
+            error = np.where(np.isfinite(error), error, 0.0)
+            ax.barh(y[shown], value[shown], height=height * 0.95, label=BAR_LABEL.get(stat, stat),
+                    xerr=error[:, shown], error_kw={"elinewidth": 0.8, "capsize": 2, "ecolor": "0.2"})
+        ticks = [label + ("" if all(np.isfinite(v[0]) for v in labels[label].values()) else " (not finite)")
+                 for label in labels]
+        ax.set_yticks(np.arange(len(labels)), ticks, fontsize=8)
+        ax.invert_yaxis()
+        ax.set_xlabel(f"position error [{unit}]")
+        ax.set_title(title, fontsize=10)
+        ax.grid(axis="x", alpha=0.3)
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16 - 0.35 / len(labels)),
+                  ncols=len(names), frameon=False)        # below the axes: never over a bar
     return fitted_png(fig)

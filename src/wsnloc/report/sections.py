@@ -1,7 +1,8 @@
 """Report sections for the papers: tables in the papers' layout, claims, figures.
 
 A paper table is {title, scenario, columns, rows: [{label, cells: [cell]}]} where a cell
-holds our value with its 95% interval and the paper's value (None when unpublished).
+holds our value with its 95% interval (or, for ANEES / ANIS, its chi-square band) and the
+paper's value (None when unpublished).
 """
 
 from __future__ import annotations
@@ -18,14 +19,16 @@ def _cell(results: pd.DataFrame, **keys) -> dict:
     rows and columns are indexed once per frame (claims.cell_rows, claims.column_values)."""
     rows = claims_of.cell_rows(results, tuple(keys)).get(tuple(keys.values()))
     if rows is None:
-        return {"value": None, "low": None, "high": None, "runs": None, "paper": None, "delta": None, "inside": False}
-    paper, value, low, high, runs = (_present(results, column, int(rows[0])) for column in
-                                     ("paper_value", "value", "ci95_low", "ci95_high", "runs"))
+        return {"value": None, "low": None, "high": None, "band_low": None, "band_high": None, "runs": None,
+                "paper": None, "delta": None, "inside": False}
+    paper, value, low, high, band_low, band_high, runs = (
+        _present(results, column, int(rows[0]))
+        for column in ("paper_value", "value", "ci95_low", "ci95_high", "band_low", "band_high", "runs"))
     inside = paper_value_inside(paper, np.nan if low is None else low, np.nan if high is None else high)
     # The red/green difference only where the paper's value lies outside our 95% interval.
     delta = value - paper if value is not None and paper is not None and not inside else None
-    return {"value": value, "low": low, "high": high, "runs": int(runs) if runs is not None else None,
-            "paper": paper, "delta": delta, "inside": inside}
+    return {"value": value, "low": low, "high": high, "band_low": band_low, "band_high": band_high,
+            "runs": int(runs) if runs is not None else None, "paper": paper, "delta": delta, "inside": inside}
 
 
 def _present(results: pd.DataFrame, column: str, row: int):
@@ -212,18 +215,18 @@ def paper_c_section(results: pd.DataFrame, claims: dict, figures: dict[str, str]
             "bounds": bounds, "details": details, "claims": claims["claims"], "cost": [], "figures": figures, "settings": settings}
 
 
-STUDY_STATS = ("median", "p75", "p95", "rmse", "availability", "resets", "gated", "time_per_step",
+STUDY_STATS = ("median", "p75", "p95", "rmse", "mean", "p90", "max", "availability", "resets", "gated", "time_per_step",
                "calibrated_scale", "calibration_fitted", "range_scale", "range_offset")
 BOUND_STATS = ("sqrt_pcrb", "efficiency", "anees", "anis")     # Bayesian filter cells only
 
 
 def with_verdict(cell: dict) -> dict:
-    """An ANEES / ANIS cell (value, band in low / high) with its verdict (metrics.consistency)."""
+    """An ANEES / ANIS cell (value, band in band_low / band_high) with its verdict (metrics.consistency)."""
     from wsnloc.metrics.consistency import verdict
 
-    if cell["value"] is None or cell["low"] is None:
+    if cell["value"] is None or cell["band_low"] is None:
         return dict(cell, verdict=None)
-    return dict(cell, verdict=verdict(cell["value"], cell["low"], cell["high"]))
+    return dict(cell, verdict=verdict(cell["value"], cell["band_low"], cell["band_high"]))
 
 
 def _study_cell(results: pd.DataFrame, cell: str, scenario: str) -> dict:
@@ -232,8 +235,34 @@ def _study_cell(results: pd.DataFrame, cell: str, scenario: str) -> dict:
     return stats
 
 
-def study_section(results: pd.DataFrame, study: str, spec: dict, figures: dict[str, str]) -> dict:
-    """Context of one study's section: per anchor subset, cells x scenarios with their statistics."""
+def _setting(value) -> str:
+    """A parameter value as the config would write it (numbers in the shortest form, 50, 0.05)."""
+    if isinstance(value, bool) or value is None:
+        return str(value).lower() if value is not None else "none"
+    if isinstance(value, (int, float)):
+        return format(value, "g")
+    return str(value)
+
+
+def cell_settings(spec: dict, cell: str, label: str) -> list[str]:
+    """`name = value` of every parameter the study sets for the cell on one dataset/scenario
+    (its own keys and the study's overrides for the dataset or scenario, studies.cell_params)
+    where it differs from the registry's default; empty: the registry's defaults."""
+    from wsnloc.estimators import registry
+    from wsnloc.studies import cell_params, estimator_of
+
+    dataset, scenario = label.split("/", 1)
+    defaults = registry.get(estimator_of(spec, cell)).resolve({}, "")
+    resolved = cell_params(spec, cell, dataset, scenario, "studies")
+    return [f"{name} = {_setting(value)}" for name, value in resolved.items() if value != defaults.get(name)]
+
+
+def study_section(results: pd.DataFrame, study: str, spec: dict, figures: dict[str, str],
+                  headline: list[str] = ("median", "p75", "rmse")) -> dict:
+    """Context of one study's section: the settings of each cell per scenario; per anchor
+    subset, cells x scenarios with the `headline` statistics (config report.cell_stats), the
+    best cell of each headline column marked (`best`: lowest error, highest availability), and
+    every statistic (for the detail); the figures."""
     from wsnloc.studies import EXPERIMENT_PREFIX, estimator_of
 
     sel = results[results["experiment"] == EXPERIMENT_PREFIX + study]
@@ -242,12 +271,20 @@ def study_section(results: pd.DataFrame, study: str, spec: dict, figures: dict[s
     for subset in dict.fromkeys(sel["table"]):
         in_subset = sel[sel["table"] == subset]
         rows = [{"label": cell, "cells": [_study_cell(in_subset, cell, sc) for sc in scenarios]} for cell in cells]
+        for k in range(len(scenarios)):            # the best cell of each headline column (highest availability)
+            for stat in headline:
+                values = [r["cells"][k][stat]["value"] for r in rows]
+                finite = [v for v in values if v is not None and np.isfinite(v)]
+                if len(finite) > 1:
+                    best = max(finite) if stat == "availability" else min(finite)
+                    for r, v in zip(rows, values):
+                        r["cells"][k][stat]["best"] = v == best
         tables.append({"subset": subset, "scenarios": scenarios, "rows": rows})
     estimators = [{"cell": c, "estimator": estimator_of(spec, c),
-                   "overrides": {k: v for k, v in (spec["estimators"][c] or {}).items() if k != "estimator"}}
-                  for c in cells]
-    return {"id": study, "tables": tables, "estimators": estimators, "overrides": spec.get("overrides") or {},
-            "figures": figures}
+                   "settings": [cell_settings(spec, c, sc) for sc in scenarios]} for c in cells]
+    runs = sel.loc[sel["column"] == "rmse", "runs"].dropna()
+    return {"id": study, "tables": tables, "estimators": estimators, "scenarios": scenarios,
+            "headline": list(headline), "runs": int(runs.min()) if len(runs) else None, "figures": figures}
 
 
 def static_bounds_section(results: pd.DataFrame, dataset: str, maps: str) -> dict:
