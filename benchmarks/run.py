@@ -373,6 +373,39 @@ def bench_estimators(repeats: int, scenarios=("constant", "variable")) -> list[d
 
 
 BATCH_RUNS = 50
+BANK_CELLS = (1, 2, 3, 6, 20)
+
+
+def bench_filter_bank(repeats: int, cells=BANK_CELLS) -> list[tuple[int, float, float]]:
+    """(cells, ms per cell with the array EKF bank, ms per cell with filter objects) of
+    bayes.run_filters on N bare epoch-mode EKF cells (range sigmas 0.30, 0.31, ... m) of one
+    simulated Newcom++ run, a fresh RunData per repeat; the break-even sets bayes.ARRAY_MIN_CELLS."""
+    from wsnloc.campaign import Campaign
+    from wsnloc.estimate import load_run
+    from wsnloc.estimators import bayes, registry
+    from wsnloc.estimators.run_data import RunData
+    from wsnloc.sim.newcom import simulate_run
+    from wsnloc.sim.seeding import run_seed_sequence
+
+    campaign = Campaign.load(ROOT / "config" / "campaigns" / "newcom.yaml")
+    raw = simulate_run(campaign, "variable", run_seed_sequence(1, "bench", "variable", 1), OUT / "bank-variable")
+    run_tables = load_run("newcom", raw, campaign, OUT / "bank-variable-tables")
+    p = registry.get("ekf").resolve({"max_range_m": 50.0})
+    rows, default = [], bayes.ARRAY_MIN_CELLS
+    try:
+        for n in cells:
+            times = []
+            for minimum in (1, n + 1):                  # every group as arrays / as filter objects
+                bayes.ARRAY_MIN_CELLS = minimum
+
+                def once(n=n):
+                    data = RunData(run_tables, campaign, None, "variable")
+                    return bayes.run_filters([(data, dict(p, range_sigma_m=0.3 + 0.01 * i)) for i in range(n)])
+                times.append(median_time(once, repeats) / n * 1e3)
+            rows.append((n, *times))
+    finally:
+        bayes.ARRAY_MIN_CELLS = default
+    return rows
 
 
 def batched_ekf(anchors: np.ndarray, ranges: np.ndarray, F: np.ndarray, Q: np.ndarray):
@@ -471,6 +504,12 @@ def write(r: dict, path: Path, command: str) -> None:
         "| filter | wsnloc [us/step] | filterpy [us/step] | ratio (ours / filterpy) | target |",
         "|---|---|---|---|---|",
         *[f"| {name} | {a:.2f} | {b:.1f} | {a / b:.3f} | {target} |" for name, a, b, target in r["filters"]], "",
+        "", "## Filter bank of the epoch loop: array EKF against filter objects (bayes.run_filters)", "",
+        "Bare epoch-mode EKF cells of one simulated Newcom++ run stepped together; bayes.ARRAY_MIN_CELLS is the "
+        "smallest group run as arrays.", "",
+        "| cells | array EKF [ms per cell] | filter objects [ms per cell] | ratio (arrays / objects) |",
+        "|---|---|---|---|",
+        *[f"| {n} | {a:.1f} | {b:.1f} | {a / b:.2f} |" for n, a, b in r["bank"]],
         "", "## Estimators: time per step on a simulated Newcom++ run (registry, 12 UWB anchors, 0.5 s epochs)", "",
         "| scenario | estimator | output steps | time per step [us] | real-time factor |", "|---|---|---|---|---|",
         *[f"| {x['scenario']} | {x['estimator']} | {x['steps']} | {x['us_per_step']:.0f} | {x['realtime_factor']:.0f} |"
@@ -503,6 +542,7 @@ def main() -> int:
                                    text=True, check=True).stdout.strip(),
         "filters": bench_filters(args.repeats),
         "estimators": bench_estimators(args.repeats),
+        "bank": bench_filter_bank(args.repeats),
         "imports": bench_job_imports({"current": ROOT, "previous": previous}),
         "round_trip": job_server_round_trip(),
         "sim": bench_simulator({"current": ROOT, "previous": previous}),

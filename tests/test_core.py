@@ -130,3 +130,20 @@ def test_the_default_updater_gates_a_wild_range():
     z = np.hypot(*(ANCHORS - [5.0, 5.0]).T) + [0.0, 0.1, 9.0, -0.1]
     keep = filter_options.default_updater(p)(filt, z, model.jacobian(filt.x), model.R(), model.h(filt.x))
     assert keep.tolist() == [True, True, False, True]
+
+
+@pytest.mark.parametrize("params", [{}, {"update": "sequential", "motion": "p"},
+                                    {"update": "sequential", "gate_probability": 0.999, "robust_loss": "huber"},
+                                    {"measurements": "hybrid"}])
+def test_filterpy_ekf_estimator_equals_ours(params):
+    """ekf_filterpy runs filterpy's ExtendedKalmanFilter in the same loops and components as
+    ekf: the same estimates to round-off, the same counters."""
+    from synthetic import RSS_MODEL
+    rng = np.random.default_rng(4)
+    t, ids = bursts(40.0)
+    data = run_data(tables_for(t, ids, walk, noise_m=0.2, rng=rng, rss_times=np.arange(0.5, 40.0, 0.5)), RSS_MODEL)
+    ours = registry.run("ekf", data, dict(params, anchors="all"))
+    reference = registry.run("ekf_filterpy", data, dict(params, anchors="all"))
+    assert len(ours) > 50 and ours.attrs == reference.attrs
+    np.testing.assert_allclose(reference[["x", "y", "p_xx", "p_xy", "p_yy", "nis"]],
+                               ours[["x", "y", "p_xx", "p_xy", "p_yy", "nis"]], rtol=1e-9, atol=1e-9)

@@ -21,7 +21,8 @@ Motion detection (paper A): in epochs declared static by the accelerometer the p
   step is skipped (state and covariance frozen).
 Filters (`FILTERS`, parameter `filter`): `ekf` (filters.kalman), `ukf` (scaled sigma points,
   filters.ukf: alpha, beta, kappa) and `pf` (bootstrap particle filter, filters.particle:
-  n_particles, resample_threshold, outlier_probability, outlier_span_m, seed); all share the
+  n_particles, resample_threshold, outlier_probability, outlier_span_m, seed) and `filterpy`
+  (filterpy's EKF as the textbook reference, filters.reference); all share the
   predict(F, Q, u, B) / update_model(model) interface, so both loops run any of them
   (core.FilterBank). The bare epoch-mode EKF runs as array_ekf.ArrayEKF instead (the same
   filter for many runs at once; `run_filters` steps every cell sharing a motion model,
@@ -51,6 +52,7 @@ from wsnloc.estimators.run_data import RunData
 from wsnloc.estimators.smoothing import ForwardPass
 from wsnloc.filters.kalman import ExtendedKalmanFilter
 from wsnloc.filters.particle import ParticleFilter
+from wsnloc.filters.reference import FilterpyEKF
 from wsnloc.filters.ukf import UnscentedKalmanFilter
 from wsnloc.inertial.motion_detection import static_epochs
 
@@ -81,9 +83,15 @@ def pf_factory(p: dict, data: RunData):
     return make
 
 
+def filterpy_factory(p: dict, data: RunData):
+    def make(x0: np.ndarray, P0: np.ndarray, motion: MotionModel):
+        return FilterpyEKF(x0, P0)
+    return make
+
+
 # filter name -> factory(parameters, run) -> make(x0, P0, motion) -> a filter with x, P, nis,
 # predict(F, Q, u, B) and update_model(model)
-FILTERS = {"ekf": ekf_factory, "ukf": ukf_factory, "pf": pf_factory}
+FILTERS = {"ekf": ekf_factory, "ukf": ukf_factory, "pf": pf_factory, "filterpy": filterpy_factory}
 
 
 def motion_model(p: dict) -> MotionModel:

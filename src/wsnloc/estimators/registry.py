@@ -62,7 +62,7 @@ KALMAN_FIXES = (
     Param("initial_speed_sigma_mps", 0.5, "m/s", "initial speed sigma"),
 )
 FILTER = (
-    Param("filter", "ekf", "", "Bayesian filter (ukf and pf have their own estimators)", str, ("ekf",)),
+    Param("filter", "ekf", "", "Bayesian filter (ukf, pf and filterpy have their own estimators)", str, ("ekf",)),
     Param("measurements", "toa", "", "toa: ranges; rss: RSS; hybrid: both stacked", str, tuple(KINDS)),
     Param("motion", "pv", "", "p: random walk; pv: constant velocity; pva: measured acceleration input + bias",
           str, MOTIONS),
@@ -244,6 +244,9 @@ ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
     Estimator("pf", "Bootstrap particle filter (systematic resampling on ESS, optional heavy-tailed range "
               "likelihood) with the EKF's motion models, measurements, update modes, initiator and coasting limit",
               COMMON + RSS + _filter(FILTER, "pf") + PARTICLE, bayes.run_filter, _filter_inputs),
+    Estimator("ekf_filterpy", "filterpy's EKF (the textbook reference) in the same loops, initiator, coasting "
+              "limit and update options as ekf: its estimates equal ekf's to round-off",
+              COMMON + RSS + _filter(FILTER, "filterpy"), bayes.run_filter, _filter_inputs),
     Estimator("ekf_rts", "EKF followed by the fixed-interval RTS smoother (offline: each estimate uses the "
               "whole run)", COMMON + RSS + FILTER, bayes.run_smoother, _filter_inputs),
     Estimator("ukf_rts", "UKF followed by the fixed-interval RTS smoother (offline: each estimate uses the "
