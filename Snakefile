@@ -3,7 +3,7 @@
 from snakemake.utils import min_version
 
 from wsnloc.validation import validate_config
-from wsnloc.workflow import compile_bytecode
+from wsnloc.workflow import REPORT, RESULTS, compile_bytecode, finished_build
 
 min_version("8.20")
 compile_bytecode()   # each job imports wsnloc's modules: compiled once here, not in every job
@@ -31,6 +31,10 @@ include: "workflow/rules/report.smk"
 
 rule all:
     input:
-        "reports/index.html",
-        "reports/results.csv",
+        REPORT,
+        RESULTS,
     default_target: True
+
+
+onsuccess:
+    print(finished_build())
