@@ -1,7 +1,10 @@
 # wsnloc workflow: raw logs -> Parquet -> (estimates -> metrics) -> report.
 # Edit config/config.yaml, then run `snakemake --cores 2`.
+import sys
+
 from snakemake.utils import min_version
 
+from wsnloc.errors import WsnlocError
 from wsnloc.validation import validate_config
 from wsnloc.workflow import REPORT, RESULTS, compile_bytecode, finished_build
 
@@ -13,8 +16,11 @@ configfile: "config/config.yaml"
 
 
 # Validated (and defaults filled in) before any job is planned: schema, campaigns, real-log
-# folders, experiments' subsets, studies. Errors name the key.
-validate_config(config, "config/schema.yaml")
+# folders, experiments' subsets, studies. Errors name the key: one message, no traceback.
+try:
+    validate_config(config, "config/schema.yaml")
+except WsnlocError as error:
+    sys.exit(f"error in the configuration: {error}")
 
 
 include: "workflow/rules/common.smk"
