@@ -75,6 +75,28 @@ def children_cpu_s() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
+def become_subreaper() -> None:
+    """Make this process the reaper of its orphaned descendants (Linux PR_SET_CHILD_SUBREAPER):
+    a process that snakemake started but did not wait for (e.g. a server of its jobs) is then
+    waited for here, by reap_orphans, and its CPU counts in children_cpu_s like any job's."""
+    import ctypes
+
+    PR_SET_CHILD_SUBREAPER = 36
+    ctypes.CDLL(None, use_errno=True).prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
+
+
+def reap_orphans(timeout_s: float = 30.0) -> None:
+    """Wait for the descendants left behind by a finished build (see become_subreaper)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        try:
+            pid, _ = os.waitpid(-1, os.WNOHANG)
+        except ChildProcessError:
+            return
+        if pid == 0:
+            time.sleep(0.05)
+
+
 def python(code: str, src: Path) -> tuple[float, str]:
     """Wall seconds and stdout of `python -c code` with `src` on PYTHONPATH."""
     start = time.perf_counter()
@@ -144,6 +166,7 @@ def snakemake(cwd: Path, src: Path) -> dict:
     result = subprocess.run([sys.executable, "-m", "snakemake", "--cores", "2", "--quiet", "host"], cwd=cwd,
                             env={**os.environ, "PYTHONPATH": str(src)}, capture_output=True, text=True)
     wall = time.perf_counter() - start
+    reap_orphans()
     if result.returncode != 0:
         raise RuntimeError(f"snakemake failed in {cwd}:\n{result.stderr[-3000:]}")
     log = result.stdout + result.stderr
@@ -523,6 +546,7 @@ def main() -> int:
     if len(args.mc_runs) < 2 or min(args.mc_runs) < 2:
         parser.error("--mc-runs needs at least two run counts, each >= 2 (RSS calibration uses another run)")
     OUT.mkdir(parents=True, exist_ok=True)
+    become_subreaper()
     previous = export_revision(args.previous)
     trees = {"current": ROOT, "previous": previous}
     results = {
