@@ -1,5 +1,6 @@
 # wsnloc workflow: raw logs -> Parquet -> (estimates -> metrics) -> report.
 # Edit config/config.yaml, then run `snakemake --cores 2`.
+import atexit
 import sys
 
 from snakemake.utils import min_version
@@ -42,5 +43,6 @@ rule all:
     default_target: True
 
 
+# Where the report is: printed at exit, after Snakemake's own closing lines.
 onsuccess:
-    print(finished_build())
+    atexit.register(print, finished_build())
