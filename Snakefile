@@ -1,9 +1,13 @@
 # wsnloc workflow: raw logs -> Parquet -> (estimates -> metrics) -> report.
 # Edit config/config.yaml, then run `snakemake --cores 2`.
+import atexit
+import sys
+
 from snakemake.utils import min_version
 
+from wsnloc.errors import WsnlocError
 from wsnloc.validation import validate_config
-from wsnloc.workflow import compile_bytecode
+from wsnloc.workflow import REPORT, RESULTS, compile_bytecode, finished_build
 
 min_version("8.20")
 compile_bytecode()   # each job imports wsnloc's modules: compiled once here, not in every job
@@ -13,8 +17,11 @@ configfile: "config/config.yaml"
 
 
 # Validated (and defaults filled in) before any job is planned: schema, campaigns, real-log
-# folders, experiments' subsets, studies. Errors name the key.
-validate_config(config, "config/schema.yaml")
+# folders, experiments' subsets, studies. Errors name the key: one message, no traceback.
+try:
+    validate_config(config, "config/schema.yaml")
+except WsnlocError as error:
+    sys.exit(f"error in the configuration: {error}")
 
 
 include: "workflow/rules/common.smk"
@@ -31,6 +38,11 @@ include: "workflow/rules/report.smk"
 
 rule all:
     input:
-        "reports/index.html",
-        "reports/results.csv",
+        REPORT,
+        RESULTS,
     default_target: True
+
+
+# Where the report is: printed at exit, after Snakemake's own closing lines.
+onsuccess:
+    atexit.register(print, finished_build())

@@ -1,7 +1,7 @@
 """Performance measurements of wsnloc on this machine, as ratios measured in one run; writes
 benchmarks/RESULTS.md.
 
-    python benchmarks/run.py --previous REV [--repeats 3] [--mc-runs 5 10 20] [--mc-repeats 2] [--small]
+    python benchmarks/run.py --previous REV [--repeats 3] [--mc-runs 5 10 20] [--mc-repeats 2] [--small] [--cold-only]
 
 REV is the commit to compare against (e.g. the last commit before a performance change). It is
 exported with `git archive` into benchmarks/out/previous/ (no worktree, no checkout) and its
@@ -10,18 +10,21 @@ Absolute times differ 2x and more between machines, so the acceptance figures ar
 - import floor: minimum over 5 runs of `python -c "import numpy, pandas, ..."` (IMPORT_FLOOR),
   measured right before each cold build (the speed of a shared machine drifts over minutes);
 - cold build (wall, and CPU = user + system of snakemake and every job it started) / the floor
-  measured before it; the median over the builds;
+  measured before it, the median over the builds; the builds of both revisions alternate, so
+  the CPU ratio current / previous is measured under the same load;
 - Monte Carlo cost per added run: slope of a least-squares line through cold-build times at
   several run counts, current / previous; the builds of both revisions alternate, each point
   is the fastest of `--mc-repeats` builds (a build slowed by a busy neighbour is not kept);
 - estimators per step against filterpy on identical inputs.
-`--small` uses one scenario per dataset (a test of this script, not a benchmark). All builds
+`--small` uses one scenario per dataset (a test of this script, not a benchmark); `--cold-only`
+measures the alternating cold builds only (a reduced run on a busy machine). All builds
 run in scratch copies under benchmarks/out/ (git-ignored), never in the working tree.
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
 import datetime
 import os
 import platform
@@ -38,13 +41,23 @@ import numpy as np
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "src"))          # this tree's wsnloc (job server, filters, estimators)
-from wsnloc.job_server import script_imports  # noqa: E402  (after the line above)
+sys.path.insert(0, str(ROOT / "src"))          # this tree's wsnloc (filters, estimators)
 
 OUT = ROOT / "benchmarks" / "out"
 IMPORT_FLOOR = "import numpy, pandas, pyarrow.parquet, scipy.signal, matplotlib.pyplot"
 SIM_SCENARIO = ("newcom", "variable")
 SIM_RUNS = 5
+
+
+def script_imports(scripts) -> list[str]:
+    """The module-level import statements of workflow scripts, each once, in order of first
+    appearance (e.g. "from wsnloc.report import figures"): what a `script:` job runs first."""
+    statements: dict[str, None] = {}
+    for script in scripts:
+        body = ast.parse(Path(script).read_text()).body
+        statements.update(dict.fromkeys(ast.unparse(node) for node in body
+                                        if isinstance(node, (ast.Import, ast.ImportFrom))))
+    return list(statements)
 
 
 def median_time(fn, repeats: int) -> float:
@@ -60,6 +73,28 @@ def children_cpu_s() -> float:
     """User + system CPU seconds of every finished descendant (jobs count through snakemake)."""
     usage = resource.getrusage(resource.RUSAGE_CHILDREN)
     return usage.ru_utime + usage.ru_stime
+
+
+def become_subreaper() -> None:
+    """Make this process the reaper of its orphaned descendants (Linux PR_SET_CHILD_SUBREAPER):
+    a process that snakemake started but did not wait for (e.g. a server of its jobs) is then
+    waited for here, by reap_orphans, and its CPU counts in children_cpu_s like any job's."""
+    import ctypes
+
+    PR_SET_CHILD_SUBREAPER = 36
+    ctypes.CDLL(None, use_errno=True).prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
+
+
+def reap_orphans(timeout_s: float = 30.0) -> None:
+    """Wait for the descendants left behind by a finished build (see become_subreaper)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        try:
+            pid, _ = os.waitpid(-1, os.WNOHANG)
+        except ChildProcessError:
+            return
+        if pid == 0:
+            time.sleep(0.05)
 
 
 def python(code: str, src: Path) -> tuple[float, str]:
@@ -124,12 +159,14 @@ def workflow_copy(tree: Path, name: str, runs: int | None, small: bool) -> Path:
 
 
 def snakemake(cwd: Path, src: Path) -> dict:
-    """One `snakemake --cores 2` in `cwd` with `src` on PYTHONPATH: wall, CPU and log."""
+    """One `snakemake --cores 2` in `cwd` with `src` on PYTHONPATH: wall, CPU and log (the
+    rules' job blocks printed whatever a tree's workflow profile says: they are parsed)."""
     cpu_before = children_cpu_s()
     start = time.perf_counter()
-    result = subprocess.run([sys.executable, "-m", "snakemake", "--cores", "2"], cwd=cwd,
+    result = subprocess.run([sys.executable, "-m", "snakemake", "--cores", "2", "--quiet", "host"], cwd=cwd,
                             env={**os.environ, "PYTHONPATH": str(src)}, capture_output=True, text=True)
     wall = time.perf_counter() - start
+    reap_orphans()
     if result.returncode != 0:
         raise RuntimeError(f"snakemake failed in {cwd}:\n{result.stderr[-3000:]}")
     log = result.stdout + result.stderr
@@ -175,19 +212,28 @@ def last_job_alone_s(log: str) -> float:
     return (events[-1][0] - alone_since).total_seconds() if events and alone_since else 0.0
 
 
-def bench_workflow(repeats: int, small: bool) -> dict:
-    """Cold builds, each after an import floor of its own; the build with the median ratio."""
-    builds, noops = [], []
+def bench_workflow(trees: dict[str, Path], repeats: int, small: bool) -> dict:
+    """Cold builds of each tree's workflow, alternating tree by tree, each after an import floor
+    of its own; per tree the build with the median wall / floor ratio, and the median CPU."""
+    builds = {label: [] for label in trees}
+    noops = []
     for k in range(repeats):
-        floor = import_floor()
-        work = workflow_copy(ROOT, f"cold-{k}", None, small)
-        builds.append({**snakemake(work, ROOT / "src"), "floor": floor})
-        noops.append(min(snakemake(work, ROOT / "src")["wall"] for _ in range(3)))
-    median = sorted(builds, key=lambda b: b["wall"] / b["floor"])[len(builds) // 2]
-    return {"cold_s": median["wall"], "floor_s": median["floor"], "cpu_s": median["cpu"],
-            "cold_all": [(b["wall"], b["floor"]) for b in builds],
-            "jobs": len(median["jobs"]), "per_rule": seconds_per_rule(median["log"]),
-            "alone_s": last_job_alone_s(median["log"]), "noop_s": statistics.median(noops)}
+        for label, tree in trees.items():
+            floor = import_floor()
+            work = workflow_copy(tree, f"cold-{label}-{k}", None, small)
+            builds[label].append({**snakemake(work, tree / "src"), "floor": floor})
+            if label == "current":
+                noops.append(min(snakemake(work, tree / "src")["wall"] for _ in range(3)))
+    out = {}
+    for label, runs in builds.items():
+        median = sorted(runs, key=lambda b: b["wall"] / b["floor"])[len(runs) // 2]
+        out[label] = {"cold_s": median["wall"], "floor_s": median["floor"],
+                      "cpu_s": statistics.median(b["cpu"] for b in runs),
+                      "cold_all": [(b["wall"], b["floor"], b["cpu"]) for b in runs],
+                      "jobs": len(median["jobs"]), "per_rule": seconds_per_rule(median["log"]),
+                      "alone_s": last_job_alone_s(median["log"])}
+    out["current"]["noop_s"] = statistics.median(noops)
+    return out
 
 
 def bench_job_imports(trees: dict[str, Path]) -> dict[str, dict[str, float]]:
@@ -204,29 +250,6 @@ def bench_job_imports(trees: dict[str, Path]) -> dict[str, dict[str, float]]:
                     t = python("; ".join(script_imports([path])), tree / "src")[0]
                     out[label][script.stem] = min(t, out[label].get(script.stem, t))
     return out
-
-
-def job_server_round_trip(repeats: int = 20) -> float:
-    """Seconds from JobServer.run to its return for an empty script in a running job server
-    (request, fork, exit, reply): the start-up of a job of the workflow; best of `repeats`,
-    in a fresh interpreter, once its server has run the workflow scripts' imports (polled
-    with a job that looks for the last of them)."""
-    code = (
-        "import tempfile, time; from pathlib import Path\n"
-        "from wsnloc.job_server import JobServer, script_imports\n"
-        f"jobs = JobServer(script_imports(sorted(Path({str(ROOT / 'workflow' / 'scripts')!r}).glob('*.py'))))\n"
-        "folder = Path(tempfile.mkdtemp()); empty, probe = folder / 'empty.py', folder / 'probe.py'\n"
-        "empty.write_text('')\n"
-        "probe.write_text('import sys; open(snakemake.output[0], \"w\").write(str(sorted(sys.modules)))')\n"
-        "last = jobs.preload[-1].split()[1]\n"
-        "modules = folder / 'modules'\n"
-        "while not (modules.exists() and repr(last) in modules.read_text()):\n"
-        "    jobs.run(probe, output=[str(modules)]); time.sleep(0.1)\n"
-        "best = float('inf')\n"
-        f"for _ in range({repeats}):\n"
-        "    t = time.perf_counter(); jobs.run(empty); best = min(best, time.perf_counter() - t)\n"
-        "print(best)\n")
-    return float(python(code, ROOT / "src")[1])
 
 
 def seconds_per_simulated_run(tree: Path) -> float:
@@ -373,48 +396,15 @@ def bench_estimators(repeats: int, scenarios=("constant", "variable")) -> list[d
 
 
 BATCH_RUNS = 50
-BANK_CELLS = (1, 2, 3, 6, 20)
-
-
-def bench_filter_bank(repeats: int, cells=BANK_CELLS) -> list[tuple[int, float, float]]:
-    """(cells, ms per cell with the array EKF bank, ms per cell with filter objects) of
-    bayes.run_filters on N bare epoch-mode EKF cells (range sigmas 0.30, 0.31, ... m) of one
-    simulated Newcom++ run, a fresh RunData per repeat; the break-even sets bayes.ARRAY_MIN_CELLS."""
-    from wsnloc.campaign import Campaign
-    from wsnloc.estimate import load_run
-    from wsnloc.estimators import bayes, registry
-    from wsnloc.estimators.run_data import RunData
-    from wsnloc.sim.newcom import simulate_run
-    from wsnloc.sim.seeding import run_seed_sequence
-
-    campaign = Campaign.load(ROOT / "config" / "campaigns" / "newcom.yaml")
-    raw = simulate_run(campaign, "variable", run_seed_sequence(1, "bench", "variable", 1), OUT / "bank-variable")
-    run_tables = load_run("newcom", raw, campaign, OUT / "bank-variable-tables")
-    p = registry.get("ekf").resolve({"max_range_m": 50.0})
-    rows, default = [], bayes.ARRAY_MIN_CELLS
-    try:
-        for n in cells:
-            times = []
-            for minimum in (1, n + 1):                  # every group as arrays / as filter objects
-                bayes.ARRAY_MIN_CELLS = minimum
-
-                def once(n=n):
-                    data = RunData(run_tables, campaign, None, "variable")
-                    return bayes.run_filters([(data, dict(p, range_sigma_m=0.3 + 0.01 * i)) for i in range(n)])
-                times.append(median_time(once, repeats) / n * 1e3)
-            rows.append((n, *times))
-    finally:
-        bayes.ARRAY_MIN_CELLS = default
-    return rows
 
 
 def batched_ekf(anchors: np.ndarray, ranges: np.ndarray, F: np.ndarray, Q: np.ndarray):
-    """A function stepping estimators.array_ekf's EKF over ranges (runs, steps, m) to `anchors`
+    """A function stepping estimators.batched's EKF over ranges (runs, steps, m) to `anchors`
     (range sigma 0.3 m, start [5, 5, 0, 0], P0 = I, as the filterpy EKF above); it checks
     once that run 0 ends where filterpy ends on the same ranges."""
     from filterpy.kalman import ExtendedKalmanFilter as FpEKF
 
-    from wsnloc.estimators.array_ekf import Measurements, predict, update
+    from wsnloc.estimators.batched import Measurements, predict, update
     from wsnloc.filters.measurement_models import RangeModel
 
     runs, steps, m = ranges.shape
@@ -450,12 +440,36 @@ def _met(ok: bool) -> str:
     return "yes" if ok else "**no**"
 
 
+def cold_build_lines(w: dict) -> list[str]:
+    cur, prev = w["current"], w["previous"]
+    floor = cur["floor_s"]
+    cpu_ratio, wall_ratio = cur["cpu_s"] / prev["cpu_s"], cur["cold_s"] / prev["cold_s"]
+    builds = {label: ", ".join(f"{c:.1f} / {f:.2f} / {u:.1f}" for c, f, u in w[label]["cold_all"])
+              for label in ("current", "previous")}
+    return [
+        "## Cold build against the import floor and the previous commit", "",
+        f"Import floor: the minimum of 5 runs of `python -c \"{IMPORT_FLOOR}\"`, measured right before each "
+        f"cold build; the builds of the two revisions alternate. Wall ratios are those of the median build "
+        f"(floor {floor:.2f} s), CPU the median over the builds.", "",
+        "| measure | current | previous | current / previous | ratio to the import floor | target | met |",
+        "|---|---|---|---|---|---|---|",
+        f"| cold `snakemake --cores 2`, wall ({cur['jobs']} jobs now, {prev['jobs']} before) | {cur['cold_s']:.1f} s "
+        f"| {prev['cold_s']:.1f} s | {wall_ratio:.2f} | {cur['cold_s'] / floor:.1f} | <= 22 x floor "
+        f"| {_met(cur['cold_s'] / floor <= 22)} |",
+        f"| cold build CPU (user + system, snakemake and its jobs) | {cur['cpu_s']:.1f} s | {prev['cpu_s']:.1f} s "
+        f"| {cpu_ratio:.2f} | {cur['cpu_s'] / floor:.1f} | <= 1.15 x previous | {_met(cpu_ratio <= 1.15)} |",
+        f"| no-op re-run (best of 3) | {cur['noop_s']:.1f} s | | | {cur['noop_s'] / floor:.1f} | | |", "",
+        f"Builds (wall s / floor s / CPU s): current {builds['current']}; previous {builds['previous']}.", "",
+        f"CPU seconds per job: {cur['cpu_s'] / max(cur['jobs'], 1):.2f}; average busy cores (CPU / wall): "
+        f"{cur['cpu_s'] / cur['cold_s']:.2f} of 2; time at the end with at most one job running: "
+        f"{cur['alone_s']:.0f} s.", "",
+        "Job wall time per rule (median cold build of the current code, from Snakemake's log, 1 s resolution):", "",
+        "| rule | jobs | job time [s] |", "|---|---|---|",
+        *[f"| {rule} | {jobs} | {seconds:.0f} |" for rule, (jobs, seconds) in cur["per_rule"].items()],
+    ]
+
+
 def write(r: dict, path: Path, command: str) -> None:
-    w, floor = r["workflow"], r["workflow"]["floor_s"]
-    cur, prev = r["scaling"]["current"], r["scaling"]["previous"]
-    slopes = {k: (slope(cur, c), slope(prev, c)) for k, c in (("wall", 1), ("cpu", 2))}
-    imports_now, imports_before = r["imports"]["current"], r["imports"]["previous"]
-    sim_now, sim_before = r["sim"]["current"], r["sim"]["previous"]
     lines = [
         "# wsnloc benchmarks", "",
         f"Machine: {machine()}  ", f"Command: `{command}`  ",
@@ -463,93 +477,93 @@ def write(r: dict, path: Path, command: str) -> None:
         f"\"previous\" is commit `{r['previous']}`, exported beside the current code and built in the same run.", "",
         *(["**`--small`: one scenario per dataset, a test of this script, not the acceptance measurement "
             "(run it without `--small`).**", ""] if r["small"] else []),
-        "## Cold build against the import floor", "",
-        f"Import floor: the minimum of 5 runs of `python -c \"{IMPORT_FLOOR}\"`, measured right before each "
-        f"cold build; the ratios are those of the median build (floor {floor:.2f} s).", "",
-        "| measure | value | ratio to the import floor | target | met |", "|---|---|---|---|---|",
-        f"| cold `snakemake --cores 2`, wall ({w['jobs']} jobs; builds / floors "
-        f"{', '.join(f'{c:.1f} / {f:.2f}' for c, f in w['cold_all'])} s) "
-        f"| {w['cold_s']:.1f} s | {w['cold_s'] / floor:.1f} | <= 25 | {_met(w['cold_s'] / floor <= 25)} |",
-        f"| cold build CPU (user + system, snakemake and its jobs) | {w['cpu_s']:.1f} s | {w['cpu_s'] / floor:.1f} "
-        f"| <= 48 (half of ~96) | {_met(w['cpu_s'] / floor <= 48)} |",
-        f"| no-op re-run (best of 3) | {w['noop_s']:.1f} s | {w['noop_s'] / floor:.1f} | | |", "",
-        f"CPU seconds per job: {w['cpu_s'] / max(w['jobs'], 1):.2f}; average busy cores (CPU / wall): "
-        f"{w['cpu_s'] / w['cold_s']:.2f} of 2; time at the end with at most one job running: {w['alone_s']:.0f} s.", "",
-        "Job wall time per rule (median cold build, from Snakemake's log, 1 s resolution):", "",
-        "| rule | jobs | job time [s] |", "|---|---|---|",
-        *[f"| {rule} | {jobs} | {seconds:.0f} |" for rule, (jobs, seconds) in w["per_rule"].items()],
-        "", "## Start-up of a job", "",
-        f"In the job server (wsnloc.job_server, current code): {r['round_trip'] * 1e3:.1f} ms from `JobServer.run` to its "
-        "return for an empty script (request, fork, exit, reply; best of 20), "
-        f"{r['round_trip'] / floor:.4f} import floors. In an interpreter of its own (a Snakemake `script:` job, as "
-        "in the previous code, or a job off Linux), a job first runs its script's module-level imports:", "",
-        "| script | current [s] | previous [s] |", "|---|---|---|",
-        *[f"| {name} | {t:.2f} | {imports_before.get(name, float('nan')):.2f} |" for name, t in imports_now.items()],
-        f"| sum | {sum(imports_now.values()):.2f} | {sum(imports_before.values()):.2f} |",
-        "", "## Simulator", "",
-        f"Seconds per simulated run ({'/'.join(SIM_SCENARIO)}, mean of {SIM_RUNS} runs): current {sim_now:.3f}, "
-        f"previous {sim_before:.3f}, ratio {sim_now / sim_before:.2f} "
-        f"(target <= 0.5: {_met(sim_now / sim_before <= 0.5)}).",
-        "", "## Monte Carlo cost per added run (cold builds at several run counts)", "",
-        f"Builds of the two revisions alternate; each point is the fastest of {r['mc_repeats']} builds.", "",
-        "| runs | current wall [s] | current CPU [s] | previous wall [s] | previous CPU [s] |",
-        "|---|---|---|---|---|",
-        *[f"| {a[0]} | {a[1]:.1f} | {a[2]:.1f} | {b[1]:.1f} | {b[2]:.1f} |" for a, b in zip(cur, prev)], "",
-        f"Fitted slope, wall: {slopes['wall'][0]:.2f} s per run now, {slopes['wall'][1]:.2f} s before, ratio "
-        f"{slopes['wall'][0] / slopes['wall'][1]:.2f} "
-        f"(target <= 0.5: {_met(0 < slopes['wall'][0] <= 0.5 * slopes['wall'][1])}); "
-        f"CPU: {slopes['cpu'][0]:.2f} s per run now, {slopes['cpu'][1]:.2f} s before, ratio "
-        f"{slopes['cpu'][0] / slopes['cpu'][1]:.2f}.",
-        "", "## Estimators per step against filterpy (same inputs, same run)", "",
-        "| filter | wsnloc [us/step] | filterpy [us/step] | ratio (ours / filterpy) | target |",
-        "|---|---|---|---|---|",
-        *[f"| {name} | {a:.2f} | {b:.1f} | {a / b:.3f} | {target} |" for name, a, b, target in r["filters"]], "",
-        "", "## Filter bank of the epoch loop: array EKF against filter objects (bayes.run_filters)", "",
-        "Bare epoch-mode EKF cells of one simulated Newcom++ run stepped together; bayes.ARRAY_MIN_CELLS is the "
-        "smallest group run as arrays.", "",
-        "| cells | array EKF [ms per cell] | filter objects [ms per cell] | ratio (arrays / objects) |",
-        "|---|---|---|---|",
-        *[f"| {n} | {a:.1f} | {b:.1f} | {a / b:.2f} |" for n, a, b in r["bank"]],
-        "", "## Estimators: time per step on a simulated Newcom++ run (registry, 12 UWB anchors, 0.5 s epochs)", "",
-        "| scenario | estimator | output steps | time per step [us] | real-time factor |", "|---|---|---|---|---|",
-        *[f"| {x['scenario']} | {x['estimator']} | {x['steps']} | {x['us_per_step']:.0f} | {x['realtime_factor']:.0f} |"
-          for x in r['estimators']],
-        "", "Real-time factor: the run time covered by the estimates over the compute time. Target: the particle "
-        "filter at 1000 particles faster than real time on the Newcom++ scenarios: "
-        f"{_met(all(x['realtime_factor'] > 1 for x in r['estimators'] if x['estimator'].startswith('particle')))}.",
+        *(["**`--cold-only`: the alternating cold builds only (a reduced run).**", ""] if r["cold_only"] else []),
+        *cold_build_lines(r["workflow"]),
     ]
+    if "imports" in r:
+        imports_now, imports_before = r["imports"]["current"], r["imports"]["previous"]
+        lines += [
+            "", "## Start-up of a job", "",
+            "Each job is a Snakemake `script:` job: a fresh interpreter that first runs its script's module-level "
+            "imports (minimum of 3 runs of those imports alone, the trees alternating):", "",
+            "| script | current [s] | previous [s] |", "|---|---|---|",
+            *[f"| {name} | {t:.2f} | {imports_before.get(name, float('nan')):.2f} |" for name, t in imports_now.items()],
+            f"| sum | {sum(imports_now.values()):.2f} | {sum(imports_before.values()):.2f} |",
+        ]
+    if "sim" in r:
+        sim_now, sim_before = r["sim"]["current"], r["sim"]["previous"]
+        lines += [
+            "", "## Simulator", "",
+            f"Seconds per simulated run ({'/'.join(SIM_SCENARIO)}, mean of {SIM_RUNS} runs): current {sim_now:.3f}, "
+            f"previous {sim_before:.3f}, ratio {sim_now / sim_before:.2f} "
+            f"(target <= 0.5: {_met(sim_now / sim_before <= 0.5)}).",
+        ]
+    if "scaling" in r:
+        cur, prev = r["scaling"]["current"], r["scaling"]["previous"]
+        slopes = {k: (slope(cur, c), slope(prev, c)) for k, c in (("wall", 1), ("cpu", 2))}
+        lines += [
+            "", "## Monte Carlo cost per added run (cold builds at several run counts)", "",
+            f"Builds of the two revisions alternate; each point is the fastest of {r['mc_repeats']} builds.", "",
+            "| runs | current wall [s] | current CPU [s] | previous wall [s] | previous CPU [s] |",
+            "|---|---|---|---|---|",
+            *[f"| {a[0]} | {a[1]:.1f} | {a[2]:.1f} | {b[1]:.1f} | {b[2]:.1f} |" for a, b in zip(cur, prev)], "",
+            f"Fitted slope, wall: {slopes['wall'][0]:.2f} s per run now, {slopes['wall'][1]:.2f} s before, ratio "
+            f"{slopes['wall'][0] / slopes['wall'][1]:.2f} "
+            f"(target <= 0.5: {_met(0 < slopes['wall'][0] <= 0.5 * slopes['wall'][1])}); "
+            f"CPU: {slopes['cpu'][0]:.2f} s per run now, {slopes['cpu'][1]:.2f} s before, ratio "
+            f"{slopes['cpu'][0] / slopes['cpu'][1]:.2f}.",
+        ]
+    if "filters" in r:
+        lines += [
+            "", "## Estimators per step against filterpy (same inputs, same run)", "",
+            "| filter | wsnloc [us/step] | filterpy [us/step] | ratio (ours / filterpy) | target |",
+            "|---|---|---|---|---|",
+            *[f"| {name} | {a:.2f} | {b:.1f} | {a / b:.3f} | {target} |" for name, a, b, target in r["filters"]], "",
+            "", "## Estimators: time per step on a simulated Newcom++ run (registry, 12 UWB anchors, 0.5 s epochs)", "",
+            "| scenario | estimator | output steps | time per step [us] | real-time factor |", "|---|---|---|---|---|",
+            *[f"| {x['scenario']} | {x['estimator']} | {x['steps']} | {x['us_per_step']:.0f} "
+              f"| {x['realtime_factor']:.0f} |" for x in r['estimators']],
+            "", "Real-time factor: the run time covered by the estimates over the compute time. Target: the particle "
+            "filter at 1000 particles faster than real time on the Newcom++ scenarios: "
+            f"{_met(all(x['realtime_factor'] > 1 for x in r['estimators'] if x['estimator'].startswith('particle')))}.",
+        ]
     path.write_text("\n".join(lines) + "\n")
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--previous", required=True, help="commit to compare against (e.g. 5695a5e)")
-    parser.add_argument("--repeats", type=int, default=3, help="cold builds of the current code")
+    parser.add_argument("--repeats", type=int, default=3, help="cold builds of each revision")
     parser.add_argument("--mc-runs", type=int, nargs="+", default=[5, 10, 20],
                         help="run counts of the Monte Carlo cost fit (at least two)")
     parser.add_argument("--mc-repeats", type=int, default=2,
                         help="builds per run count and revision of the Monte Carlo cost fit (the fastest is kept)")
     parser.add_argument("--small", action="store_true", help="one scenario per dataset: a quick test of this script")
+    parser.add_argument("--cold-only", action="store_true",
+                        help="only the alternating cold builds of both revisions (a reduced run)")
     parser.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "RESULTS.md")
     args = parser.parse_args()
     if len(args.mc_runs) < 2 or min(args.mc_runs) < 2:
         parser.error("--mc-runs needs at least two run counts, each >= 2 (RSS calibration uses another run)")
     OUT.mkdir(parents=True, exist_ok=True)
+    become_subreaper()
     previous = export_revision(args.previous)
+    trees = {"current": ROOT, "previous": previous}
     results = {
-        "small": args.small,
+        "small": args.small, "cold_only": args.cold_only,
         "previous": subprocess.run(["git", "rev-parse", "--short", args.previous], cwd=ROOT, capture_output=True,
                                    text=True, check=True).stdout.strip(),
-        "filters": bench_filters(args.repeats),
-        "estimators": bench_estimators(args.repeats),
-        "bank": bench_filter_bank(args.repeats),
-        "imports": bench_job_imports({"current": ROOT, "previous": previous}),
-        "round_trip": job_server_round_trip(),
-        "sim": bench_simulator({"current": ROOT, "previous": previous}),
-        "workflow": bench_workflow(args.repeats, args.small),
-        "mc_repeats": args.mc_repeats,
-        "scaling": bench_scaling({"current": ROOT, "previous": previous}, args.mc_runs, args.mc_repeats, args.small),
+        "workflow": bench_workflow(trees, args.repeats, args.small),
     }
+    if not args.cold_only:
+        results.update({
+            "filters": bench_filters(args.repeats),
+            "estimators": bench_estimators(args.repeats),
+            "imports": bench_job_imports(trees),
+            "sim": bench_simulator(trees),
+            "mc_repeats": args.mc_repeats,
+            "scaling": bench_scaling(trees, args.mc_runs, args.mc_repeats, args.small),
+        })
     command = "python benchmarks/run.py " + " ".join(sys.argv[1:])
     write(results, args.out, command.strip())
     print(args.out.read_text())

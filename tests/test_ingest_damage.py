@@ -120,9 +120,10 @@ def test_a_failing_ingest_job_keeps_its_quarantine_in_the_logs(simulated_run, tm
 
 
 def test_a_damaged_simulated_log_fails_its_formats_ingest_job_and_keeps_the_quarantine(tmp_path):
-    """Simulated logs are ingested one job per format: a raw log damaged by hand is ingested
-    again (the simulation does not re-run), the job names the scenario and the file, and the
-    quarantine is kept under the job's log folder, per scenario."""
+    """Simulated logs are ingested one job per format, whose inputs are the run folders: a raw
+    log damaged by hand is ingested again with --forcerun (the simulation does not re-run),
+    the job names the scenario and the file, and the quarantine is kept under the job's log
+    folder, per scenario."""
     work = small_workflow(tmp_path / "work")
     target = "data/processed/newcom/constant/tables/shard-1"
     intact = snakemake(work, "--cores", "1", target)
@@ -130,10 +131,10 @@ def test_a_damaged_simulated_log_fails_its_formats_ingest_job_and_keeps_the_quar
     raw = work / "data" / "raw" / "newcom" / "constant" / "run-01" / "zigbee.log"
     lines = _log_lines(raw)
     raw.write_text("\n".join(lines[:2] + [text[:12] for text in lines[2:]]) + "\n")
-    planned = snakemake(work, "-n", target, "--quiet", "rules")
+    planned = snakemake(work, "-n", target, "--forcerun", "ingest_newcom_shard1")
     planned = planned.stdout + planned.stderr
     assert "ingest_newcom_shard1" in planned and "simulate_newcom_shard1" not in planned, planned
-    result = snakemake(work, "--cores", "1", target)
+    result = snakemake(work, "--cores", "1", target, "--forcerun", "ingest_newcom_shard1")
     assert result.returncode != 0
     log = (work / "logs" / "ingest" / "newcom-shard-1.log").read_text()
     assert f"newcom/constant: data/raw/newcom/constant/run-01/zigbee.log: 100.0% of its {len(lines) - 2} records" in log

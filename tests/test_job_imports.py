@@ -1,5 +1,5 @@
-"""Job start-up: the workflow scripts import only what their job uses (what a job forked from the
-job server before it has preloaded, or one in a fresh interpreter, imports itself)."""
+"""Job start-up: the workflow scripts import only what their job uses (each Snakemake `script:`
+job is a fresh interpreter that runs its script's module-level imports first)."""
 
 import subprocess
 import sys
@@ -7,7 +7,9 @@ import sys
 import pytest
 
 from conftest import ROOT
-from wsnloc.job_server import script_imports
+
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from run import script_imports  # noqa: E402  (benchmarks/ is not a package)
 
 HEAVY = ("scipy.signal", "scipy.stats", "scipy.linalg", "scipy.special", "scipy.optimize", "matplotlib")
 # Jobs whose start-up loads none of HEAVY (ingest filters the IMU in passing, with the numpy

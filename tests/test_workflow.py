@@ -110,7 +110,8 @@ def test_damaged_line_is_quarantined_and_counted(workdir):
     n_lines = len(log.read_text().splitlines())
     with log.open("a") as handle:
         handle.write("99999999 U0#damaged\n")
-    result = snakemake(workdir, "--cores", "2")
+    # a simulated log edited by hand: its ingest job's input is the run folder, so it is forced
+    result = snakemake(workdir, "--cores", "2", "--forcerun", "ingest_newcom_shard1")
     assert result.returncode == 0, result.stderr[-3000:]
     results = pd.read_csv(workdir / "reports" / "results.csv")
     quarantined = results[(results["table"] == "Inventory") & (results["scenario"] == "newcom/constant")]
@@ -210,19 +211,53 @@ def test_compile_bytecode_writes_each_module_once(tmp_path):
     assert [c.stat().st_mtime_ns for c in caches] == written
 
 
-def test_start_job_freezes_the_imported_objects_and_logs_to_the_rule_log(tmp_path):
-    import gc
+TINY_SNAKEFILE = """
+rule all:
+    input: "done.txt"
 
-    from wsnloc.workflow import start_job
+rule job:
+    output: "done.txt"
+    log: "logs/job.log"
+    params: fail=config.get("fail", False)
+    script: "job.py"
+"""
+TINY_SCRIPT = """
+from wsnloc.workflow import start_job
 
-    gc.unfreeze()
-    try:
-        log = start_job(str(tmp_path / "logs" / "job.log"), "test_start_job")
-        assert gc.get_freeze_count() > 1000           # this interpreter's modules, out of the scans
-        log.info("started")
-        assert "started" in (tmp_path / "logs" / "job.log").read_text()
-    finally:
-        gc.unfreeze()
+log = start_job(snakemake)
+import sys
+log.info("started %s", snakemake.rule)
+print("a warning on stderr", file=sys.stderr)
+if snakemake.params.fail:
+    from wsnloc.errors import ConfigError
+
+    def deep():
+        raise ConfigError("config key 'fail': set on purpose")
+    deep()
+open(snakemake.output[0], "w").write("ok")
+"""
+
+
+@pytest.mark.parametrize("fail", [False, True])
+def test_a_scripts_log_and_traceback_land_in_its_rules_log(tmp_path, fail):
+    """A tiny workflow whose one `script:` job starts with start_job: its log records and stderr
+    go to the rule's log; a failing script's traceback too, and the terminal gets one line
+    with the error's message and the log's path."""
+    (tmp_path / "Snakefile").write_text(TINY_SNAKEFILE)
+    (tmp_path / "job.py").write_text(TINY_SCRIPT)
+    result = snakemake(tmp_path, "--cores", "1", "--config", f"fail={fail}")
+    log = (tmp_path / "logs" / "job.log").read_text()
+    assert "INFO started job" in log and "a warning on stderr" in log
+    if fail:
+        assert result.returncode != 0 and not (tmp_path / "done.txt").exists()
+        assert "Traceback (most recent call last)" in log and "in deep" in log
+        assert "ConfigError: config key 'fail': set on purpose" in log
+        terminal = result.stdout + result.stderr
+        assert "error in rule job: config key 'fail': set on purpose (traceback: logs/job.log)" in terminal
+        assert "in deep" not in terminal                   # the traceback is in the log only
+    else:
+        assert result.returncode == 0, result.stderr[-3000:]
+        assert "Traceback" not in log and (tmp_path / "done.txt").read_text() == "ok"
 
 
 def test_read_scenario_files_reads_back_each_scenarios_files_as_written(tmp_path):

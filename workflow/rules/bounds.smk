@@ -13,7 +13,6 @@ SUBSET_MONTE_CARLO = monte_carlo_scenarios(config)
 # bounds (CRLB / GDOP maps and the anchor-subset search; campaign geometry only, no data).
 rule geometry:
     input:
-        script=script_file("geometry"),
         campaigns=sorted({d["campaign"] for d in config["datasets"].values()}),
         first_runs=[str(Path(first_run_tables(d)).parent) for d in config["datasets"]],   # their shard folders
     output:
@@ -31,13 +30,14 @@ rule geometry:
     priority: PRIORITY["geometry"]
     log:
         "logs/geometry.log",
-    run:
-        run_job(input, output, params, wildcards, log, threads, resources)
+    conda:
+        ENV
+    script:
+        "../scripts/geometry.py"
 
 
 rule subset_monte_carlo:
     input:
-        script=script_file("subset_monte_carlo"),
         tables=lambda w: tables_of(w.dataset, w.scenario),
         campaign=campaign_file,
     output:
@@ -51,5 +51,7 @@ rule subset_monte_carlo:
     priority: PRIORITY["cell"]
     log:
         "logs/subset_monte_carlo/{dataset}-{scenario}.log",
-    run:
-        run_job(input, output, params, wildcards, log, threads, resources)
+    conda:
+        ENV
+    script:
+        "../scripts/subset_monte_carlo.py"

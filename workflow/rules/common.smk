@@ -3,7 +3,6 @@ from pathlib import Path
 
 
 from wsnloc.estimators import registry as _registry
-from wsnloc.job_server import JobServer, script_imports
 from wsnloc.studies import cell_params, estimator_of, reads_rss, study_cells
 from wsnloc.workflow import (
     dataset_runs,
@@ -14,25 +13,9 @@ from wsnloc.workflow import (
     simulated_shards,
 )
 
-# Every rule runs its script (workflow/scripts/) in a child forked from one job server that
-# has run the scripts' imports (wsnloc.job_server): no job pays an interpreter's start-up.
-# The server starts at the first job; the snakemake objects' classes unpickle in the jobs.
-SCRIPTS = Path(workflow.basedir) / "workflow" / "scripts"
-JOBS = JobServer(["import snakemake.iocontainers"] + script_imports(sorted(SCRIPTS.glob("*.py"))))
-
-
-def script_file(name):
-    """The script of a rule: one of its inputs, so that editing it re-runs the rule's jobs."""
-    return str(SCRIPTS / f"{name}.py")
-
-
-def run_job(input, output, params, wildcards, log, threads, resources):
-    """A rule's `run:` block: its script (input.script) with a `snakemake` object of the rule's
-    input, output, params, wildcards, log, threads and resources; forked from the job server
-    in Snakemake's main process, in a fresh interpreter in a process that runs one job (a
-    cluster job, or a run without the workflow profile's force-use-threads)."""
-    JOBS.run(input.script, fork=workflow.is_main_process, threads=threads, input=input, output=output,
-             params=params, wildcards=wildcards, log=log, resources=resources)
+# Each job runs its script (workflow/scripts/, with Snakemake's `script`) in the software
+# environment below when Snakemake manages them (`--sdm conda`), else in Snakemake's own.
+ENV = "../envs/wsnloc.yaml"
 
 
 # Job order on few cores (higher first among ready jobs): the data chain (simulate, ingest)

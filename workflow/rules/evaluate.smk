@@ -6,7 +6,6 @@ if not SUMMARY_IN_INGEST:
 
     rule summarize_data:
         input:
-            script=script_file("summarize_data"),
             tables=lambda w: tables_of(w.dataset, w.scenario),
             imu_5hz=lambda w: imu_of(w.dataset, w.scenario),
             campaign=campaign_file,
@@ -17,5 +16,7 @@ if not SUMMARY_IN_INGEST:
         priority: PRIORITY["ingest"]
         log:
             "logs/summarize_data/{dataset}-{scenario}.log",
-        run:
-            run_job(input, output, params, wildcards, log, threads, resources)
+        conda:
+            ENV
+        script:
+            "../scripts/summarize_data.py"

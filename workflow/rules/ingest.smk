@@ -6,8 +6,10 @@
 #
 # Simulated logs: one job per format and shard over every simulated scenario of that format,
 # as the simulation job that writes them (each job pays its start-up once, not per scenario).
-# Real logs: one job per scenario and shard (rule ingest), so that new or edited logs of one
-# scenario re-ingest only that scenario.
+# Its input is the simulation job's run folders (a few dozen paths, not every log file): a
+# simulated log edited by hand is ingested again with `--forcerun <job>`.
+# Real logs: one job per scenario and shard (rule ingest), with every raw file as an input,
+# so that new or edited logs of one scenario re-ingest only that scenario.
 
 INGEST_PARAMS = {
     "limits": {"per_run": config["ingest"]["max_quarantine_share"],
@@ -23,8 +25,7 @@ for _format, _pairs in SIMULATED_PAIRS.items():
             name:
                 f"ingest_{_format}_{_shard.replace('-', '')}"
             input:
-                script=script_file("ingest"),
-                raw=[f for d, s in _pairs for f in raw_files(d, s, simulated_shards(config)[_shard])],
+                raw=[raw_run_dir(config, d, s, run) for d, s in _pairs for run in simulated_shards(config)[_shard]],
                 campaigns=sorted({task["campaign"] for task in _tasks}),
             output:
                 tables=[directory(task["tables"]) for task in _tasks],
@@ -36,15 +37,16 @@ for _format, _pairs in SIMULATED_PAIRS.items():
             priority: PRIORITY["ingest"]
             log:
                 f"logs/ingest/{_format}-{_shard}.log",
-            run:
-                run_job(input, output, params, wildcards, log, threads, resources)
+            conda:
+                ENV
+            script:
+                "../scripts/ingest.py"
 
 
 rule ingest:
     wildcard_constraints:
         dataset=REAL_DATASETS,
     input:
-        script=script_file("ingest"),
         raw=raw_inputs,
         campaign=campaign_file,
     output:
@@ -58,5 +60,7 @@ rule ingest:
     priority: PRIORITY["ingest"]
     log:
         f"logs/ingest/{{dataset}}-{{scenario}}-{ONE_SHARD}.log",
-    run:
-        run_job(input, output, params, wildcards, log, threads, resources)
+    conda:
+        ENV
+    script:
+        "../scripts/ingest.py"

@@ -15,7 +15,6 @@ PAPER_B_FILES = scenario_files(PAPER_B_PAIRS, "paper_b", (("estimates", "parquet
 
 rule paper_b:
     input:
-        script=script_file("paper_b"),
         tables=all_tables(PAPER_B_PAIRS),
         imu_5hz=[p for d, s in PAPER_B_PAIRS for p in imu_of(d, s)],
         campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_B_PAIRS}),
@@ -42,5 +41,7 @@ rule paper_b:
     priority: PRIORITY["last_paper"]
     log:
         "logs/paper_b/paper_b.log",
-    run:
-        run_job(input, output, params, wildcards, log, threads, resources)
+    conda:
+        ENV
+    script:
+        "../scripts/paper_b.py"

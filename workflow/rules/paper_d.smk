@@ -13,7 +13,6 @@ PAPER_D_FILES = scenario_files(PAPER_D_PAIRS, "paper_d", (("estimates", "parquet
 
 rule paper_d:
     input:
-        script=script_file("paper_d"),
         tables=all_tables(PAPER_D_PAIRS),
         campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_D_PAIRS}),
         papers="config/papers.yaml",
@@ -33,5 +32,7 @@ rule paper_d:
     priority: PRIORITY["paper"]
     log:
         "logs/paper_d/paper_d.log",
-    run:
-        run_job(input, output, params, wildcards, log, threads, resources)
+    conda:
+        ENV
+    script:
+        "../scripts/paper_d.py"

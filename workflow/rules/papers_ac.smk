@@ -13,7 +13,6 @@ PAPER_A_FILES = scenario_files(PAPER_A_PAIRS, "paper_a", (("estimates", "parquet
 
 rule paper_a:
     input:
-        script=script_file("paper_a"),
         tables=all_tables(PAPER_A_PAIRS),
         campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_A_PAIRS}),
         papers="config/papers.yaml",
@@ -35,8 +34,10 @@ rule paper_a:
     priority: PRIORITY["paper"]
     log:
         "logs/paper_a/paper_a.log",
-    run:
-        run_job(input, output, params, wildcards, log, threads, resources)
+    conda:
+        ENV
+    script:
+        "../scripts/paper_a.py"
 
 
 # Paper C's scenarios are short (a few seconds each, about half of it job start-up): one job
@@ -48,7 +49,6 @@ PAPER_C_FILES = scenario_files(PAPER_C_PAIRS, "paper_c", (("estimates", "parquet
 
 rule paper_c:
     input:
-        script=script_file("paper_c"),
         tables=all_tables(PAPER_C_PAIRS),
         imu_5hz=[p for d, s in PAPER_C_PAIRS for p in imu_of(d, s)],
         campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in PAPER_C_PAIRS}),
@@ -70,5 +70,7 @@ rule paper_c:
     priority: PRIORITY["paper"]
     log:
         "logs/paper_c/paper_c.log",
-    run:
-        run_job(input, output, params, wildcards, log, threads, resources)
+    conda:
+        ENV
+    script:
+        "../scripts/paper_c.py"

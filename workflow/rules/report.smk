@@ -12,7 +12,6 @@ STUDY_OUTPUTS = ["results.csv", "figures/error_cdf.png", "figures/error_over_tim
 
 rule report:
     input:
-        script=script_file("report"),
         summaries=scenario_outputs("data/processed/{dataset}/{scenario}/data_summary.json"),
         results=scenario_outputs("data/processed/{dataset}/{scenario}/data_results.csv"),
         figures=scenario_outputs("data/processed/{dataset}/{scenario}/figures/range_error.png")
@@ -91,5 +90,7 @@ rule report:
         studies=STUDIES,
     log:
         "logs/report/report.log",
-    run:
-        run_job(input, output, params, wildcards, log, threads, resources)
+    conda:
+        ENV
+    script:
+        "../scripts/report.py"

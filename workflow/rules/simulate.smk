@@ -10,11 +10,10 @@ for _format, _pairs in SIMULATED_PAIRS.items():
             name:
                 f"simulate_{_format}_{_shard.replace('-', '')}"
             input:
-                script=script_file("simulate"),
                 campaigns=sorted({config["datasets"][d]["campaign"] for d, _ in _pairs}),
             output:
-                [f"data/raw/{d}/{s}/{run}/{file}" for d, s in _pairs for run in _runs
-                 for file in RAW_FILES[_format] + ["meta.yaml"]],
+                # each run's folder (its raw logs and meta.yaml), one output per run
+                [directory(raw_run_dir(config, d, s, run)) for d, s in _pairs for run in _runs],
             params:
                 scenarios=[{"dataset": d, "scenario": s, "campaign": config["datasets"][d]["campaign"]}
                            for d, s in _pairs],
@@ -23,5 +22,7 @@ for _format, _pairs in SIMULATED_PAIRS.items():
             priority: PRIORITY[f"simulate_{_format}"]
             log:
                 f"logs/simulate/{_format}-{_shard}.log",
-            run:
-                run_job(input, output, params, wildcards, log, threads, resources)
+            conda:
+                ENV
+            script:
+                "../scripts/simulate.py"

@@ -5,7 +5,6 @@
 rule study_cell:
     input:
         unpack(study_cell_inputs),
-        script=script_file("study_cell"),
     output:
         estimates="data/processed/studies/{study}/{dataset}/{scenario}/{cell}/estimates.parquet",
         metrics="data/processed/studies/{study}/{dataset}/{scenario}/{cell}/metrics.csv",
@@ -16,13 +15,14 @@ rule study_cell:
     priority: PRIORITY["cell"]
     log:
         "logs/studies/{study}/{dataset}-{scenario}-{cell}.log",
-    run:
-        run_job(input, output, params, wildcards, log, threads, resources)
+    conda:
+        ENV
+    script:
+        "../scripts/study_cell.py"
 
 
 rule study_summary:
     input:
-        script=script_file("study_summary"),
         metrics=lambda w: [f"data/processed/studies/{w.study}/{d}/{s}/{c}/metrics.csv" for d, s, c in STUDY_CELLS[w.study]],
         estimates=lambda w: [f"data/processed/studies/{w.study}/{d}/{s}/{c}/estimates.parquet"
                              for d, s, c in STUDY_CELLS[w.study]],
@@ -44,5 +44,7 @@ rule study_summary:
     priority: PRIORITY["summary"]
     log:
         "logs/studies/{study}/summary.log",
-    run:
-        run_job(input, output, params, wildcards, log, threads, resources)
+    conda:
+        ENV
+    script:
+        "../scripts/study_summary.py"

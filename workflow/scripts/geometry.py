@@ -1,6 +1,11 @@
 """Snakemake adapter: each dataset's floor plan and, where configured, its static CRLB / GDOP
 maps and anchor-subset search."""
 
+from wsnloc.workflow import start_job
+
+sm = snakemake  # noqa: F821  (given by Snakemake: the rule's input, output, params, wildcards, log)
+log = start_job(sm)  # from here on, errors and their tracebacks go to the rule's log
+
 from pathlib import Path
 
 import pandas as pd
@@ -10,10 +15,7 @@ from wsnloc.analysis.static_bounds import NoiseModel, floor_maps, path_rows, sub
 from wsnloc.campaign import Campaign
 from wsnloc.io import tables
 from wsnloc.report import bound_figures, figures
-from wsnloc.workflow import start_job
 
-sm = snakemake  # noqa: F821  (injected by wsnloc.job_server: the rule's input, output, params, wildcards, log)
-log = start_job(sm.log[0], "geometry")
 
 
 def static_bounds(dataset: str, campaign: Campaign, settings: dict, out: dict) -> None:

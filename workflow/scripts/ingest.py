@@ -6,16 +6,18 @@ A run over the quarantine limits fails the job; its quarantine table is kept bes
 job's log (the task's keep_dir, logs/ingest/<job>/...), which Snakemake does not delete.
 """
 
+from wsnloc.workflow import start_job
+
+sm = snakemake  # noqa: F821  (given by Snakemake: the rule's input, output, params, wildcards, log)
+log = start_job(sm)  # from here on, errors and their tracebacks go to the rule's log
+
 from types import SimpleNamespace
 
 from wsnloc.campaign import Campaign
 from wsnloc.data_stage import ingest_shard, summarize_scenario
 from wsnloc.errors import IngestError
 from wsnloc.io.limits import QuarantineLimits
-from wsnloc.workflow import start_job
 
-sm = snakemake  # noqa: F821  (injected by wsnloc.job_server: the rule's input, output, params, wildcards, log)
-log = start_job(sm.log[0], "ingest")
 limits = QuarantineLimits(**sm.params.limits)
 campaigns = {}
 for task in sm.params.tasks:

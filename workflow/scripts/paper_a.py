@@ -1,6 +1,11 @@
 """Snakemake adapter: paper A's EKF rows on every run of each of its scenarios, then the paper's
 tables, claims and figures over all scenarios (read back from the scenarios' files)."""
 
+from wsnloc.workflow import start_job
+
+sm = snakemake  # noqa: F821  (given by Snakemake: the rule's input, output, params, wildcards, log)
+log = start_job(sm)  # from here on, errors and their tracebacks go to the rule's log
+
 import json
 from pathlib import Path
 
@@ -17,10 +22,8 @@ from wsnloc.experiments import calibration, claims as claims_of, paper_a, sensit
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import bound_figures, figures
-from wsnloc.workflow import each_scenario, read_scenario_files, start_job
+from wsnloc.workflow import each_scenario, read_scenario_files
 
-sm = snakemake  # noqa: F821  (injected by wsnloc.job_server: the rule's input, output, params, wildcards, log)
-log = start_job(sm.log[0], "paper_a")
 settings = paper_a.Settings.from_config(sm.params.settings)
 
 

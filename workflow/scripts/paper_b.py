@@ -1,6 +1,11 @@
 """Snakemake adapter: paper B estimators on every run of each of its scenarios, then the paper's
 tables, claims and figures over all scenarios (read back from the scenarios' files)."""
 
+from wsnloc.workflow import start_job
+
+sm = snakemake  # noqa: F821  (given by Snakemake: the rule's input, output, params, wildcards, log)
+log = start_job(sm)  # from here on, errors and their tracebacks go to the rule's log
+
 from pathlib import Path
 
 import pandas as pd
@@ -13,10 +18,8 @@ from wsnloc.experiments import claims as claims_of, paper_b, sensitivity
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import figures
-from wsnloc.workflow import each_scenario, read_scenario_files, start_job
+from wsnloc.workflow import each_scenario, read_scenario_files
 
-sm = snakemake  # noqa: F821  (injected by wsnloc.job_server: the rule's input, output, params, wildcards, log)
-log = start_job(sm.log[0], "paper_b")
 
 
 def run_scenario(label: str, campaign: Campaign, out: dict) -> None:

@@ -1,6 +1,11 @@
 """Snakemake adapter: paper D estimators on every run of each of its scenarios, then the paper's
 tables, claims, cost and figures over all scenarios (read back from the scenarios' files)."""
 
+from wsnloc.workflow import start_job
+
+sm = snakemake  # noqa: F821  (given by Snakemake: the rule's input, output, params, wildcards, log)
+log = start_job(sm)  # from here on, errors and their tracebacks go to the rule's log
+
 import json
 from pathlib import Path
 
@@ -14,10 +19,8 @@ from wsnloc.experiments import claims as claims_of, paper_d, sensitivity
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import figures
-from wsnloc.workflow import each_scenario, read_scenario_files, start_job
+from wsnloc.workflow import each_scenario, read_scenario_files
 
-sm = snakemake  # noqa: F821  (injected by wsnloc.job_server: the rule's input, output, params, wildcards, log)
-log = start_job(sm.log[0], "paper_d")
 settings = paper_d.Settings.from_config(sm.params.settings)
 
 

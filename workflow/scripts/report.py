@@ -1,6 +1,11 @@
 """Snakemake adapter: collect results rows and summaries, render the report's pages:
 reports/index.html (the summary) and reports/pages/*.html with their figures."""
 
+from wsnloc.workflow import start_job
+
+sm = snakemake  # noqa: F821  (given by Snakemake: the rule's input, output, params, wildcards, log)
+log = start_job(sm)  # from here on, errors and their tracebacks go to the rule's log
+
 import json
 import shutil
 from pathlib import Path
@@ -13,10 +18,7 @@ from wsnloc.report import explanations
 from wsnloc.report.render import PAGES_DIR, FigureFiles, build_context, render_pages
 from wsnloc.report.sections import (paper_a_section, paper_b_section, paper_c_section, paper_d_section,
                                     sensitivity_table, static_bounds_section, study_section, summary)
-from wsnloc.workflow import start_job
 
-sm = snakemake  # noqa: F821  (injected by wsnloc.job_server: the rule's input, output, params, wildcards, log)
-log = start_job(sm.log[0], "report")
 config = sm.params.config
 
 summaries = [json.loads(Path(p).read_text()) for p in sm.input.summaries]

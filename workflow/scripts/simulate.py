@@ -1,14 +1,17 @@
 """Snakemake adapter: simulate the runs of one shard of every simulated scenario of one format."""
 
+from wsnloc.workflow import start_job
+
+sm = snakemake  # noqa: F821  (given by Snakemake: the rule's input, output, params, wildcards, log)
+log = start_job(sm)  # from here on, errors and their tracebacks go to the rule's log
+
 from pathlib import Path
 
 from wsnloc.campaign import Campaign
 from wsnloc.sim import SIMULATORS
 from wsnloc.sim.seeding import run_seed_sequence
-from wsnloc.workflow import SIMULATED_ROOT, start_job
+from wsnloc.workflow import SIMULATED_ROOT
 
-sm = snakemake  # noqa: F821  (injected by wsnloc.job_server: the rule's input, output, params, wildcards, log)
-log = start_job(sm.log[0], "simulate")
 campaigns = {}
 for spec in sm.params.scenarios:
     dataset, scenario = spec["dataset"], spec["scenario"]

@@ -1,14 +1,16 @@
 """Snakemake adapter: one study cell (an estimator on every run and subset of one scenario)."""
 
+from wsnloc.workflow import start_job
+
+sm = snakemake  # noqa: F821  (given by Snakemake: the rule's input, output, params, wildcards, log)
+log = start_job(sm)  # from here on, errors and their tracebacks go to the rule's log
+
 from wsnloc.campaign import Campaign
 from wsnloc.estimators import registry
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.studies import quality_table, run_cell
-from wsnloc.workflow import start_job
 
-sm = snakemake  # noqa: F821  (injected by wsnloc.job_server: the rule's input, output, params, wildcards, log)
-log = start_job(sm.log[0], "study_cell")
 cell = sm.params.cell
 name, params = cell["estimator"], cell["parameters"]
 names = registry.get(name).tables(params)

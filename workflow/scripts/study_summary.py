@@ -1,5 +1,10 @@
 """Snakemake adapter: a study's results rows and figures over all its cells."""
 
+from wsnloc.workflow import start_job
+
+sm = snakemake  # noqa: F821  (given by Snakemake: the rule's input, output, params, wildcards, log)
+log = start_job(sm)  # from here on, errors and their tracebacks go to the rule's log
+
 from pathlib import Path
 
 import pandas as pd
@@ -8,10 +13,7 @@ from wsnloc import results
 from wsnloc.io import tables
 from wsnloc.report import bound_figures, figures
 from wsnloc.studies import bound_summary, estimator_panels, results_rows, study_panels
-from wsnloc.workflow import start_job
 
-sm = snakemake  # noqa: F821  (injected by wsnloc.job_server: the rule's input, output, params, wildcards, log)
-log = start_job(sm.log[0], "study_summary")
 study = sm.wildcards.study
 rows, estimates = [], {}
 for cell, metrics_path, estimates_path in zip(sm.params.cells, sm.input.metrics, sm.input.estimates):

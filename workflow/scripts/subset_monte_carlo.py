@@ -1,14 +1,16 @@
 """Snakemake adapter: the configured, best and worst anchor subsets of each search through a
 registry estimator on every run of one scenario (opt-in, config bounds.monte_carlo)."""
 
+from wsnloc.workflow import start_job
+
+sm = snakemake  # noqa: F821  (given by Snakemake: the rule's input, output, params, wildcards, log)
+log = start_job(sm)  # from here on, errors and their tracebacks go to the rule's log
+
 from wsnloc import results
 from wsnloc.analysis.static_bounds import NoiseModel, monte_carlo_rows
 from wsnloc.campaign import Campaign
 from wsnloc.metrics.data_quality import load_runs
-from wsnloc.workflow import start_job
 
-sm = snakemake  # noqa: F821  (injected by wsnloc.job_server: the rule's input, output, params, wildcards, log)
-log = start_job(sm.log[0], "subset_monte_carlo")
 campaign = Campaign.load(sm.input.campaign)
 runs = load_runs(sm.input.tables, ("ranges", "rss", "truth", "anchors"))
 model = NoiseModel(**sm.params.model)
