@@ -4,7 +4,9 @@ cucudasluv/UWB-dataset (Hanyang University, Apache-2.0): per-anchor ROS exports
 `A<id>.csv` (`%time,field.stamp,field.id,field.x,field.y,field.z,field.distanceFromTag,
 field.rssi,field.rssi_fp`, stamps in ns) and `trajectory.csv` (`timestamp,x,y,z,
 heading_degrees`, RTK-GNSS in the anchors' frame). Each case becomes a generic run
-<out>/<los|nlos>/<trajectory>-<case>/ with anchors, ranges, rss and truth CSV files.
+<out>/<los|nlos>/<trajectory>-<case>/ with anchors, ranges, rss and truth CSV files, and the
+case's published baselines beside them as reference tables (published_LS.csv, published_ESKF.csv:
+t, x, y; published_values.csv: the RMSD_results.txt values; see wsnloc.references).
 
 philotuxo/Position-Annotated-BLE-RSSI-Dataset (Bogazici University, CC0): receivers in
 `cnf/tetam.dev` (`Dongles:{"MAC": [[x, y, z], colour, "name"], ...}`, metres) and merged
@@ -75,9 +77,12 @@ class _Source:
                               f"(first: {first[3]}); over the {DEFAULT_PER_FILE:.0%} limit")
 
 
-def _numbers(source: _Source, rows, columns: list[str], non_negative: tuple[str, ...] = ()) -> pd.DataFrame:
+def _numbers(source: _Source, rows, columns: list[str], non_negative: tuple[str, ...] = (),
+             passed_on: tuple[str, ...] = ()) -> pd.DataFrame:
     """The named columns of a read_csv_rows result as floats; rows with a value that is not a
-    finite number (or negative, for `non_negative`) go to the quarantine."""
+    finite number (or negative, for `non_negative`) go to the quarantine. `passed_on` columns
+    are not checked: a bad value (NaN, inf) goes into the generic table as it is, whose ingest
+    quarantines that row of that table alone (a valid range is not lost for a bad RSSI)."""
     source.n_lines += rows.n_records
     for line, text, reason in rows.refused:
         source.refuse(line, text, reason)
@@ -85,6 +90,8 @@ def _numbers(source: _Source, rows, columns: list[str], non_negative: tuple[str,
     if missing:
         raise IngestError(f"{source.path}:1: missing column(s) {missing}")
     values = {c: pd.to_numeric(rows.frame[c].str.strip(), errors="coerce").to_numpy(float) for c in columns}
+    values.update({c: pd.to_numeric(rows.frame[c].str.strip(), errors="coerce").to_numpy(float) for c in passed_on
+                   if c in rows.frame.columns})
     ok = np.ones(len(rows.frame), dtype=bool)
     texts = rows.frame.astype(str).agg(",".join, axis=1).to_numpy() if len(rows.frame) else []
     for c in columns:
@@ -113,6 +120,29 @@ def _case_dirs(src: Path):
         yield case.parents[1].name.lower(), f"{case.parent.name}-{case.name}".lower().replace("_", "-"), case
 
 
+_RMSD_LINE = re.compile(r"^\s*(\w+ RMSE(?:_2d)?)\s*:\s*([-+0-9.eE]+)")
+
+
+def _published(case: Path, quarantine: list) -> dict[str, pd.DataFrame]:
+    """The case's own baselines as reference tables (references.published_tracks / _values):
+    published_LS / published_ESKF (t s, x, y m) and published_values (name, value) from
+    RMSD_results.txt ("LS RMSE_2d: 1.04" -> name "LS RMSE_2d")."""
+    out = {}
+    for name in ("LS", "ESKF"):
+        path = case / f"{name}.csv"
+        if path.is_file():
+            source = _Source(path, quarantine)
+            track = _numbers(source, read_csv_rows(path), ["timestamp", "x", "y"])
+            source.check()
+            out[f"published_{name}"] = pd.DataFrame({"t": track["timestamp"].astype("int64") * NS,
+                                                     "x": track["x"], "y": track["y"]})
+    path = case / "RMSD_results.txt"
+    if path.is_file():
+        values = [m.groups() for m in map(_RMSD_LINE.match, path.read_text().splitlines()) if m]
+        out["published_values"] = pd.DataFrame([(k, float(v)) for k, v in values], columns=["name", "value"])
+    return out
+
+
 def convert_cucudasluv(src: str | Path, out: str | Path) -> list[Converted]:
     """Convert every dynamic case; returns the runs written."""
     src, out = Path(src), Path(out)
@@ -123,8 +153,8 @@ def convert_cucudasluv(src: str | Path, out: str | Path) -> list[Converted]:
         for path in sorted(case.glob("A*.csv"), key=lambda p: int(p.stem[1:])):
             source = _Source(path, quarantine)
             data = _numbers(source, read_csv_rows(path), ["field.stamp", "field.x", "field.y", "field.z",
-                                                          "field.distanceFromTag", "field.rssi"],
-                            non_negative=("field.distanceFromTag",))
+                                                          "field.distanceFromTag"],
+                            non_negative=("field.distanceFromTag",), passed_on=("field.rssi",))
             source.check()
             if data.empty:
                 continue
@@ -144,6 +174,7 @@ def convert_cucudasluv(src: str | Path, out: str | Path) -> list[Converted]:
                   "rss": pd.concat(rss).sort_values("t", kind="stable"),
                   "truth": pd.DataFrame({"t": truth["timestamp"].astype("int64") * NS, "x": truth["x"],
                                          "y": truth["y"]})}
+        tables.update(_published(case, quarantine))
         written.append(_write_run(out / scenario / run, tables, CUCUDASLUV_TAG_HEIGHT_M, "cucudasluv/UWB-dataset",
                                   quarantine))
     if not written:
