@@ -3,7 +3,7 @@
 from snakemake.utils import min_version
 
 from wsnloc.validation import validate_config
-from wsnloc.workflow import compile_bytecode
+from wsnloc.workflow import compile_bytecode, without_missing_sources
 
 min_version("8.20")
 compile_bytecode()   # each job imports wsnloc's modules: compiled once here, not in every job
@@ -12,12 +12,16 @@ compile_bytecode()   # each job imports wsnloc's modules: compiled once here, no
 configfile: "config/config.yaml"
 
 
+# Datasets converted from a public source that is not there are skipped, with a message.
+for _message in without_missing_sources(config):
+    print(_message)
 # Validated (and defaults filled in) before any job is planned: schema, campaigns, real-log
 # folders, experiments' subsets, studies. Errors name the key.
 validate_config(config, "config/schema.yaml")
 
 
 include: "workflow/rules/common.smk"
+include: "workflow/rules/convert.smk"
 include: "workflow/rules/simulate.smk"
 include: "workflow/rules/ingest.smk"
 include: "workflow/rules/evaluate.smk"

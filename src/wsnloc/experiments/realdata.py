@@ -56,3 +56,24 @@ def reference_rows(study: str, label: str, per_run: dict[str, dict[str, float]],
                                           row=f"reference: {name}", column="rmse", scenario=label, metric="rmse_m",
                                           paper_value=sum(paper) / len(paper) if paper else None))
     return rows
+
+
+def scenario_reference_rows(study: str, scenarios: list[dict]) -> list[dict]:
+    """results.csv reference rows of a study's scenarios, each {label, campaign, runs: [{run,
+    raw_dir, tables}]} (the workflow's study_references); a run's donor is the next run of its
+    scenario (cyclically), as for the study cells' calibration."""
+    from wsnloc.io import tables as canonical
+
+    rows = []
+    for scenario in scenarios:
+        campaign = Campaign.load(scenario["campaign"])
+        runs = scenario["runs"]
+        loaded = [{name: canonical.read(Path(r["tables"]) / f"{name}.parquet")
+                   for name in ("ranges", "rss", "truth", "anchors")} for r in runs]
+        per_run, published = {}, {}
+        for i, run in enumerate(runs):
+            donor = loaded[(i + 1) % len(runs)] if len(runs) > 1 else None
+            per_run[run["run"]] = reference_scores(run["raw_dir"], loaded[i], donor, campaign)
+            published[run["run"]] = published_scores(run["raw_dir"])
+        rows += reference_rows(study, scenario["label"], per_run, published)
+    return rows

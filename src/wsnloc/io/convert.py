@@ -263,3 +263,18 @@ def convert_philotuxo(src: str | Path, out: str | Path) -> list[Converted]:
 
 
 CONVERTERS = {"cucudasluv": convert_cucudasluv, "philotuxo": convert_philotuxo}
+
+# ---- the workflow's view: runs and files a conversion will write, known before it runs -------------
+RUN_FILES = {"cucudasluv": ("anchors.csv", "ranges.csv", "rss.csv", "truth.csv", "meta.yaml"),
+             "philotuxo": ("anchors.csv", "rss.csv", "truth.csv", "meta.yaml")}
+
+
+def run_names(dataset: str, src: str | Path) -> dict[str, list[str]]:
+    """{scenario: [run]} that CONVERTERS[dataset] writes from src (from the source's layout alone)."""
+    src = Path(src)
+    if dataset == "cucudasluv":
+        out: dict[str, list[str]] = {}
+        for scenario, run, _ in _case_dirs(src):
+            out.setdefault(scenario, []).append(run)
+        return out
+    return {"tracks": [_track_name(p) for p in sorted(src.glob("trk/*_all_sensors.mbd"))]}
