@@ -87,9 +87,14 @@ def findings(d: dict, p: dict) -> list[str]:
     """Likely cause and remedy, one sentence per symptom (module docstring); [] when all fit."""
     out = []
     if np.isfinite(d.get("gated_share", np.nan)) and d["gated_share"] > GATED_SHARE_LIMIT:
+        if p.get("measurements") == "rss":
+            remedy = (f"the RSS model (P0, path-loss exponent, sigma_db) does not fit the site; fit it on a donor "
+                      f"run with truth (--calibration DONOR_RUN) or raise sigma_db (now {p.get('sigma_db', '?')})")
+        else:
+            remedy = (f"noise too small, ranges biased or scaled; try robust_loss=cauchy or a larger range_sigma_m "
+                      f"(now {p.get('range_sigma_m', '?')}), or calibrate the ranges (--calibration DONOR_RUN)")
         out.append(f"the gate rejected {d['gated_share']:.0%} of the measurements: the model is wrong more often "
-                   f"than outliers explain (noise too small, ranges biased or scaled); try robust_loss=cauchy "
-                   f"or a larger range_sigma_m (now {p.get('range_sigma_m', '?')}), or calibrate the ranges")
+                   f"than outliers explain ({remedy})")
     if d.get("restarts", 0) > 0:
         out.append(f"the track was dropped and restarted {d['restarts']} time(s): gaps longer than max_coast_s "
                    f"({p.get('max_coast_s', '?')} s) or a gate that lost the track; check the gaps, raise "
