@@ -209,8 +209,12 @@ def study_references(w):
 
 def study_reference_inputs(w):
     """The table folders and raw files the references read (so they run after ingest)."""
-    return [f for scenario in study_references(w) for run in scenario["runs"]
-            for f in [run["tables"].rsplit("/", 1)[0]] + raw_files(*scenario["label"].split("/", 1), [run["run"]])]
+    files = []
+    for scenario in study_references(w):
+        dataset, name = scenario["label"].split("/", 1)
+        for run in scenario["runs"]:
+            files += [str(Path(run["tables"]).parent)] + raw_files(dataset, name, [run["run"]])
+    return files
 
 
 def sweep_campaign(spec, key):
