@@ -7,7 +7,7 @@ from snakemake.utils import min_version
 
 from wsnloc.errors import WsnlocError
 from wsnloc.validation import validate_config
-from wsnloc.workflow import REPORT, RESULTS, compile_bytecode, finished_build
+from wsnloc.workflow import REPORT, RESULTS, compile_bytecode, finished_build, without_missing_sources
 
 min_version("8.20")
 compile_bytecode()   # each job imports wsnloc's modules: compiled once here, not in every job
@@ -16,6 +16,9 @@ compile_bytecode()   # each job imports wsnloc's modules: compiled once here, no
 configfile: "config/config.yaml"
 
 
+# Datasets converted from a public source that is not there are skipped, with a message.
+for _message in without_missing_sources(config):
+    print(_message)
 # Validated (and defaults filled in) before any job is planned: schema, campaigns, real-log
 # folders, experiments' subsets, studies. Errors name the key: one message, no traceback.
 try:
@@ -25,6 +28,7 @@ except WsnlocError as error:
 
 
 include: "workflow/rules/common.smk"
+include: "workflow/rules/convert.smk"
 include: "workflow/rules/simulate.smk"
 include: "workflow/rules/ingest.smk"
 include: "workflow/rules/evaluate.smk"

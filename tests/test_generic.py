@@ -98,7 +98,7 @@ needs_real = pytest.mark.skipif(not REAL.is_dir(), reason=f"real dataset not pre
 
 @needs_real
 def test_real_dataset_converts_and_ingests(tmp_path, generic):
-    runs = convert_cucudasluv(REAL, tmp_path)
+    runs = [run.run_dir for run in convert_cucudasluv(REAL, tmp_path)]
     assert {p.parent.name for p in runs} == {"los", "nlos"}
     los = next(p for p in runs if p.parent.name == "los")
     result, inventory = ingest_run(los, generic)
@@ -138,9 +138,9 @@ def test_estimators_on_noise_free_3d_ranges_one_anchor_at_a_time(tmp_path, gener
 @needs_real
 def test_study_cells_on_the_real_dataset(tmp_path, generic):
     runs = {}
-    for run_dir in convert_cucudasluv(REAL, tmp_path):
-        tables, _ = ingest_run(run_dir, generic)
-        runs[run_dir.parent.name] = tables
+    for run in convert_cucudasluv(REAL, tmp_path):
+        tables, _ = ingest_run(run.run_dir, generic)
+        runs[run.run_dir.parent.name] = tables
     p = registry.get("ekf").resolve({"measurements": "hybrid", "max_range_m": 100.0, "accel_sigma_mps2": 1.0})
     estimates, metrics = run_cell("cucudasluv/nlos", "hybrid", "ekf", p, ["all"], {"nlos": runs["nlos"]}, generic,
                                   donors={"los": runs["los"]})

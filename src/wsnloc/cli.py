@@ -51,10 +51,15 @@ NOTES = {"rf_only": "RF-only record(s) (no range)", "reordered": "row(s) out of 
 
 
 def _ingest_campaign(args) -> Campaign | None:
-    """The --campaign file, else the format's default; the generic format needs none."""
+    """The --campaign file, else the format's default; a generic run needs none (its meta.yaml
+    may give the tag height: io.generic.run_campaign)."""
     if args.campaign:
         return Campaign.load(args.campaign)
-    return None if args.format == "generic" else Campaign.load(_default_campaign(args.format))
+    if args.format == "generic":
+        from wsnloc.io.generic import run_campaign
+
+        return run_campaign(args.run_dir)
+    return Campaign.load(_default_campaign(args.format))
 
 
 def cmd_ingest(args) -> int:
@@ -81,10 +86,12 @@ def cmd_ingest(args) -> int:
 
 
 def cmd_convert(args) -> int:
-    from wsnloc.io.convert import convert_cucudasluv
+    from wsnloc.io.convert import CONVERTERS, QUARANTINE_FILE
 
-    for run_dir in convert_cucudasluv(args.src, args.out):
-        print(f"wrote {run_dir}")
+    for run in CONVERTERS[args.dataset](args.src, args.out):
+        bad = f"; {len(run.quarantine)} source line(s) quarantined, see {run.run_dir / QUARANTINE_FILE}" \
+            if run.quarantine else ""
+        print(f"wrote {run.run_dir}{bad}")
     return 0
 
 
@@ -112,9 +119,13 @@ def cmd_estimate(args) -> int:
     campaign = _ingest_campaign(args)
     metrics = estimate_run(args.format, Path(args.run_dir), campaign, Path(args.out), args.estimator, overrides,
                            Path(args.calibration) if args.calibration else None)
+    notes, diagnosis = metrics.pop("notes"), metrics.pop("diagnosis")
+    for note in notes:
+        print(f"note: {note}")
     print(f"{args.estimator}: {metrics.pop('n_estimates')} estimates written to {Path(args.out) / 'estimates.parquet'}")
     if metrics:
         print("  " + ", ".join(f"{k} {v:.3f}" for k, v in metrics.items()))
+    print(diagnosis)
     return 0
 
 
@@ -156,8 +167,9 @@ def parser() -> argparse.ArgumentParser:
     ing.set_defaults(func=cmd_ingest)
 
     conv = sub.add_parser("convert", help="convert a public dataset into the generic format")
-    conv.add_argument("dataset", choices=["cucudasluv"])
-    conv.add_argument("src", help="the dataset's folder (e.g. ../shared/realdata/cucudasluv-uwb)")
+    conv.add_argument("dataset", choices=["cucudasluv", "philotuxo"],
+                      help="cucudasluv: outdoor UWB (OUT/<los|nlos>/<case>); philotuxo: BLE RSSI (OUT/tracks/<track>)")
+    conv.add_argument("src", help="the dataset's folder (e.g. realdata/cucudasluv-uwb, realdata/philotuxo-ble-rssi)")
     conv.add_argument("out", help="output folder; runs go to OUT/<scenario>/<run>")
     conv.set_defaults(func=cmd_convert)
 
@@ -175,8 +187,9 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--campaign", help="campaign file (default: config/campaigns/<format>.yaml; optional for "
                                         "generic runs: no walls, 3-D ranges only where anchors have z)")
     run.add_argument("--calibration", help="a donor run directory with truth, same format and site: the RSS "
-                                           "model and (with --set range_calibration=other_run) the range scale "
-                                           "and per-anchor offsets are fitted on it")
+                                           "model (estimators reading RSS) and, on a run with ranges, the range "
+                                           "scale and per-anchor offsets are fitted on it (range_calibration="
+                                           "other_run unless --set gives another)")
     run.set_defaults(func=cmd_estimate)
 
     val = sub.add_parser("validate-config", help="validate a workflow configuration file")

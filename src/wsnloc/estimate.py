@@ -3,7 +3,8 @@
 raw run -> canonical tables (OUT/tables, with quarantine) -> 5 Hz IMU when the estimator
 reads it -> estimates (OUT/estimates.parquet) -> metrics against the run's truth
 (OUT/metrics.json: rmse_m, mean_m, median_m, p75_m, p90_m, p95_m, max_m, n, availability; the gated share
-and the range calibration applied, with its fitted values; see studies.calibration_metrics).
+and the range calibration applied, with its fitted values; see studies.calibration_metrics; the
+diagnosis values diag_*, see wsnloc.diagnosis; without truth only the estimator and diagnosis).
 """
 
 from __future__ import annotations
@@ -16,10 +17,13 @@ import pandas as pd
 
 from wsnloc.campaign import Campaign
 from wsnloc.errors import WsnlocError
+from wsnloc.diagnosis import diagnose_run, metrics_of as diagnosis_metrics, report as diagnosis_report
 from wsnloc.estimators import registry
+from wsnloc.estimators.auto import measurements_for
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments.calibration import calibrate, calibrate_ranges
 from wsnloc.io import tables
+from wsnloc.io.convert import QUARANTINE_FILE
 from wsnloc.io.ingest import ingest_one
 from wsnloc.io.limits import QuarantineLimits, check_quarantine_limits
 from wsnloc.metrics.tracking import run_metrics, score
@@ -32,11 +36,38 @@ METRIC_KEYS = {"rmse": "rmse_m", "mean": "mean_m", "median": "median_m", "p75": 
 
 
 def load_run(fmt: str, run_dir: Path, campaign: Campaign | None, out_dir: Path) -> dict[str, pd.DataFrame]:
-    """Ingest a raw run into out_dir (Parquet + quarantine), stop above the quarantine limits."""
+    """Ingest a raw run into out_dir (Parquet + quarantine), stop above the quarantine limits.
+    The quarantine table is under the key 'quarantine'."""
     inventory = ingest_one(fmt, run_dir, campaign, out_dir)
     quarantine = tables.read(out_dir / "quarantine.parquet")
     check_quarantine_limits(run_dir, inventory, quarantine, QuarantineLimits(), out_dir / "quarantine.parquet")
-    return {name: tables.read(out_dir / f"{name}.parquet") for name in tables.RAW_TABLES}
+    loaded = {name: tables.read(out_dir / f"{name}.parquet") for name in tables.RAW_TABLES}
+    loaded["quarantine"] = quarantine
+    return loaded
+
+
+def quarantine_summary(quarantine: pd.DataFrame, where: Path) -> str | None:
+    """'N row(s) quarantined (count reason per file ...); table: where', or None when none was."""
+    if not len(quarantine):
+        return None
+    from wsnloc.metrics.data_quality import reason_category
+
+    kinds = quarantine.assign(kind=quarantine["reason"].map(reason_category)).groupby(["file", "kind"]).size()
+    listed = "; ".join(f"{count} {file}: {kind}" for (file, kind), count in kinds.items())
+    return f"{len(quarantine)} row(s) quarantined ({listed}); table: {where}"
+
+
+def converted_quarantine(run_dir: Path) -> str | None:
+    """The source lines `wsnloc convert` could not convert for this run (io.convert), or None."""
+    path = run_dir / QUARANTINE_FILE
+    if not path.is_file():
+        return None
+    rows = pd.read_csv(path)
+    if not len(rows):
+        return None
+    reasons = rows["reason"].str.replace(r"'[^']*'", "...", regex=True).value_counts()
+    return (f"{len(rows)} source line(s) were not converted ({'; '.join(f'{n} {r}' for r, n in reasons.items())}); "
+            f"table: {path}")
 
 
 def donor_models(fmt: str, donor_dir: Path, campaign: Campaign | None, out_dir: Path, p: dict,
@@ -47,7 +78,7 @@ def donor_models(fmt: str, donor_dir: Path, campaign: Campaign | None, out_dir: 
     wants_ranges = p.get("range_calibration") == "other_run"
     if not (reads_rss or wants_ranges):
         raise WsnlocError(f"--calibration {donor_dir}: this estimator calibrates nothing on a donor (it reads no "
-                          f"RSS; ranges need --set range_calibration=other_run)")
+                          f"RSS, and range_calibration is {p.get('range_calibration')!r})")
     donor = load_run(fmt, donor_dir, campaign, out_dir)
     if len(donor["truth"]) == 0:
         raise WsnlocError(f"{donor_dir}: a calibration donor needs truth")
@@ -65,28 +96,46 @@ def donor_models(fmt: str, donor_dir: Path, campaign: Campaign | None, out_dir: 
 
 def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, name: str, overrides: dict,
                  calibration_dir: Path | None = None) -> dict:
-    """Run `name` on the raw run; writes estimates.parquet (and metrics.json with truth); returns the metrics."""
+    """Run `name` on the raw run; writes estimates.parquet (and metrics.json with truth); returns the
+    metrics, with 'n_estimates', 'notes' (quarantine, choices made from the data) and 'diagnosis'
+    (the text of diagnosis.report). A donor (`calibration_dir`) alone turns on the range
+    calibration from it (range_calibration=other_run) on a run with ranges unless overrides set
+    range_calibration, and the RSS model when the estimator reads RSS;
+    measurements / fixes not in overrides follow the data (estimators.auto.measurements_for)."""
     estimator = registry.get(name, "--estimator")
     p = estimator.resolve(overrides, "--set")
     run_tables = load_run(fmt, run_dir, campaign, out / "tables")
+    notes = [q for q in [quarantine_summary(run_tables.pop("quarantine"), out / "tables" / "quarantine.parquet"),
+                         converted_quarantine(run_dir)] if q]
     if "imu_5hz" in estimator.tables(p):
         run_tables["imu_5hz"] = resample_imu(run_tables["imu"], **RESAMPLE)
+    chosen = measurements_for(RunData(run_tables, campaign, None, str(run_dir)), p, set(overrides))
+    notes += [f"{k}={v}: the run has RSS and no usable range" for k, v in chosen.items() if p[k] != v]
+    p = chosen
+    if calibration_dir is not None and "range_calibration" in p and "range_calibration" not in overrides \
+            and len(run_tables["ranges"]) and p.get("measurements", "toa") != "rss":
+        p = dict(p, range_calibration="other_run")       # the donor calibrates the ranges too
     rss_model, range_model = donor_models(fmt, calibration_dir, campaign, out / "calibration", p,
                                           reads_rss(name, p)) if calibration_dir else (None, None)
     data = RunData(run_tables, campaign, rss_model, str(run_dir), range_model)
     estimates = registry.run(name, data, p)
     if not np.isfinite(estimates["x"]).any():
         raise WsnlocError(f"{name} on {run_dir}: no estimates; {diagnose(data, p)}")
+    diagnosis = diagnose_run(data, estimates, p)
     truth = run_tables["truth"]
     scored = score(estimates, truth).assign(run=run_dir.name, subset=p.get("anchors", "all"))
     tables.write("estimates", scored, out / "estimates.parquet")
-    metrics = {"n_estimates": int(np.isfinite(estimates["x"]).sum())}
+    metrics = {"n_estimates": int(np.isfinite(estimates["x"]).sum()), "notes": notes,
+               "diagnosis": diagnosis_report(diagnosis, p)}
+    summary = {"estimator": name, **{k: v for k, v in diagnosis_metrics(diagnosis).items()
+                                     if isinstance(v, str) or np.isfinite(v)}}
     if len(truth):
         values = run_metrics(scored, truth)
-        summary = {METRIC_KEYS[k]: float(v) for k, v in values.items()}
-        summary.update(resets=int(estimates.attrs.get("resets", 0)), estimator=name,
+        summary.update({METRIC_KEYS[k]: float(v) for k, v in values.items()})
+        summary.update(resets=int(estimates.attrs.get("resets", 0)),
                        rss_model=(rss_model or {}).get("source", "configured"),
                        **{k: v for k, v in calibration_metrics(estimates).items() if pd.notna(v)})
-        (out / "metrics.json").write_text(json.dumps(summary, indent=1))
-        metrics.update({k: v for k, v in summary.items() if isinstance(v, float)})
+        metrics.update({METRIC_KEYS[k]: float(v) for k, v in values.items()})
+        metrics["gated"] = float(summary["gated"])
+    (out / "metrics.json").write_text(json.dumps(summary, indent=1, default=float))
     return metrics

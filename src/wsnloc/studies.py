@@ -24,7 +24,7 @@ import time
 import numpy as np
 import pandas as pd
 
-from wsnloc import results
+from wsnloc import diagnosis, results
 from wsnloc.analysis.filter_bounds import is_bayesian
 from wsnloc.analysis.filter_quality import QUALITY_COLUMNS, cell_outputs, run_quality
 from wsnloc.campaign import Campaign
@@ -39,7 +39,8 @@ QUALITY_TABLE = ["run", "subset"] + QUALITY_COLUMNS   # a cell's per-epoch bound
 REPORTED = RUN_METRICS + ("resets", "gated", "time_per_step")   # per cell and run; results.csv: mean and 95% interval
 BOUND_METRICS = ("sqrt_pcrb", "efficiency")  # Bayesian filters only
 CALIBRATION = ("calibrated_scale", "calibration_fitted", "range_scale", "range_offset")   # where a cell has them
-UNIT = {"n": "count", "availability": "share", "resets": "count", "gated": "share", "efficiency": "ratio",
+DIAGNOSIS = ("diag_nis_mean", "diag_nis_high", "diag_range_scale", "diag_max_abs_offset_m")   # wsnloc.diagnosis
+UNIT = {"diag_nis_mean": "per_dof", "diag_nis_high": "per_dof", "diag_range_scale": "1", "n": "count", "availability": "share", "resets": "count", "gated": "share", "efficiency": "ratio",
         "time_per_step": "us", "calibrated_scale": "1", "calibration_fitted": "share", "range_scale": "1"}
 # wall-clock time of the estimator per output step (us): measured in the cell job, so it varies from
 # build to build and is left out of byte-reproducibility checks (metric time_per_step_us)
@@ -201,6 +202,7 @@ def run_cell(label: str, cell: str, name: str, p: dict, subsets: list[str], runs
                 scored = scored.join(quality[["pcrb_m2", "nees"]])
             estimates.append(scored)
             metrics.append({"run": run, "subset": subset, **run_metrics(scored, run_tables["truth"]),
+                            **diagnosis.metrics_of(diagnosis.diagnose_run(data, est, q)),
                             "resets": est.attrs.get("resets", 0), "time_per_step": elapsed_us / len(est),
                             **efficiency, **calibration_metrics(est),
                             "rss_model": (models[run] or {}).get("source", "configured") if reads_rss(name, p) else ""})
@@ -210,10 +212,12 @@ def run_cell(label: str, cell: str, name: str, p: dict, subsets: list[str], runs
 # ---- summary ---------------------------------------------------------------------------------
 def results_rows(study: str, cell: str, label: str, metrics: pd.DataFrame) -> list[dict]:
     """results.csv rows of one cell: every reported metric, mean over runs with its 95% interval;
-    the fitted range calibration (donor scale, self-calibrated scale and offset) where the cell has one."""
+    the fitted range calibration (donor scale, self-calibrated scale and offset) where the cell has one;
+    the diagnosis (NIS per dof and its band's upper end, range scale and largest per-anchor offset
+    against the estimated track) where the run has it. metrics.csv has every diag_* value per run."""
     rows = []
     for subset, group in metrics.groupby("subset", sort=False):
-        fitted = [m for m in BOUND_METRICS + CALIBRATION
+        fitted = [m for m in BOUND_METRICS + CALIBRATION + DIAGNOSIS
                   if m in group and pd.to_numeric(group[m], errors="coerce").notna().any()]
         for metric in REPORTED + tuple(fitted):
             rows.append(results.row_over_runs(group[metric], experiment=EXPERIMENT_PREFIX + study, table=subset,

@@ -70,6 +70,8 @@ def _check_datasets(config: dict) -> dict:
             continue
         if not dataset.get("raw_dir"):
             raise ConfigError(f"config key 'datasets.{name}.raw_dir': required when source is 'logs'")
+        if dataset.get("convert"):        # the workflow's conversion rule writes raw_dir
+            continue
         if not Path(dataset["raw_dir"]).is_dir():
             raise ConfigError(f"config key 'datasets.{name}.raw_dir': no such directory {dataset['raw_dir']!r}")
         for scenario in dataset["scenarios"]:

@@ -2,7 +2,8 @@
 
 Simulated datasets write to data/raw/<dataset>/<scenario>/run-NN; datasets with
 `source: logs` are read from <raw_dir>/<scenario>/<run>/ and their runs are the
-sub-directories found there.
+sub-directories found there, or, for a dataset converted by the workflow (`convert:
+{dataset, source}`), the runs its converter writes from the source (io.convert.run_names).
 """
 
 from __future__ import annotations
@@ -29,8 +30,17 @@ def raw_root(config: dict, dataset: str) -> str:
 
 def dataset_runs(config: dict, dataset: str, scenario: str) -> list[str]:
     """Run names of one scenario; for real logs, the run directories present on disk."""
-    if config["datasets"][dataset]["source"] == "simulate":
+    spec = config["datasets"][dataset]
+    if spec["source"] == "simulate":
         return simulated_runs(config)
+    if spec.get("convert"):        # written by the workflow's conversion rule: known from the source
+        from wsnloc.io.convert import run_names
+
+        runs = run_names(spec["convert"]["dataset"], spec["convert"]["source"]).get(scenario, [])
+        if not runs:
+            raise ConfigError(f"config key 'datasets.{dataset}.scenarios': {scenario!r} has no runs in "
+                              f"{spec['convert']['source']}")
+        return runs
     folder = Path(raw_root(config, dataset)) / scenario
     runs = sorted(p.name for p in folder.iterdir() if p.is_dir()) if folder.is_dir() else []
     if not runs:
@@ -174,3 +184,23 @@ def compile_bytecode(package_dir: str | Path = Path(__file__).parent) -> None:
     import compileall
 
     compileall.compile_dir(str(package_dir), quiet=2)
+
+
+def without_missing_sources(config: dict) -> list[str]:
+    """Drop the datasets whose `convert.source` folder is absent, and their scenarios from the
+    studies (a study left without scenarios is dropped); returns one message per dataset dropped."""
+    messages = []
+    for name, spec in list(config.get("datasets", {}).items()):
+        source = (spec or {}).get("convert", {}).get("source")
+        if source and not Path(source).is_dir():
+            del config["datasets"][name]
+            messages.append(f"dataset {name!r} skipped: its source {source!r} is not there (convert.source)")
+    for study, spec in list((config.get("studies") or {}).items()):
+        kept = [label for label in spec.get("scenarios", []) if label.split("/", 1)[0] in config["datasets"]]
+        if not kept:
+            del config["studies"][study]
+        else:
+            spec["scenarios"] = kept
+            spec["overrides"] = {k: v for k, v in (spec.get("overrides") or {}).items()
+                                 if k.split("/", 1)[0] in config["datasets"]}
+    return messages

@@ -3,6 +3,7 @@ from pathlib import Path
 
 
 from wsnloc.estimators import registry as _registry
+from wsnloc.io.convert import RUN_FILES
 from wsnloc.studies import cell_params, estimator_of, reads_rss, study_cells
 from wsnloc.workflow import (
     dataset_runs,
@@ -63,7 +64,9 @@ def raw_files(dataset, scenario, runs):
     files = []
     for run in runs:
         run_dir = raw_run_dir(config, dataset, scenario, run)
-        if fmt == "generic":
+        if config["datasets"][dataset].get("convert"):      # written by the conversion rule (convert.smk)
+            files += [f"{run_dir}/{name}" for name in RUN_FILES[config["datasets"][dataset]["convert"]["dataset"]]]
+        elif fmt == "generic":
             files += sorted(str(p) for p in Path(run_dir).iterdir() if p.suffix in (".csv", ".parquet"))
         else:
             files += [f"{run_dir}/{name}" for name in RAW_FILES[fmt]]
@@ -166,6 +169,35 @@ def study_cell_inputs(w):
         inputs["donors"] = [p for s in config["datasets"][w.dataset]["scenarios"] if s != w.scenario
                             for p in tables_of(w.dataset, s)]
     return inputs
+
+
+def study_references(w):
+    """What a study's summary needs for its real-data references (`references: true`): per
+    scenario its label, campaign file, and per run its raw folder (the published tracks stored
+    beside the run) and table folder (wsnloc.experiments.realdata); [] when off."""
+    spec = STUDIES[w.study]
+    if not spec.get("references"):
+        return []
+    out = []
+    for label in spec["scenarios"]:
+        dataset, scenario = label.split("/", 1)
+        runs = dataset_runs(config, dataset, scenario)
+        shard_of = {run: shard for shard, members in shards_of(config, dataset, scenario).items() for run in members}
+        out.append({"label": label, "campaign": config["datasets"][dataset]["campaign"],
+                    "runs": [{"run": run, "raw_dir": raw_run_dir(config, dataset, scenario, run),
+                              "tables": f"data/processed/{dataset}/{scenario}/tables/{shard_of[run]}/{run}"}
+                             for run in runs]})
+    return out
+
+
+def study_reference_inputs(w):
+    """The table folders and raw files the references read (so they run after ingest)."""
+    files = []
+    for scenario in study_references(w):
+        dataset, name = scenario["label"].split("/", 1)
+        for run in scenario["runs"]:
+            files += [str(Path(run["tables"]).parent)] + raw_files(dataset, name, [run["run"]])
+    return files
 
 
 def sweep_campaign(spec, key):

@@ -28,6 +28,7 @@ rule study_summary:
                              for d, s, c in STUDY_CELLS[w.study]],
         quality=lambda w: [f"data/processed/studies/{w.study}/{d}/{s}/{c}/quality.parquet"
                            for d, s, c in STUDY_CELLS[w.study]],
+        references=study_reference_inputs,
     output:
         results="data/processed/studies/{study}/results.csv",
         cdf="data/processed/studies/{study}/figures/error_cdf.png",
@@ -41,6 +42,7 @@ rule study_summary:
                           "parameters": cell_params(STUDIES[w.study], c, d, s, f"studies.{w.study}")}
                          for d, s, c in STUDY_CELLS[w.study]],
         bar_stats=config["report"]["cell_stats"],
+        references=study_references,
     priority: PRIORITY["summary"]
     log:
         "logs/studies/{study}/summary.log",

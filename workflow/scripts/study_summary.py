@@ -12,6 +12,7 @@ import pandas as pd
 from wsnloc import results
 from wsnloc.io import tables
 from wsnloc.report import bound_figures, figures
+from wsnloc.experiments.realdata import scenario_reference_rows
 from wsnloc.studies import bound_summary, estimator_panels, results_rows, study_panels
 
 study = sm.wildcards.study
@@ -25,6 +26,7 @@ bayesian = [(cell, q) for cell, q in zip(sm.params.cells, qualities) if len(q)]
 bound_rows, bound_panels, consistency_panels = bound_summary(study, *map(list, zip(*bayesian))) if bayesian \
     else ([], [], [])
 rows += bound_rows
+rows += scenario_reference_rows(study, sm.params.references)
 results.write(rows, sm.output.results)
 pcrb_png, anees_png = bound_figures.bound_and_anees_figures(bound_panels, consistency_panels,
                                                             none="no Bayesian filter cell in this study")

@@ -6,6 +6,8 @@ Files (CSV or Parquet, by name; `anchors` and one of `ranges` / `rss` required):
   rss:     t, anchor_id, rss_dbm              (s, dBm)
   imu:     t, ax, ay, az, gz                  (s, m/s^2 body frame, rad/s)
   truth:   t, x, y                            (s, m)
+  meta.yaml (optional): tag_height_m          (m: the mobile's antenna height, for 3-D
+                                               ranges to anchors with z; see run_campaign)
 Rows that cannot be used go to the quarantine with file, line and a reason naming the
 value: CSV rows with the wrong number of fields or cut off at the end of the file
 (wsnloc.io.csvrows), missing or non-finite numbers, negative ranges, anchors missing
@@ -27,6 +29,7 @@ import pandas as pd
 import pyarrow.parquet as pq
 
 from wsnloc.campaign import Campaign
+from wsnloc.config import read_yaml
 from wsnloc.errors import IngestError
 from wsnloc.io import tables
 from wsnloc.io.csvrows import CsvRows, read_csv_rows
@@ -42,6 +45,23 @@ COLUMNS = {
 TEXT_COLUMNS = {"anchor_id", "tech"}
 NON_NEGATIVE_COLUMNS = {"range_m"}
 NEVER_EMPTY = ("anchors", "ranges", "rss")     # a run without their rows has nothing to localise with
+
+
+def run_campaign(run_dir: str | Path) -> Campaign | None:
+    """The site facts a generic run carries itself: a campaign with the `tag_height_m` of the
+    run's optional meta.yaml (m), or None without one. A campaign file, when given, is used
+    instead (its tag_height_m applies)."""
+    path = Path(run_dir) / "meta.yaml"
+    if not path.is_file():
+        return None
+    meta = read_yaml(path) or {}
+    height = meta.get("tag_height_m")
+    if height is None:
+        return None
+    if not isinstance(height, (int, float)) or not np.isfinite(height):
+        raise IngestError(f"{path}: key 'tag_height_m' must be a number (m), not {height!r}")
+    return Campaign(name=f"generic run {Path(run_dir).name}", format="generic",
+                    spec={"tag_height_m": float(height)}, source=str(path))
 
 
 def find(run_dir: Path, name: str) -> Path | None:

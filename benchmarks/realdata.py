@@ -1,0 +1,91 @@
+"""Real-data table: default `wsnloc estimate` against the datasets' own and simple references.
+
+    python benchmarks/realdata.py [--realdata ../shared/realdata] [--out benchmarks/out/realdata]
+
+Converts the shared real datasets (`wsnloc convert`), then per run:
+- cucudasluv (outdoor UWB): `wsnloc estimate` with no flags (estimator `tracker`, the run's
+  meta.yaml tag height) against the case's LS.csv and ESKF.csv scored our way (2-D error, truth
+  interpolated at the estimate times), and the RMSD_results.txt 2-D values (reference column);
+- philotuxo (BLE RSSI): `wsnloc estimate` with no flags, and with `--calibration <next track>`
+  (cyclically), against the plain gated EKF on the path-loss model fitted on that donor and the
+  weighted centroid of the 3 strongest receivers per second (wsnloc.references).
+Prints a Markdown table and writes it to OUT/realdata.md. The scratch folder is git-ignored.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "src"))
+
+from wsnloc.estimate import estimate_run  # noqa: E402
+from wsnloc.experiments.realdata import published_scores, reference_scores  # noqa: E402
+from wsnloc.io.convert import convert_cucudasluv, convert_philotuxo  # noqa: E402
+from wsnloc.io.generic import ingest_run, run_campaign  # noqa: E402
+
+EKF_REF = "gated EKF, path loss fitted on donor"
+CENTROID_REF = "weighted centroid (3 strongest, 1 s)"
+
+
+def _ours(run_dir: Path, out: Path, donor: Path | None = None) -> float:
+    metrics = estimate_run("generic", run_dir, run_campaign(run_dir), out, "tracker", {}, donor)
+    return metrics["rmse_m"]
+
+
+def uwb_rows(src: Path, out: Path) -> list[str]:
+    rows = ["| case | ours: `wsnloc estimate` | LS.csv (our scoring) | ESKF.csv (our scoring) | "
+            "LS RMSE_2d published | ESKF RMSE_2d published | ours < LS.csv |", "|---|---|---|---|---|---|---|"]
+    for run in convert_cucudasluv(src, out / "converted" / "cucudasluv"):
+        run_dir = run.run_dir
+        label = f"{run_dir.parent.name}/{run_dir.name}"
+        ours = _ours(run_dir, out / "estimates" / "cucudasluv" / label)
+        tables, _ = ingest_run(run_dir)
+        refs = reference_scores(run_dir, tables, None, run_campaign(run_dir))
+        published = published_scores(run_dir)
+        rows.append(f"| {label} | {ours:.3f} | {refs['LS.csv']:.3f} | {refs['ESKF.csv']:.3f} | "
+                    f"{published.get('LS RMSE_2d', float('nan')):.3f} | "
+                    f"{published.get('ESKF RMSE_2d', float('nan')):.3f} | "
+                    f"{'yes' if ours < refs['LS.csv'] else 'no'} |")
+    return rows
+
+
+def ble_rows(src: Path, out: Path) -> list[str]:
+    runs = [r.run_dir for r in convert_philotuxo(src, out / "converted" / "philotuxo")]
+    rows = ["| track (donor) | ours, no flags | ours `--calibration donor` | gated EKF, donor path loss | "
+            "weighted centroid | ours (calibrated) < both |", "|---|---|---|---|---|---|"]
+    for i, run_dir in enumerate(runs):
+        donor = runs[(i + 1) % len(runs)]
+        plain = _ours(run_dir, out / "estimates" / "philotuxo" / run_dir.name / "default")
+        calibrated = _ours(run_dir, out / "estimates" / "philotuxo" / run_dir.name / "calibrated", donor)
+        tables, _ = ingest_run(run_dir)
+        donor_tables, _ = ingest_run(donor)
+        refs = reference_scores(run_dir, tables, donor_tables, run_campaign(run_dir))
+        wins = calibrated < refs[EKF_REF] and calibrated < refs[CENTROID_REF]
+        rows.append(f"| {run_dir.name} ({donor.name}) | {plain:.3f} | {calibrated:.3f} | {refs[EKF_REF]:.3f} | "
+                    f"{refs[CENTROID_REF]:.3f} | {'yes' if wins else 'no'} |")
+    return rows
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--realdata", default=str(ROOT.parent / "shared" / "realdata"))
+    parser.add_argument("--out", default=str(ROOT / "benchmarks" / "out" / "realdata"))
+    args = parser.parse_args(argv)
+    src, out = Path(args.realdata), Path(args.out)
+    started = time.perf_counter()
+    text = ["RMSE (m), 2-D, truth interpolated at each estimate's time; published values: reference only.", "",
+            "Outdoor UWB (cucudasluv):", ""] + uwb_rows(src / "cucudasluv-uwb", out) + \
+        ["", "BLE RSSI (philotuxo), donor = the next track:", ""] + ble_rows(src / "philotuxo-ble-rssi", out) + \
+        ["", f"({time.perf_counter() - started:.0f} s)"]
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "realdata.md").write_text("\n".join(text) + "\n")
+    print("\n".join(text))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,147 @@
+"""Diagnosis of one run: what says the estimator's model does not fit the data, with the
+likely cause and a remedy. No truth is used: only the estimates, their attrs and the run's
+measurements, so that it works on any user run.
+
+Values (`diagnose_run`, all optional, NaN where the estimator or run has none):
+  gated_share       measurements rejected by the innovation gate / offered (attrs)
+  restarts          track dropped and restarted (attrs `resets`)
+  nis_mean          mean normalised innovation squared per measurement dof over the updates,
+  nis_low/high      with its two-sided 95% chi-square band (metrics.consistency.chi2_band;
+                    sequential updates: 1 dof per update, the last update of each output
+                    step; epoch updates: n_meas dof). Above the band: the innovations are
+                    larger than the filter's R + HPH' says (noise, bias or a scale error
+                    not modelled); below: R is larger than needed.
+  range_scale       r = s d + b_a fitted robustly (metrics.ranging.fit_range_bias) on the
+  range_offsets_m   measured ranges against the distances from the *estimated* track
+                    (interpolated at the range times, 3-D where the anchor has z): residual
+                    structure the filter did not absorb. A common scale error leaves s != 1,
+                    per-anchor biases leave offsets b_a.
+  self_scale, self_offset_m   the filter's own self-calibration states, where it has them
+  calibrated_scale  the donor calibration applied, where one was
+Sentences (`findings`): one per value outside its tolerance, each "what: likely cause; remedy".
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from wsnloc.campaign import Campaign
+from wsnloc.estimators.run_data import RunData
+from wsnloc.metrics.consistency import chi2_band
+from wsnloc.metrics.ranging import fit_range_bias, range_errors
+
+GATED_SHARE_LIMIT = 0.05        # more rejected than this: the model is wrong more often than an outlier rate
+SCALE_TOLERANCE = 0.03          # |s - 1| above this: a common range scale error (UWB clock/antenna delay ~1%)
+OFFSET_TOLERANCE_M = 0.15       # |b_a| above this: a per-anchor bias (antenna delay, cable; UWB sigma ~0.1 m)
+MIN_RANGES = 50                 # fewer ranges along the track: no scale / offset fit
+
+
+def _nis(estimates: pd.DataFrame, p: dict) -> dict:
+    nis = estimates["nis"].to_numpy(float) if "nis" in estimates else np.array([])
+    used = np.isfinite(nis)
+    if not used.any():
+        return {}
+    if p.get("update") == "sequential":
+        dof = np.ones(used.sum())
+    else:
+        dof = np.maximum(estimates["n_meas"].to_numpy(float)[used], 1.0)
+    mean_per_dof = float(nis[used].sum() / dof.sum())
+    low, high = chi2_band(dof.sum(), dof.sum())
+    return {"nis_mean": mean_per_dof, "nis_low": float(low), "nis_high": float(high)}
+
+
+def _range_fit(data: RunData, estimates: pd.DataFrame, p: dict) -> dict:
+    ranges = data.usable_ranges(p.get("preliminary_filter", True), p.get("max_range_m", np.inf))
+    track = estimates.loc[np.isfinite(estimates["x"]) & np.isfinite(estimates["y"]), ["t", "x", "y"]]
+    if len(ranges) < MIN_RANGES or len(track) < 2:
+        return {}
+    site = data.campaign or Campaign(name="generic", format="generic", spec={}, source="(no campaign file)")
+    anchors = data.table("anchors") if len(data.table("anchors")) else site.anchors
+    samples = range_errors(ranges, track.reset_index(drop=True), site, anchors)
+    if len(samples) < MIN_RANGES:
+        return {}
+    try:
+        fit = fit_range_bias(samples["range_m"], samples["true_distance_m"], samples["anchor_id"])
+    except ValueError:
+        return {}
+    return {"range_scale": float(fit["scale"]), "range_offsets_m": {k: float(v) for k, v in fit["offsets_m"].items()}}
+
+
+def diagnose_run(data: RunData, estimates: pd.DataFrame, p: dict) -> dict:
+    """The diagnosis values of one run (module docstring)."""
+    a = estimates.attrs
+    out = {"gated_share": float(a["gated_share"]) if "gated_share" in a else np.nan,
+           "restarts": int(a.get("resets", 0)),
+           **_nis(estimates, p), **_range_fit(data, estimates, p)}
+    if "range_scale" in a:
+        out["self_scale"] = float(a["range_scale"])
+    if "range_offset_m" in a:
+        out["self_offset_m"] = float(a["range_offset_m"])
+    if a.get("range_calibration", "none") != "none" and "calibrated_scale" in a:
+        out["calibrated_scale"] = float(a["calibrated_scale"])
+    return out
+
+
+def findings(d: dict, p: dict) -> list[str]:
+    """Likely cause and remedy, one sentence per symptom (module docstring); [] when all fit."""
+    out = []
+    if np.isfinite(d.get("gated_share", np.nan)) and d["gated_share"] > GATED_SHARE_LIMIT:
+        if p.get("measurements") == "rss":
+            remedy = (f"the RSS model (P0, path-loss exponent, sigma_db) does not fit the site; fit it on a donor "
+                      f"run with truth (--calibration DONOR_RUN) or raise sigma_db (now {p.get('sigma_db', '?')})")
+        else:
+            remedy = (f"noise too small, ranges biased or scaled; try robust_loss=cauchy or a larger range_sigma_m "
+                      f"(now {p.get('range_sigma_m', '?')}), or calibrate the ranges (--calibration DONOR_RUN)")
+        out.append(f"the gate rejected {d['gated_share']:.0%} of the measurements: the model is wrong more often "
+                   f"than outliers explain ({remedy})")
+    if d.get("restarts", 0) > 0:
+        out.append(f"the track was dropped and restarted {d['restarts']} time(s): gaps longer than max_coast_s "
+                   f"({p.get('max_coast_s', '?')} s) or a gate that lost the track; check the gaps, raise "
+                   f"max_coast_s or gate_loss_share")
+    if "nis_mean" in d:
+        if d["nis_mean"] > d["nis_high"]:
+            sigma = p.get("range_sigma_m")
+            hint = f" (range_sigma_m about {sigma * np.sqrt(d['nis_mean']):.2g} would match)" \
+                if sigma and p.get("measurements", "toa") == "toa" else ""
+            out.append(f"NIS {d['nis_mean']:.2f} per dof is above its 95% band [{d['nis_low']:.2f}, "
+                       f"{d['nis_high']:.2f}]: the innovations are larger than the filter expects; raise the "
+                       f"measurement noise{hint} or the process noise (accel_sigma_mps2)")
+        elif d["nis_mean"] < d["nis_low"]:
+            out.append(f"NIS {d['nis_mean']:.2f} per dof is below its 95% band [{d['nis_low']:.2f}, "
+                       f"{d['nis_high']:.2f}]: the measurement noise is set larger than the data need; a smaller "
+                       f"one would follow the track more closely")
+    scale = d.get("range_scale", np.nan)
+    if np.isfinite(scale) and abs(scale - 1.0) > SCALE_TOLERANCE:
+        out.append(f"ranges look {abs(scale - 1.0):.0%} {'long' if scale > 1 else 'short'} against the track: "
+                   f"a common range scale error; try range_self_calibration=scale, or --calibration DONOR_RUN")
+    biased = {k: v for k, v in (d.get("range_offsets_m") or {}).items() if abs(v) > OFFSET_TOLERANCE_M}
+    if biased:
+        listed = ", ".join(f"{k} {v:+.2f} m" for k, v in sorted(biased.items(), key=lambda kv: -abs(kv[1])))
+        out.append(f"per-anchor range offsets against the track ({listed}): antenna delays or NLOS biases; "
+                   f"try --calibration DONOR_RUN (a run of the same site with truth) or the campaign's "
+                   f"range_calibration.offsets_m")
+    return out
+
+
+def metrics_of(d: dict) -> dict:
+    """Flat scalar columns of a diagnosis for metrics files (offsets as 'A=b;...', findings counted)."""
+    out = {f"diag_{k}": v for k, v in d.items() if k != "range_offsets_m"}
+    offsets = d.get("range_offsets_m") or {}
+    out["diag_max_abs_offset_m"] = max((abs(v) for v in offsets.values()), default=np.nan)
+    out["diag_range_offsets_m"] = ";".join(f"{k}={v:.3f}" for k, v in offsets.items())
+    return out
+
+
+def report(d: dict, p: dict) -> str:
+    """Lines for `wsnloc estimate`: the values, then each finding (or that the model fits)."""
+    values = [f"gated {d['gated_share']:.1%}" if np.isfinite(d.get("gated_share", np.nan)) else None,
+              f"restarts {d.get('restarts', 0)}",
+              f"NIS {d['nis_mean']:.2f} per dof (95% band {d['nis_low']:.2f}-{d['nis_high']:.2f})"
+              if "nis_mean" in d else None,
+              f"range scale vs track {d['range_scale']:.3f}" if "range_scale" in d else None,
+              f"self-calibrated scale {d['self_scale']:.3f}" if "self_scale" in d else None]
+    lines = ["diagnosis: " + ", ".join(v for v in values if v)]
+    found = findings(d, p)
+    lines += [f"  - {f}" for f in found] or ["  - no sign that the model does not fit"]
+    return "\n".join(lines)

@@ -1,0 +1,22 @@
+"""Choices resolved from the run's data when the user left them at their default.
+
+`measurements_for`: an estimator reads ranges by default (`measurements: toa`, `fixes: toa`);
+a run without usable ranges but with RSS (e.g. a BLE RSSI campaign) is estimated on its RSS
+instead of giving no estimate. Runs that have ranges keep them (RSS needs a path-loss model
+that ranges do not). Applied by `wsnloc estimate` to parameters not given with --set.
+"""
+
+from __future__ import annotations
+
+from wsnloc.estimators.run_data import RunData
+
+CHOICE_KEYS = ("measurements", "fixes")      # parameters naming the measurement kind an estimator reads
+
+
+def measurements_for(data: RunData, p: dict, explicit: set[str]) -> dict:
+    """The parameters with the measurement kind switched to 'rss' where the run has RSS and no
+    usable range and the key was not set explicitly; the others unchanged."""
+    ranges = data.usable_ranges(p.get("preliminary_filter", True), p.get("max_range_m", float("inf")))
+    if len(ranges) or not len(data.usable_rss()):
+        return p
+    return dict(p, **{k: "rss" for k in CHOICE_KEYS if p.get(k) == "toa" and k not in explicit})
