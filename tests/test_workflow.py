@@ -155,42 +155,32 @@ def test_adding_an_estimator_to_a_study_reruns_only_its_cells(workdir):
         (workdir / "config" / "config.yaml").write_text(yaml.safe_dump(config))
 
 
-def uncomment_block(text: str, first: str) -> str:
-    """The config text with the commented block starting at the line `  # <first>` uncommented."""
-    lines = text.splitlines()
-    start = lines.index(f"  # {first}")
-    end = start + 1
-    while end < len(lines) and lines[end].startswith("  #   "):
-        end += 1
-    return "\n".join(lines[:start] + [line.replace("  # ", "  ", 1) for line in lines[start:end]] + lines[end:]) + "\n"
-
-
 @pytest.mark.skipif(not (ROOT.parent / "shared" / "realdata" / "cucudasluv-uwb").is_dir(),
                     reason="the shared real dataset is not beside the project")
-def test_real_data_study_runs_by_uncommenting_the_config(tmp_path):
-    """The shipped example: convert the real dataset as the README says, uncomment the dataset
-    and the study, keep only them, run; the report shows the study with >= 6 estimators."""
+def test_real_data_study_runs_from_its_overlay(tmp_path):
+    """The shipped real-data study (config/realdata.yaml): the workflow converts the outdoor UWB
+    dataset itself and runs the study with its references; the report shows the study with >= 6
+    estimators beside the dataset's published baselines."""
+    source = ROOT.parent / "shared" / "realdata" / "cucudasluv-uwb"
     work = small_workflow(tmp_path / "real")
-    text = (work / "config" / "config.yaml").read_text()
-    config = yaml.safe_load(uncomment_block(uncomment_block((ROOT / "config" / "config.yaml").read_text(),
-                                                            "cucudasluv:"), "realdata:"))
-    config["datasets"] = {"cucudasluv": config["datasets"]["cucudasluv"]}
-    config["studies"] = {"realdata": config["studies"]["realdata"]}
+    config = yaml.safe_load((work / "config" / "config.yaml").read_text())
+    overlay = yaml.safe_load((ROOT / "config" / "realdata.yaml").read_text())
+    dataset = dict(overlay["datasets"]["cucudasluv"], convert={"dataset": "cucudasluv", "source": str(source)})
+    study = overlay["studies"]["realdata_uwb"]
+    study["estimators"] = dict(list(study["estimators"].items())[:6])
+    config["datasets"] = {"cucudasluv": dataset}
+    config["studies"] = {"realdata_uwb": study}
     config["experiments"] = {}
     config["bounds"] = {key: {d: v for d, v in spec.items() if d in config["datasets"]}
                         for key, spec in config["bounds"].items()}           # only the datasets kept
-    assert text and len(config["studies"]["realdata"]["estimators"]) >= 6
     (work / "config" / "config.yaml").write_text(yaml.safe_dump(config))
-    converted = subprocess.run([sys.executable, "-m", "wsnloc.cli", "convert", "cucudasluv",
-                                str(ROOT.parent / "shared" / "realdata" / "cucudasluv-uwb"), "data/raw/cucudasluv"],
-                               cwd=work, capture_output=True, text=True)
-    assert converted.returncode == 0, converted.stderr
     result = snakemake(work, "--cores", "2")
     assert result.returncode == 0, result.stderr[-3000:]
     results = pd.read_csv(work / "reports" / "results.csv")
-    study = results[results["experiment"] == "study:realdata"]
-    assert study["row"].nunique() >= 6 and set(study["scenario"]) == {"cucudasluv/los", "cucudasluv/nlos"}
-    assert 'id="study-realdata"' in (work / "reports" / "pages" / "study-realdata.html").read_text()
+    rows = results[results["experiment"] == "study:realdata_uwb"]
+    assert rows["row"].nunique() >= 6 and set(rows["scenario"]) == {"cucudasluv/los", "cucudasluv/nlos"}
+    assert rows["row"].astype(str).str.startswith("reference").any()
+    assert 'id="study-realdata_uwb"' in (work / "reports" / "pages" / "study-realdata_uwb.html").read_text()
 
 
 def test_compile_bytecode_writes_each_module_once(tmp_path):

@@ -275,10 +275,9 @@ def study_section(results: pd.DataFrame, study: str, spec: dict, figures: dict[s
             for stat in headline:
                 values = [r["cells"][k][stat]["value"] for r in rows]
                 finite = [v for v in values if v is not None and np.isfinite(v)]
-                if len(finite) > 1:
-                    best = max(finite) if stat == "availability" else min(finite)
-                    for r, v in zip(rows, values):
-                        r["cells"][k][stat]["best"] = v == best
+                best = (max(finite) if stat == "availability" else min(finite)) if len(finite) > 1 else None
+                for r, v in zip(rows, values):      # no best cell where fewer than two cells have a value
+                    r["cells"][k][stat]["best"] = best is not None and v == best
         tables.append({"subset": subset, "scenarios": scenarios, "rows": rows})
     estimators = [{"cell": c, "estimator": estimator_of(spec, c),
                    "settings": [cell_settings(spec, c, sc) for sc in scenarios]} for c in cells]
