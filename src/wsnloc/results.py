@@ -22,7 +22,9 @@ COLUMNS = ["experiment", "table", "row", "column", "scenario", "metric",
            "value", "ci95_low", "ci95_high", "band_low", "band_high", "runs", "paper_value"]
 KEY = COLUMNS[:6]      # the labels that name a number: no two rows of a file share them
 
-SIGNED_METRICS = ("P0_dBm", "range_error_m", "rmse_gain_m", "range_offset_m", "verdict")   # and difference_*
+# signed per-run values (and difference_*); a range scale fitted by regression (diag_range_scale) can come
+# out of any sign on a degenerate run, so its interval is not forced positive
+SIGNED_METRICS = ("P0_dBm", "range_error_m", "rmse_gain_m", "range_offset_m", "verdict", "diag_range_scale_1")
 
 
 def metric_domain(metric: str) -> str:
