@@ -4,9 +4,14 @@
 a run without usable ranges but with RSS (e.g. a BLE RSSI campaign) is estimated on its RSS
 instead of giving no estimate. Runs that have ranges keep them (RSS needs a path-loss model
 that ranges do not). Applied by `wsnloc estimate` to parameters not given with --set.
+
+`update_mode`: the Bayesian filters' `update: auto` (their default, bayes.run_filters) is
+`epoch` on synchronous rounds and `sequential` on asynchronous measurements.
 """
 
 from __future__ import annotations
+
+import numpy as np
 
 from wsnloc.estimators.run_data import RunData
 
@@ -20,3 +25,41 @@ def measurements_for(data: RunData, p: dict, explicit: set[str]) -> dict:
     if len(ranges) or not len(data.usable_rss()):
         return p
     return dict(p, **{k: "rss" for k in CHOICE_KEYS if p.get(k) == "toa" and k not in explicit})
+
+
+UPDATE_MODES = ("epoch", "sequential")
+SYNCHRONOUS_SHARE = 0.5     # bursts in at least this share of the epochs with measurements: synchronous
+
+
+def update_mode(t: np.ndarray, anchor: np.ndarray, times: np.ndarray, period: float) -> tuple[str, str]:
+    """The update mode the ranges at times t (s, sorted) to `anchor` call for, and why.
+    RSS does not decide it (bayes.resolve_update passes the ranges only; a filter on RSS alone
+    keeps `epoch`): the RSS samples of one receiver within a period are mostly fast fading,
+    correlated from sample to sample, so each is not an independent measurement; their mean in
+    dB per epoch is the ML estimate of the local mean power (estimators.epochs) and one
+    update with it does not let a burst of fading samples drag the filter along the steep
+    log-distance curve near a receiver.
+
+    An epoch (t_k - period, t_k] of the grid `times` is a **burst** when its measurements share
+    one time stamp and come from at least two anchors: a synchronous round, which the epoch
+    update (one update with the per-anchor means, output at t_k) uses as the sequential one
+    would. When bursts make up at least SYNCHRONOUS_SHARE of the epochs that hold measurements
+    the data are synchronous: `epoch` (the papers' filters; the array EKF steps many runs at
+    once). Otherwise (ranges one anchor at a time, or each anchor at its own time stamp) an
+    epoch update would treat measurements up to one period old as taken at t_k and average
+    away all but one per anchor: `sequential` (each measurement at its own time)."""
+    if len(t) == 0 or len(times) == 0:
+        return "epoch", "no ranges"
+    epoch = np.searchsorted(times, t, side="left")
+    inside = epoch < len(times)
+    epoch, t, anchor = epoch[inside], t[inside], np.asarray(anchor, dtype=object)[inside]
+    starts = np.flatnonzero(np.r_[True, epoch[1:] != epoch[:-1]])
+    ends = np.r_[starts[1:], len(epoch)]
+    one_stamp = np.array([t[a] == t[b - 1] for a, b in zip(starts, ends)])
+    anchors = np.array([len(set(anchor[a:b])) for a, b in zip(starts, ends)])
+    bursts = float(np.mean(one_stamp & (anchors >= 2))) if len(starts) else 0.0
+    if bursts >= SYNCHRONOUS_SHARE:
+        return "epoch", f"synchronous: {bursts:.0%} of the epochs are single-time-stamp rounds of >= 2 anchors"
+    single = float(np.mean(anchors == 1))
+    return "sequential", (f"asynchronous: {bursts:.0%} of the epochs are single-time-stamp rounds "
+                          f"({single:.0%} hold a single anchor)")

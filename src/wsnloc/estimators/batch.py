@@ -10,6 +10,9 @@ Initiator: the first window with at least 4 ranges spread over at least one knot
 the normal equations singular) whose per-anchor means give a multilateration fix starts
 there at rest. Coasting limit (core.CoastingDeleter): after `max_coast_s` seconds
 without a range the solution is dropped (counted as a reset) and restarted by the initiator.
+Real data (filters.numerics): covariances that are not positive definite are regularised;
+a window whose solution is not finite is skipped and the solution restarted (a reset); both
+counted in attrs `regularised` and `skipped`.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import pandas as pd
 from wsnloc.estimators.core import COLUMNS, CoastingDeleter, Track
 from wsnloc.estimators.measurements import MeasurementSource
 from wsnloc.estimators.run_data import RunData
+from wsnloc.filters.numerics import Guards, usable
 from wsnloc.filters.sliding_window import STATE, SlidingWindowEstimator
 
 
@@ -32,7 +36,7 @@ def sliding_window(data: RunData, p: dict) -> pd.DataFrame:
     times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
     window = p["window_s"]
     deleter = CoastingDeleter(p["max_coast_s"])
-    rows, resets, solver, last_range = [], 0, None, -np.inf
+    rows, resets, solver, last_range, guards = [], 0, None, -np.inf, Guards()
     for t_k in times:
         a = int(np.searchsorted(records.t, t_k - window, side="left"))
         b = int(np.searchsorted(records.t, t_k, side="right"))
@@ -47,10 +51,14 @@ def sliding_window(data: RunData, p: dict) -> pd.DataFrame:
             if fix is None:
                 continue
             solver = SlidingWindowEstimator(window, p["knot_s"], p["accel_sigma_mps2"], p["loss"], p["f_scale"],
-                                            p["prior_inflation"])
+                                            p["prior_inflation"], guards)
             initial = np.array([fix[0], fix[1], 0.0, 0.0])
         estimate = solver.estimate(t_k, records.t[a:b], anchors_xy[a:b], dz[a:b], records.value[a:b],
                                    p["range_sigma_m"], initial)
+        if not usable(estimate.x, estimate.P):
+            guards.skipped += 1
+            solver, resets = None, resets + 1
+            continue
         P = estimate.P
         rows.append((t_k, estimate.x[0], estimate.x[1], P[0, 0], P[0, 1], P[1, 1], estimate.n_ranges, np.nan))
-    return Track(np.array(rows, dtype=float).reshape(len(rows), len(COLUMNS)), {"resets": resets}).frame()
+    return Track(np.array(rows, dtype=float).reshape(len(rows), len(COLUMNS)), {"resets": resets, **guards.attrs()}).frame()

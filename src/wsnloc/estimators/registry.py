@@ -66,10 +66,12 @@ FILTER = (
     Param("measurements", "toa", "", "toa: ranges; rss: RSS; hybrid: both stacked", str, tuple(KINDS)),
     Param("motion", "pv", "", "p: random walk; pv: constant velocity; pva: measured acceleration input + bias",
           str, MOTIONS),
-    Param("update", "epoch", "", "epoch: one update per period; sequential: at each measurement's time", str,
-          ("epoch", "sequential")),
+    Param("update", "auto", "", "epoch: one update per period; sequential: at each measurement's time; auto: "
+          "epoch on synchronous ranging rounds and on RSS alone, sequential on asynchronous ranges (one anchor at a "
+          "time, or each anchor at its own time stamp), decided from the run's data (estimators.auto)", str, ("auto", "epoch", "sequential")),
     Param("range_sigma_m", 0.3, "m", "range noise standard deviation in R", minimum=1e-6),
-    Param("p_sigma_m", 0.15, "m", "P model: position change per period T", minimum=0.0),
+    Param("p_sigma_m", 0.5, "m", "P model: position change per period T (0.5: a walk at 1 m/s over the 0.5 s "
+          "period; paper C sets its own)", minimum=0.0),
     Param("accel_sigma_mps2", 0.5, "m/s^2", "PV: white acceleration; PVA: acceleration input noise", minimum=0.0),
     Param("bias_walk_sigma", 0.01, "m/s^2/sqrt(s)", "PVA: accelerometer bias random walk", minimum=0.0),
     Param("initial_sigma_m", 1.0, "m", "initial position sigma (around the initiator's fix)", minimum=1e-6),
