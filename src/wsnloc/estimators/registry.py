@@ -103,8 +103,9 @@ PARTICLE = (
           "a few cm for a 1 m posterior spread at 1000; cost grows linearly", int, minimum=1),
     Param("resample_threshold", 0.5, "1", "systematic resampling when the effective sample size 1 / sum w^2 "
           "falls below this share of N (0..1; the usual N/2 rule)", minimum=0.0),
-    Param("outlier_probability", 0.0, "1", "heavy-tailed range likelihood (1 - eps) N(r; 0, sigma^2) + eps / span "
-          "(0..1; 0: Gaussian, the EKF's likelihood; ~0.05 for NLOS-heavy UWB)", minimum=0.0),
+    Param("outlier_probability", 0.05, "1", "heavy-tailed range likelihood (1 - eps) N(r; 0, sigma^2) + eps / span "
+          "(0..1; 0: Gaussian, the EKF's likelihood; 0.05: real UWB, where NLOS and multipath give a few ranges "
+          "metres long, which a Gaussian likelihood lets drag the cloud)", minimum=0.0),
     Param("outlier_span_m", 50.0, "m", "span of the uniform outlier component: the longest range error "
           "possible (site diagonal plus the largest NLOS excess)", minimum=1e-3),
     Param("seed", 0, "1", "random stream of each run: numpy Generator seeded with (seed, CRC-32 of the run's "
@@ -243,8 +244,9 @@ ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
     Estimator("ukf", "Unscented Kalman filter (scaled sigma points) with the EKF's motion models, measurements, "
               "update modes, initiator and coasting limit", COMMON + RSS + _filter(FILTER, "ukf") + UKF,
               bayes.run_filter, _filter_inputs),
-    Estimator("pf", "Bootstrap particle filter (systematic resampling on ESS, optional heavy-tailed range "
-              "likelihood) with the EKF's motion models, measurements, update modes, initiator and coasting limit",
+    Estimator("pf", "Bootstrap particle filter (systematic resampling on ESS with a shrunk kernel, heavy-tailed "
+              "range likelihood, restart from a fix when its likelihood collapses) with the EKF's motion models, "
+              "measurements, update modes, initiator and coasting limit",
               COMMON + RSS + _filter(FILTER, "pf") + PARTICLE, bayes.run_filter, _filter_inputs),
     Estimator("ekf_filterpy", "filterpy's EKF (the textbook reference) in the same loops, initiator, coasting "
               "limit and update options as ekf: its estimates equal ekf's to round-off",

@@ -14,9 +14,12 @@ update:   log w_i <- log w_i + sum_j log p(z_j | X_i),  then normalised with log
 resample: systematic, when ESS = 1 / sum w_i^2 < resample_threshold * N:
           positions u_k = (U + k) / N, U ~ U[0, 1), k = 0..N-1; particle k copies X_j with the
           smallest j whose cumulative weight exceeds u_k; weights reset to 1 / N; then each
-          particle is jittered by h L e_k, e_k ~ N(0, I), L L^T = the weighted covariance
-          before resampling, h = (4 / (N (n + 2)))^(1 / (n + 4)) (the regularised particle
-          filter, Musso, Oudjane & Le Gland 2001: the Gaussian kernel's optimal bandwidth).
+          particle is moved by the shrunk Gaussian kernel of Liu & West (2001):
+            X_k <- a X_k + (1 - a) x + h L e_k,  e_k ~ N(0, I),  a = sqrt(1 - h^2),
+          x, L L^T = P the weighted mean and covariance before resampling and
+          h = (4 / (N (n + 2)))^(1 / (n + 4)) (the Gaussian kernel's optimal bandwidth, as in
+          the regularised particle filter of Musso, Oudjane & Le Gland 2001); the shrinkage
+          keeps the cloud's mean and covariance (a^2 P + h^2 P = P) while refreshing it.
           Without it, measurements milliseconds apart (a ranging round's anchors, each at its
           own time) resample again and again with almost no process noise in between, and
           the cloud collapses onto a few copies of one particle that cannot follow the target.
@@ -178,7 +181,9 @@ class ParticleFilter:
         self.resampled = self.ess < self.resample_threshold * len(self.particles)
         if self.resampled:
             n, dim = self.particles.shape
-            kernel = noise_square_root(self.P) * (4.0 / (n * (dim + 2))) ** (1.0 / (dim + 4))
-            self.particles = self.particles[systematic_resample(self.weights, self.rng)]
-            self.particles = self.particles + self.rng.standard_normal(self.particles.shape) @ kernel.T
+            h = (4.0 / (n * (dim + 2))) ** (1.0 / (dim + 4))
+            mean, kernel = self.x, h * noise_square_root(self.P)
+            kept = self.particles[systematic_resample(self.weights, self.rng)]
+            self.particles = np.sqrt(1.0 - h**2) * kept + (1.0 - np.sqrt(1.0 - h**2)) * mean \
+                + self.rng.standard_normal(kept.shape) @ kernel.T
             self.log_weights = np.full(n, -np.log(n))
