@@ -7,6 +7,8 @@ that ranges do not). Applied by `wsnloc estimate` to parameters not given with -
 
 `update_mode`: the Bayesian filters' `update: auto` (their default, bayes.run_filters) is
 `epoch` on synchronous rounds and `sequential` on asynchronous measurements.
+`fix_window_epochs`: per-epoch fixes (estimators.fixes) read the latest value of each anchor
+over the last FIX_WINDOW_S seconds when most epochs hear fewer than 3 anchors.
 """
 
 from __future__ import annotations
@@ -63,3 +65,18 @@ def update_mode(t: np.ndarray, anchor: np.ndarray, times: np.ndarray, period: fl
     single = float(np.mean(anchors == 1))
     return "sequential", (f"asynchronous: {bursts:.0%} of the epochs are single-time-stamp rounds "
                           f"({single:.0%} hold a single anchor)")
+
+
+FIX_WINDOW_S = 4.0          # s: as the tracker's initiator (multilateration over the last 4 s)
+FIX_ANCHORS = 3             # a 2-D fix needs three anchors
+
+
+def fix_window_epochs(anchors_per_epoch: np.ndarray, period: float) -> int:
+    """Epochs a per-epoch fix reads: 1 when at least half of the epochs with measurements hear
+    FIX_ANCHORS anchors or more (synchronous rounds: the papers' solvers, unchanged), else the
+    epochs of FIX_WINDOW_S (ranges one anchor at a time: a fix from the latest range of each
+    anchor over the window, up to FIX_WINDOW_S old, instead of none in most epochs)."""
+    heard = anchors_per_epoch[anchors_per_epoch > 0]
+    if len(heard) == 0 or np.mean(heard >= FIX_ANCHORS) >= 0.5:
+        return 1
+    return max(1, int(np.ceil(FIX_WINDOW_S / period - 1e-9)))
