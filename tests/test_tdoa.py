@@ -212,3 +212,46 @@ def test_registry_lists_tdoa_among_the_filters_measurements():
     accepting = {name for name, e in registry.ESTIMATORS.items()
                  if any(p.name == "measurements" and "tdoa" in (p.choices or ()) for p in e.params)}
     assert {"ekf", "tracker", "ukf", "pf", "ekf_rts"} <= accepting and "minmax" not in accepting
+
+
+# ---- TDOA made from two-way ranges ---------------------------------------------------------------------
+def test_ranges_to_tdoa_pairs_by_interpolation_within_the_window():
+    from wsnloc.io.tdoa_from_ranges import ranges_to_tdoa
+
+    ranges = pd.DataFrame({
+        "t": [0.0, 0.01, 0.02, 0.1, 0.11, 0.12, 0.2, 0.21, 2.0, 2.01],
+        "anchor_id": ["R", "B", "C", "R", "B", "C", "R", "B", "R", "C"],
+        "range_m": [5.0, 6.0, 7.0, 5.0, 6.2, 7.0, 5.5, 6.4, 5.0, 9.0],
+        "status": [0, 0, 0, 0, 0, 1, 0, 0, 0, 0]})
+    tdoa = ranges_to_tdoa(ranges, window_s=0.25)
+    assert set(tdoa["ref_anchor_id"]) == {"R"}                      # the anchor with the most ranges
+    got = {(round(t, 3), a): round(v, 9) for t, a, v in tdoa[["t", "anchor_id", "tdoa_m"]].itertuples(index=False)}
+    # B at t_ref = 0.1: between (0.01, 6.0) and (0.11, 6.2) -> 6.18; C at 0.1: its 0.12 sample is flagged, so
+    # (0.02, 7.0) and (2.01, 9.0) bracket it, too far apart -> no pair; R at 0.0 has no B sample before it
+    assert got == {(0.1, "B"): round(6.18 - 5.0, 9), (0.2, "B"): round(6.38 - 5.5, 9)}, got
+
+
+def test_convert_tdoa_cli_writes_a_tdoa_run_that_estimate_tracks(tmp_path):
+    data = tdoa_run(seconds=20.0)
+    times = np.arange(0.1, 20.0, 0.1)
+    ids = np.tile(np.array(list(SQUARE), dtype=object), len(times))
+    stamps = np.repeat(times, len(SQUARE)) + np.tile(np.arange(len(SQUARE)) * 0.002, len(times))   # one round
+    ranges = tables_for(stamps, ids, walk, SQUARE)["ranges"]
+    run = tmp_path / "src" / "case"
+    run.mkdir(parents=True)
+    data.tables["anchors"].drop(columns="z").to_csv(run / "anchors.csv", index=False)
+    ranges[["t", "anchor_id", "range_m"]].to_csv(run / "ranges.csv", index=False)
+    data.tables["truth"][["t", "x", "y"]].to_csv(run / "truth.csv", index=False)
+    assert main(["convert", "tdoa", str(tmp_path / "src"), str(tmp_path / "out")]) == 0
+    converted = tmp_path / "out" / "case"
+    assert not (converted / "ranges.csv").exists() and (converted / "truth.csv").exists()
+    tdoa = pd.read_csv(converted / "tdoa.csv")
+    assert len(tdoa) >= 0.95 * 3 * len(times)
+    truth = walk(tdoa["t"].to_numpy())
+    anchors = {a: np.array(xy) for a, xy in SQUARE.items()}
+    true = [np.hypot(*(p - anchors[a])) - np.hypot(*(p - anchors[b]))
+            for p, a, b in zip(truth, tdoa["anchor_id"], tdoa["ref_anchor_id"])]
+    assert np.max(np.abs(tdoa["tdoa_m"] - true)) < 0.01              # interpolation over 2 ms at 0.5 m/s
+    assert main(["estimate", "--format", "generic", str(converted), "--out", str(tmp_path / "est")]) == 0
+    metrics = json.loads((tmp_path / "est" / "metrics.json").read_text())
+    assert metrics["availability"] > 0.9 and metrics["median_m"] < 0.3, metrics
