@@ -206,12 +206,16 @@ def test_estimate_picks_tdoa_on_a_tdoa_run(tmp_path, capsys):
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["availability"] > 0.9 and metrics["median_m"] < 0.5, metrics
     assert "measurements=tdoa" in capsys.readouterr().out
+    assert main(["estimate", "--format", "generic", str(run), "--out", str(out), "--estimator", "minmax"]) != 0
+    assert "range differences (TDOA), read by the estimators `wsnloc estimators` marks [TDOA]" in capsys.readouterr().err
 
 
-def test_registry_lists_tdoa_among_the_filters_measurements():
-    accepting = {name for name, e in registry.ESTIMATORS.items()
-                 if any(p.name == "measurements" and "tdoa" in (p.choices or ()) for p in e.params)}
+def test_registry_lists_tdoa_among_the_filters_measurements(capsys):
+    accepting = {name for name, e in registry.ESTIMATORS.items() if e.reads_tdoa}
     assert {"ekf", "tracker", "ukf", "pf", "ekf_rts"} <= accepting and "minmax" not in accepting
+    assert main(["estimators"]) == 0
+    listed = {line.split(":")[0].split()[0] for line in capsys.readouterr().out.splitlines() if "[TDOA]" in line}
+    assert listed == accepting
 
 
 # ---- TDOA made from two-way ranges ---------------------------------------------------------------------

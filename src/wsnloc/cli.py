@@ -105,7 +105,8 @@ def cmd_estimators(args) -> int:
         return 0
     for e in described:
         default = " (default of `wsnloc estimate`)" if e["name"] == registry.DEFAULT_ESTIMATOR else ""
-        print(f"{e['name']}{default}: {e['summary']}")
+        tdoa = " [TDOA]" if e["tdoa"] else ""
+        print(f"{e['name']}{default}{tdoa}: {e['summary']}")
         for p in e["parameters"]:
             unit = f" [{p['unit']}]" if p["unit"] else ""
             choices = f" ({' | '.join(p['choices'])})" if p.get("choices") else ""

@@ -167,8 +167,14 @@ class Estimator:
         return ("ranges", "rss", "truth", "anchors") + (("tdoa",) if p.get("measurements") == "tdoa" else ()) \
             + self.inputs(p)
 
+    @property
+    def reads_tdoa(self) -> bool:
+        """Whether the estimator accepts range differences (`measurements: tdoa`)."""
+        return any(p.name == "measurements" and "tdoa" in (p.choices or ()) for p in self.params)
+
     def describe(self) -> dict:
-        return {"name": self.name, "summary": self.summary, "parameters": [p.describe() for p in self.params]}
+        return {"name": self.name, "summary": self.summary, "tdoa": self.reads_tdoa,
+                "parameters": [p.describe() for p in self.params]}
 
 
 def _solver_run(solver: str | None, technique: str | None):
