@@ -85,7 +85,7 @@ def systematic_resample(weights, rng: np.random.Generator) -> np.ndarray:
 def range_elements(model) -> np.ndarray:
     """Boolean mask (m,) of the measurement elements that are ranges (RangeModel parts)."""
     parts = getattr(model, "parts", [model])
-    return np.concatenate([np.full(len(p.anchors), isinstance(p, RangeModel)) for p in parts])
+    return np.concatenate([np.full(len(p.R()), isinstance(p, RangeModel)) for p in parts])   # rows of each part
 
 
 def element_log_likelihoods(residuals, variances, heavy_tailed, outlier_probability: float,
