@@ -31,7 +31,7 @@ def paper_a_params(spec: dict) -> Callable[[str, str, str], dict]:
 
 def paper_a_main(spec: dict) -> list[tuple[str, str]]:
     hybrid = [paper_a.row_label(r) for r in spec["rows"] if r["measurements"] == "hybrid"][:1]
-    return [(table, row) for table in spec["estimators"] for row in hybrid]
+    return [(table, row) for table in paper_a.TABLES for row in hybrid]
 
 
 def paper_c_params(spec: dict) -> Callable[[str, str, str], dict]:

@@ -48,7 +48,7 @@ def cell_params(spec: dict, label: str, table: str, row: dict) -> dict:
 def run_all(datas: list[RunData], spec: dict, label: str) -> list[pd.DataFrame]:
     """Estimates of every row, without (Table I) and with (Table II) motion detection, scored,
     per run of `datas` (scenario `label`); all runs x rows are stepped together (batched.cell_tracks)."""
-    grid = [(row, table) for row in spec["rows"] for table in spec["estimators"]]
+    grid = [(row, table) for row in spec["rows"] for table in TABLES]
     params = [cell_params(spec, label, table, row) for row, table in grid]
     tracks = batched.cell_tracks("ekf", [(data, p) for data in datas for p in params], where=cells.where(PAPER))
     labels = {"row": [row_label(row) for row, _ in grid], "table": [table for _, table in grid]}
