@@ -165,6 +165,10 @@ def test_real_log_scenario_without_runs_is_named(config, tmp_path):
         config["experiments"][experiment]["scenarios"] = ["newcom/constant"]
     config["experiments"]["paper_b"]["simulation_scenarios"] = []
     config["studies"] = {}
+    with pytest.raises(ConfigError, match=r"'experiments.paper_b.overrides.newcom/b_simulation': not a dataset or "
+                                          r"dataset/scenario the paper runs on \(newcom/constant\)"):
+        validate_config(config, SCHEMA)
+    config["experiments"]["paper_b"]["overrides"] = {}
     validate_config(config, SCHEMA)
     config["datasets"]["newcom"]["scenarios"] = ["constant", "variable"]
     with pytest.raises(ConfigError, match=r"'datasets.newcom.scenarios': 'variable' has no run directories"):

@@ -67,9 +67,15 @@ def check(spec: dict, paper: str) -> None:
         raise ConfigError(f"config key '{where(paper)}.estimators': the paper's tables and claims name the cells "
                           f"{expected}; declared: {declared}")
     check_shared(spec, where(paper))
+    labels = list(spec["scenarios"]) + list(spec.get("simulation_scenarios", []))
+    known = set(labels) | {label.split("/", 1)[0] for label in labels}
+    for key in spec.get("overrides") or {}:
+        if key not in known:
+            raise ConfigError(f"config key '{where(paper)}.overrides.{key}': not a dataset or dataset/scenario the "
+                              f"paper runs on ({', '.join(labels)})")
     from wsnloc.experiments.sensitivity import variants   # its sigmas name numbers of the paper's cells
 
     variants(spec, where(paper))
-    for label in spec["scenarios"]:
+    for label in labels:
         for cell in declared:
             params(spec, cell, label, paper)
