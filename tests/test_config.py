@@ -164,6 +164,7 @@ def test_real_log_scenario_without_runs_is_named(config, tmp_path):
     for experiment in ("paper_a", "paper_b", "paper_d"):
         config["experiments"][experiment]["scenarios"] = ["newcom/constant"]
     config["experiments"]["paper_b"]["simulation_scenarios"] = []
+    config["ranging_validation"]["scenarios"] = ["newcom/constant"]
     config["studies"] = {}
     with pytest.raises(ConfigError, match=r"'experiments.paper_b.overrides.newcom/b_simulation': not a dataset or "
                                           r"dataset/scenario the paper runs on \(newcom/constant\)"):
@@ -244,4 +245,13 @@ def test_dataset_kind_defaults_from_source_and_must_fit_it(config):
     assert config["datasets"]["newcom"]["kind"] == "simulated"
     config["datasets"]["newcom"]["kind"] = "measured"
     with pytest.raises(ConfigError, match=r"'datasets.newcom.kind': 'measured' does not fit source 'simulate'"):
+        validate_config(config, SCHEMA)
+
+
+def test_ranging_validation_scenario_must_be_declared(config):
+    config["ranging_validation"] = {"scenarios": ["newcom/constnt"]}
+    with pytest.raises(ConfigError, match=r"'ranging_validation.scenarios': 'newcom/constnt' is not a declared"):
+        validate_config(config, SCHEMA)
+    config["ranging_validation"] = {"scenarios": ["cricket/speed_20"]}
+    with pytest.raises(ConfigError, match=r"'ranging_validation.scenarios': the campaign of 'cricket/speed_20' has no"):
         validate_config(config, SCHEMA)
