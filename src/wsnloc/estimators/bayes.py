@@ -10,6 +10,11 @@ Update modes (core.epoch_loop, core.sequential_loop)
   time are used as they come; output at the same epoch ends t_k, predicted from the
   last update (not stored). When every measurement of an epoch carries the time t_k,
   both modes give the same estimates.
+- `auto` (the default of every filter but `tracker`): `epoch` on synchronous ranging rounds
+  and RSS alone, `sequential` on asynchronous ranges, decided per run (resolve_update,
+  estimators.auto.update_mode); attrs `update` says which.
+Numerical guards (filters.numerics): per run, the covariances regularised, updates skipped
+  and particle-filter restarts, in attrs `regularised`, `skipped`, `reinitialised`.
 Initiator (core.WindowInitiator, `init_window_s`): the first time the measurements of the
   last `init_window_s` seconds (per-anchor means) give a multilateration fix, the state
   starts there (speed and bias 0, P0).
