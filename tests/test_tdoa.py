@@ -259,3 +259,68 @@ def test_convert_tdoa_cli_writes_a_tdoa_run_that_estimate_tracks(tmp_path):
     assert main(["estimate", "--format", "generic", str(converted), "--out", str(tmp_path / "est")]) == 0
     metrics = json.loads((tmp_path / "est" / "metrics.json").read_text())
     assert metrics["availability"] > 0.9 and metrics["median_m"] < 0.3, metrics
+
+
+# ---- simulator ---------------------------------------------------------------------------------------
+def test_sync_residual_is_the_sync_jitter_and_grows_until_the_next_sync():
+    from wsnloc.sim.tdoa import _sync_errors
+
+    rng = np.random.default_rng(1)
+    period, jitter = 0.15, 1e-9
+    at_sync = _sync_errors(4000, np.array([3 * period]), period, jitter, rng)
+    before_next = _sync_errors(4000, np.array([4 * period - 1e-9]), period, jitter, rng)
+    assert np.std(at_sync) == pytest.approx(jitter, rel=0.05)               # n_k
+    assert np.std(before_next) == pytest.approx(np.sqrt(5) * jitter, rel=0.05)   # 2 n_k - n_{k-1}
+    assert np.all(_sync_errors(3, np.linspace(0, 2, 50), period, 0.0, rng) == 0.0)
+
+
+@pytest.fixture(scope="module")
+def simulated_tdoa_run(tmp_path_factory):
+    from wsnloc.campaign import Campaign
+    from wsnloc.sim.newcom import simulate_run
+    from wsnloc.sim.seeding import run_seed_sequence
+
+    from conftest import ROOT
+
+    campaign = Campaign.load(ROOT / "config" / "campaigns" / "newcom.yaml")
+    run = simulate_run(campaign, "tdoa", run_seed_sequence(0, "newcom", "tdoa", 1), tmp_path_factory.mktemp("sim"))
+    return campaign, run
+
+
+def test_simulated_tdoa_is_ingested_with_truth_and_tracked(simulated_tdoa_run):
+    from wsnloc.io.newcom import ingest_run as ingest_newcom
+
+    campaign, run = simulated_tdoa_run
+    result, inventory = ingest_newcom(run, campaign)
+    tdoa, truth = result["tdoa"], result["truth"]
+    assert inventory["tdoa.csv"]["quarantined"] == 0 and len(tdoa) > 1000
+    assert set(tdoa["ref_anchor_id"]) == {campaign.section("radio", "uwb")["tdoa"]["reference_anchor"]}
+    anchors = result["anchors"].set_index("anchor_id")
+    x, y = np.interp(tdoa["t"], truth["t"], truth["x"]), np.interp(tdoa["t"], truth["t"], truth["y"])
+
+    def d(ids):
+        return np.hypot(x - anchors.loc[ids, "x"].to_numpy(), y - anchors.loc[ids, "y"].to_numpy())
+
+    error = tdoa["tdoa_m"] - (d(tdoa["anchor_id"]) - d(tdoa["ref_anchor_id"]))
+    assert abs(np.median(error)) < 0.3 and np.percentile(np.abs(error), 50) < 0.4     # channel + sync errors
+    data = RunData(result, campaign, None, "sim-tdoa")
+    metrics = {m: score(registry.run("tracker", data, {"measurements": m}), truth) for m in ("toa", "tdoa")}
+    medians = {m: np.nanmedian(s["error_m"]) for m, s in metrics.items()}
+    assert metrics["tdoa"]["error_m"].notna().mean() > 0.85 and medians["tdoa"] < 1.5 * medians["toa"] + 0.1, medians
+
+
+def test_tdoa_beside_newcom_logs_is_quarantined_by_the_generic_rules(simulated_tdoa_run, tmp_path):
+    import shutil
+
+    from wsnloc.io.newcom import ingest_run as ingest_newcom
+
+    campaign, run = simulated_tdoa_run
+    copy = tmp_path / "run"
+    shutil.copytree(run, copy)
+    with open(copy / "tdoa.csv", "a") as f:
+        f.write("12.0,U99,U03,1.0\n12.1,U03,U03,0.0\n")
+    result, inventory = ingest_newcom(copy, campaign)
+    bad = result["quarantine"][result["quarantine"]["file"] == "tdoa.csv"]["reason"].tolist()
+    assert bad == [f"unknown anchor 'U99' (not in {campaign.source})",
+                   "anchor 'U03' is its own reference (a range difference needs two anchors)"]
+    assert inventory["tdoa.csv"]["quarantined"] == 2 and inventory["tdoa.csv"]["unknown_anchors"] == {"U99": 1}
