@@ -133,7 +133,7 @@ def tdoa_run(seconds=60.0, noise=0.1, seed=0, rate_hz=10.0):
     return RunData(tables, None, None, f"tdoa-{seed}")
 
 
-@pytest.mark.parametrize("name", ["tracker", "ekf", "ukf", "pf", "ekf_rts", "ekf_filterpy"])
+@pytest.mark.parametrize("name", ["tracker", "ekf", "ukf", "pf", "ekf_rts", "ekf_filterpy", "sliding_window"])
 def test_filters_track_range_differences(name):
     data = tdoa_run()
     estimates = registry.run(name, data, {"measurements": "tdoa", "range_sigma_m": 0.1})
@@ -212,7 +212,7 @@ def test_estimate_picks_tdoa_on_a_tdoa_run(tmp_path, capsys):
 
 def test_registry_lists_tdoa_among_the_filters_measurements(capsys):
     accepting = {name for name, e in registry.ESTIMATORS.items() if e.reads_tdoa}
-    assert {"ekf", "tracker", "ukf", "pf", "ekf_rts"} <= accepting and "minmax" not in accepting
+    assert {"ekf", "tracker", "ukf", "pf", "ekf_rts", "sliding_window"} <= accepting and "minmax" not in accepting
     assert main(["estimators"]) == 0
     listed = {line.split(":")[0].split()[0] for line in capsys.readouterr().out.splitlines() if "[TDOA]" in line}
     assert listed == accepting
@@ -324,3 +324,28 @@ def test_tdoa_beside_newcom_logs_is_quarantined_by_the_generic_rules(simulated_t
     assert bad == [f"unknown anchor 'U99' (not in {campaign.source})",
                    "anchor 'U03' is its own reference (a range difference needs two anchors)"]
     assert inventory["tdoa.csv"]["quarantined"] == 2 and inventory["tdoa.csv"]["unknown_anchors"] == {"U99": 1}
+
+
+def test_sliding_window_tdoa_factors_jacobian_and_noise_free_solution():
+    """The window's range-difference residuals W (h - z): analytic Jacobian = central differences;
+    noise-free differences of a tag at rest are solved to the truth."""
+    from wsnloc.filters.sliding_window import RangeFactors, SlidingWindowEstimator
+
+    receivers = np.array([[0.0, 0.0], [20.0, 0.0], [20.0, 20.0], [0.0, 20.0]])
+    model = TdoaModel(receivers, np.array([[1, 0], [2, 0], [3, 0]]), 0.1)
+    truth = np.array([6.0, 13.0])
+    W = np.linalg.inv(np.linalg.cholesky(model.R()))
+    t = np.repeat([0.2, 0.7, 1.2, 1.7], 3)
+    window = SlidingWindowEstimator(2.0, 0.5, 0.5)
+    knots = 2.0 - 0.5 * np.arange(window.n_knots - 1, -1, -1)
+    j = np.clip(np.floor((t - knots[0]) / 0.5 + 1e-9).astype(int), 0, window.n_knots - 1)
+    blocks = np.kron(np.eye(4), W)
+    factors = RangeFactors(j, t - knots[j], np.tile(receivers[1:], (4, 1)), np.zeros(12),
+                           np.tile(model.h(truth), 4), np.full(12, 0.1), np.tile(receivers[:1], (12, 1)),
+                           np.zeros(12), blocks)
+    theta = np.random.default_rng(0).normal(5.0, 2.0, 4 * window.n_knots)
+    numerical = _numerical_jacobian(lambda th: window._residuals(th, None, factors), theta)
+    np.testing.assert_allclose(window._jacobian(theta, None, factors), numerical, atol=1e-6)
+    estimate = window.estimate(2.0, t, factors.anchors, 0.0, factors.ranges, 0.1, np.array([8.0, 8.0, 0.0, 0.0]),
+                               (factors.ref, factors.ref_dz, blocks))
+    assert np.hypot(*(estimate.x[:2] - truth)) < 1e-6
