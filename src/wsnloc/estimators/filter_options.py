@@ -11,6 +11,8 @@ with the KalmanFilter interface (x, P, predict(F, Q, u, B), update(z, H, R, hx))
 The gate and the robust update are one pluggable component, the **updater**
 (`default_updater(p)`): a callable updater(filt, z, H, R, hx) -> bool mask of the measurements
 used, which updates `filt` (x, P, update(z, H, R, hx)) with the model linearised at the prior
+(the EKF's Jacobian, or a filter's own `linearise(h) -> (hx, H, Omega)`, the UKF's statistical
+linear regression, Omega added to R)
 (robust.robust_update with the configured gate and loss by default; pass another as `updater`
 to configured_factory / ConfiguredFilter for another gate or likelihood). The adapter counts
 the measurements offered and gated over a run (across track restarts), judges the track lost
@@ -121,8 +123,12 @@ class ConfiguredFilter:
         the gated / robust update; `used` = measurements kept; `lost` when the gate rejected
         more than gate_loss_share of the last LOSS_WINDOW updates' measurements (a gate that
         rejects most measurements is guarding a track that has left the target)."""
-        hx, H = self_calibration.linearise(model, self.filt.x, self.mode)
         R = self.noise(model)
+        if hasattr(self.filt, "linearise"):     # the UKF: statistical linear regression over its sigma points
+            hx, H, omega = self.filt.linearise(lambda x: self_calibration.linearise(model, x, self.mode)[0])
+            R = R + omega
+        else:
+            hx, H = self_calibration.linearise(model, self.filt.x, self.mode)
         keep = self.updater(self.filt, model.z, H, R, hx)
         self.used = int(keep.sum())
         self.counts.offered += len(keep)

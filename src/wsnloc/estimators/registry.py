@@ -227,6 +227,9 @@ SOLVER_MEASUREMENTS = K_SMALLEST + (Param("measurements", "toa", "", "toa: range
 FIX_SOURCE = COMMON + RSS + SOLVER + (Param("fixes", "toa", "", "fixes tracked: toa, rss, pmix or fmix", str,
                                             fixes.TECHNIQUES),)
 TRACKER_DEFAULTS = dict(update="sequential", init_window_s=4.0, initial_sigma_m=2.0, gate_probability=0.999)
+# The general filters and smoothers gate as the tracker does: real ranges carry NLOS outliers
+GATED = {"gate_probability": TRACKER_DEFAULTS["gate_probability"]}
+GATED_FILTER = _with(FILTER, **GATED)
 
 ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
     Estimator("minmax", "Min-Max: centre of the intersection of the range boxes, per epoch (paper D)",
@@ -242,8 +245,8 @@ ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
     Estimator("kf_tracker", "Constant-velocity Kalman filter over per-epoch fixes (paper D's comparison)",
               FIX_SOURCE + KALMAN_FIXES, _kalman_run),
     Estimator("ekf", "EKF: motion model p / pv / pva, toa / rss / hybrid measurements, epoch or sequential "
-              "updates, optional motion detection (papers A and C)",
-              COMMON + RSS + FILTER, bayes.run_filter, _filter_inputs),
+              "updates, optional motion detection, innovation gate at 0.999 (papers A and C: their cells have no gate)",
+              COMMON + RSS + GATED_FILTER, bayes.run_filter, _filter_inputs),
     Estimator("ekf_p", "EKF with the P (random walk) model (paper C)",
               COMMON + RSS + _with(FILTER, motion="p"), bayes.run_filter, _filter_inputs),
     Estimator("ekf_pva", "EKF with the PVA model: measured acceleration as input, bias states (paper C)",
@@ -256,7 +259,7 @@ ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
               "coasting limit",
               COMMON + RSS + _with(FILTER, **TRACKER_DEFAULTS), bayes.run_filter, _filter_inputs),
     Estimator("ukf", "Unscented Kalman filter (scaled sigma points) with the EKF's motion models, measurements, "
-              "update modes, initiator and coasting limit", COMMON + RSS + _filter(FILTER, "ukf") + UKF,
+              "update modes, gate, initiator and coasting limit", COMMON + RSS + _filter(GATED_FILTER, "ukf") + UKF,
               bayes.run_filter, _filter_inputs),
     Estimator("pf", "Bootstrap particle filter (systematic resampling on ESS with a shrunk kernel, heavy-tailed "
               "range likelihood, restart from a fix when its likelihood collapses) with the EKF's motion models, "
@@ -264,11 +267,11 @@ ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
               COMMON + RSS + _filter(FILTER, "pf") + PARTICLE, bayes.run_filter, _filter_inputs),
     Estimator("ekf_filterpy", "filterpy's EKF (the textbook reference) in the same loops, initiator, coasting "
               "limit and update options as ekf: its estimates equal ekf's to round-off",
-              COMMON + RSS + _filter(FILTER, "filterpy"), bayes.run_filter, _filter_inputs),
+              COMMON + RSS + _filter(GATED_FILTER, "filterpy"), bayes.run_filter, _filter_inputs),
     Estimator("ekf_rts", "EKF followed by the fixed-interval RTS smoother (offline: each estimate uses the "
-              "whole run)", COMMON + RSS + FILTER, bayes.run_smoother, _filter_inputs),
+              "whole run)", COMMON + RSS + GATED_FILTER, bayes.run_smoother, _filter_inputs),
     Estimator("ukf_rts", "UKF followed by the fixed-interval RTS smoother (offline: each estimate uses the "
-              "whole run)", COMMON + RSS + _filter(FILTER, "ukf") + UKF, bayes.run_smoother, _filter_inputs),
+              "whole run)", COMMON + RSS + _filter(GATED_FILTER, "ukf") + UKF, bayes.run_smoother, _filter_inputs),
     Estimator("sliding_window", "Sliding-window batch: robust non-linear least squares over the ranges of the "
               "last W seconds with a constant-velocity prior (factor-graph style)",
               COMMON + SLIDING_WINDOW, batch.sliding_window),

@@ -12,6 +12,8 @@ the current (x, P), i.e. after any predict (Q included), as in Wan & van der Mer
   Z_i = h(chi_i),  z_hat = sum Wm_i Z_i,  S = sum Wc_i (Z_i - z_hat)(Z_i - z_hat)^T + R
   Pxz = sum Wc_i (chi_i - x)(Z_i - z_hat)^T,  K = Pxz S^-1,  y = z - z_hat
   x <- x + K y,  P <- P - K S K^T,  NIS = y^T S^-1 y
+computed as the linear update of the sigma points' statistical linear regression (`linearise`:
+H = Pxz^T P^-1, R + Omega), so the EKF's gate and robust updates apply to it unchanged.
 On real data (filters.numerics): an indefinite P is regularised before its Cholesky factor
 is taken, and an update with a singular S or a non-finite result is skipped; both counted.
 With predict/update pairs this is exactly filterpy.kalman.UnscentedKalmanFilter with
@@ -66,26 +68,49 @@ class UnscentedKalmanFilter:
             self.x = self.x + B @ u
         self.P = F @ self.P @ F.T + Q
 
-    def update_model(self, model) -> None:
-        """Unscented update with model.z, model.h and model.R() (the size of z may vary)."""
+    def linearise(self, h) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Statistical linear regression of z = h(x) over the sigma points of (x, P):
+        z_hat = sum Wm_i h(chi_i), H = Pxz^T P^-1 and the linearisation error
+        Omega = Pzz - H P H^T (Pzz = sum Wc_i (Z_i - z_hat)(Z_i - z_hat)^T). The linear update
+        `update(z, H, R + Omega, z_hat)` is then the unscented update: S = Pzz + R, K = Pxz S^-1
+        (Garcia-Fernandez et al., posterior linearisation, 2015). So a gate or a robust
+        reweighting (estimators.robust) applies to the UKF as to the EKF. A singular P gives a
+        NaN H, and the update is then skipped (counted)."""
         chi = self.sigma_points()
-        Z = np.array([model.h(c) for c in chi])               # (2n + 1, m)
+        Z = np.array([h(c) for c in chi])                     # (2n + 1, m)
         z_hat = self.Wm @ Z
         dZ = Z - z_hat
-        dX = chi - self.x
-        S = (self.Wc[:, None] * dZ).T @ dZ + model.R()
-        Pxz = (self.Wc[:, None] * dX).T @ dZ
+        Pzz = (self.Wc[:, None] * dZ).T @ dZ
+        Pxz = (self.Wc[:, None] * (chi - self.x)).T @ dZ
+        try:
+            H = np.linalg.solve(self.P, Pxz).T
+        except np.linalg.LinAlgError:
+            H = np.full(Pxz.T.shape, np.nan)
+        return z_hat, H, Pzz - H @ Pxz
+
+    def update(self, z, H, R, hx) -> None:
+        """Linear update with the predicted measurement hx and the regression H (R includes
+        linearise's Omega): y = z - hx, S = H P H^T + R, K = P H^T S^-1, x <- x + K y,
+        P <- P - K S K^T."""
+        PHt = self.P @ H.T
+        S = H @ PHt + R
         try:
             S_inv = np.linalg.inv(S)
         except np.linalg.LinAlgError:
             S_inv = np.full_like(S, np.nan)
-        K = Pxz @ S_inv
-        y = model.z - z_hat
+        K = PHt @ S_inv
+        y = z - hx
         x, P = self.x + K @ y, self.P - K @ S @ K.T
         if not usable(x, P):                   # a singular S or a non-finite model: the prior is kept
             self.guards.skipped += 1
             return
         self.S, self._S_inv, self.y, self.x, self.P = S, S_inv, y, x, P
+
+    def update_model(self, model) -> None:
+        """Unscented update with model.z, model.h and model.R() (the size of z may vary):
+        linearise, then update."""
+        hx, H, omega = self.linearise(model.h)
+        self.update(model.z, H, model.R() + omega, hx)
 
     @property
     def nis(self) -> float:
