@@ -13,6 +13,7 @@ from wsnloc.diagnosis import diagnose_run, report
 from wsnloc.estimators import bayes, registry
 from wsnloc.estimators.auto import update_mode
 from wsnloc.estimators.core import WindowInitiator
+from wsnloc.estimators.filter_options import UpdateCounts, configured_factory
 from wsnloc.filters.kalman import ExtendedKalmanFilter, KalmanFilter
 from wsnloc.filters.measurement_models import RangeModel, Stacked
 from wsnloc.filters.numerics import Guards, regularise, safe_cholesky
@@ -101,6 +102,67 @@ def test_epoch_updates_lag_on_the_same_run(one_by_one):
     _, sequential = _metrics("ekf", one_by_one)
     _, epoch = _metrics("ekf", one_by_one, {"update": "epoch"})
     assert epoch["median"] > 1.5 * sequential["median"]
+
+
+GATED_BY_DEFAULT = ("ekf", "ukf", "ekf_filterpy", "ekf_rts", "ukf_rts")
+
+
+@pytest.fixture(scope="module")
+def nlos_one_by_one():
+    """The one-anchor-at-a-time walk (200 s) with 10% of its ranges NLOS: 2-6 m of excess path."""
+    rng = np.random.default_rng(33)
+    times, ids = one_at_a_time(200.0, 4.0, rng, SQUARE)
+    tables = tables_for(times, ids, lambda t: walk(t, 1.0), SQUARE, noise_m=0.1, rng=rng)
+    nlos = rng.random(len(tables["ranges"])) < 0.1
+    tables["ranges"].loc[nlos, "range_m"] += rng.uniform(2.0, 6.0, nlos.sum())
+    return tables
+
+
+@pytest.mark.parametrize("name", GATED_BY_DEFAULT)
+def test_general_filters_gate_nlos_ranges_by_default(nlos_one_by_one, name):
+    """With NLOS outliers the general filters and smoothers stay within 1.5x of `tracker`'s
+    median by default (the gate, 0.999); the same estimator without the gate (the papers'
+    plain filter) is beyond 1.5x."""
+    _, tracker = _metrics("tracker", nlos_one_by_one)
+    estimates, gated = _metrics(name, nlos_one_by_one)
+    _, ungated = _metrics(name, nlos_one_by_one, {"gate_probability": 0.0})
+    assert registry.get(name).resolve({})["gate_probability"] == 0.999
+    assert gated["median"] <= 1.5 * tracker["median"], (gated["median"], tracker["median"])
+    assert ungated["median"] > 1.5 * tracker["median"], (ungated["median"], tracker["median"])
+    assert 0.05 < estimates.attrs["gated_share"] < 0.2
+
+
+def test_ukf_regression_update_equals_the_unscented_update_and_takes_the_gate():
+    """linearise + update (H = Pxz^T P^-1, R + Omega) is the unscented update to round-off, and
+    the gate of the EKF's updater rejects a 10-sigma range through it, keeping the others."""
+    anchors = np.array([[0.0, 0.0], [20.0, 0.0], [20.0, 20.0], [0.0, 20.0]])
+    x0, P0 = np.array([8.0, 9.0, 0.5, 0.0]), np.diag([0.3, 0.2, 0.25, 0.25])
+    model = RangeModel(anchors, np.full(4, 0.2))
+    true = np.array([8.2, 8.9])
+    z = np.hypot(*(true - anchors).T)
+    ukf = UnscentedKalmanFilter(x0, P0)
+    ukf.update_model(Stacked([model], z))
+    # the textbook unscented update, written out
+    reference = UnscentedKalmanFilter(x0, P0)
+    chi = reference.sigma_points()
+    Z = np.array([model.h(c) for c in chi])
+    z_hat = reference.Wm @ Z
+    S = (reference.Wc[:, None] * (Z - z_hat)).T @ (Z - z_hat) + model.R()
+    K = (reference.Wc[:, None] * (chi - x0)).T @ (Z - z_hat) @ np.linalg.inv(S)
+    np.testing.assert_allclose(ukf.x, x0 + K @ (z - z_hat), atol=1e-12)
+    np.testing.assert_allclose(ukf.P, P0 - K @ S @ K.T, atol=1e-12)
+    z_wild = z.copy()
+    z_wild[2] += 10.0 * np.sqrt(S[2, 2])
+    p = registry.get("ukf").resolve({})
+    counts = UpdateCounts()
+    make = configured_factory(lambda x, P, motion: UnscentedKalmanFilter(x, P), p, counts)
+    gated = make(x0, P0, None)
+    gated.update_model(Stacked([model], z_wild))
+    assert counts.offered == 4 and counts.gated == 1
+    kept = UnscentedKalmanFilter(x0, P0)
+    k = np.array([0, 1, 3])
+    kept.update_model(Stacked([RangeModel(anchors[k], np.full(3, 0.2))], z[k]))
+    np.testing.assert_allclose(gated.x, kept.x, atol=1e-12)
 
 
 # ---- the sequential path, independently --------------------------------------------------------
