@@ -77,15 +77,15 @@ def test_study_page_shows_each_cells_settings_not_dict_reprs():
     from wsnloc.report.sections import study_section
 
     spec = {"scenarios": ["newcom/constant"], "runs": 5,
-            "estimators": {"tracker": {}, "gated": {"estimator": "ekf", "gate_probability": 0.999}},
-            "overrides": {"newcom": {"max_range_m": 50.0, "gated": {"range_sigma_m": 0.2}}}}
+            "estimators": {"tracker": {}, "plain": {"estimator": "ekf", "gate_probability": 0.0}},
+            "overrides": {"newcom": {"max_range_m": 50.0, "plain": {"range_sigma_m": 0.2}}}}
     rows = [results.row_over_runs([0.2, 0.21, 0.22, 0.2, 0.19], experiment="study:s", table="all", row=cell,
                                   column=stat, scenario="newcom/constant", metric=f"{stat}_m")
             for cell in spec["estimators"] for stat in ("median", "p75", "rmse")]
     section = study_section(results.frame(rows), "s", spec, {}, ["median", "p75", "rmse"])
     settings = {e["cell"]: e["settings"][0] for e in section["estimators"]}
     assert settings["tracker"] == ["max_range_m = 50"]
-    assert sorted(settings["gated"]) == ["gate_probability = 0.999", "max_range_m = 50", "range_sigma_m = 0.2"]
+    assert sorted(settings["plain"]) == ["gate_probability = 0", "max_range_m = 50", "range_sigma_m = 0.2"]
     context = {"title": "t", "banner": [], "datasets": [], "papers": [], "studies": [section], "summary": [],
                "experiments": [], "provenance": {"built": "", "git_commit": "", "config_hash": "", "packages": {},
                                                  "config_yaml": "", "checksums": []}}
