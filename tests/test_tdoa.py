@@ -218,6 +218,23 @@ def test_registry_lists_tdoa_among_the_filters_measurements(capsys):
     assert listed == accepting
 
 
+def test_range_calibration_corrects_range_differences():
+    """Ranges r = s d + b_a (scale 1.07, per-anchor offsets up to 0.6 m) make differences with
+    pair bias b_a - b_ref and scale s; the donor's (here given) calibration removes both."""
+    scale, offsets = 1.07, {"A1": 0.3, "A2": -0.2, "A3": 0.6, "A4": 0.0}
+    data = tdoa_run(seed=4, noise=0.05)
+    tdoa = data.tables["tdoa"]
+    bias = tdoa["anchor_id"].map(offsets) - tdoa["ref_anchor_id"].map(offsets)
+    tdoa["tdoa_m"] = scale * tdoa["tdoa_m"] + bias
+    truth, p = data.table("truth"), {"measurements": "tdoa", "range_sigma_m": 0.05}
+    raw = np.nanmedian(score(registry.run("tracker", data, p), truth)["error_m"])
+    donor = RunData(data.tables, None, None, "tdoa-4-calibrated", {"scale": scale, "offsets_m": offsets, "source": "t"})
+    fitted = registry.run("tracker", donor, dict(p, range_calibration="other_run"))
+    calibrated = np.nanmedian(score(fitted, truth)["error_m"])
+    assert calibrated < 0.1 < raw and calibrated < raw / 4, (raw, calibrated)         # 0.03 m against 0.57 m
+    assert fitted.attrs["calibrated_scale"] == scale and fitted.attrs["calibrated_offsets_m"] == offsets
+
+
 # ---- TDOA made from two-way ranges ---------------------------------------------------------------------
 def test_ranges_to_tdoa_pairs_by_interpolation_within_the_window():
     from wsnloc.io.tdoa_from_ranges import ranges_to_tdoa

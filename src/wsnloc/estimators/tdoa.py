@@ -13,7 +13,8 @@ Gauss-Newton) on the per-pair means of the initiator window.
 
 `TdoaSource` offers the interface the filter loops use of a measurement source
 (estimators.core, bayes): records(), model(*records.split(a, b)), window_fix(t, window),
-epoch_models(times, period) and `correction` (none: range calibrations apply to ranges).
+epoch_models(times, period) and `correction`, the range calibration (range_calibration:
+scale and per-anchor offsets, donor-fitted or configured) applied to the differences.
 """
 
 from __future__ import annotations
@@ -21,7 +22,6 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from wsnloc.errors import ConfigError
 from wsnloc.estimators.epochs import anchor_means, per_epoch, sorted_codes
 from wsnloc.estimators.measurements import Records
 from wsnloc.estimators.range_calibration import RangeCorrection
@@ -66,24 +66,29 @@ def model_of(data: RunData, anchor_ids, ref_ids, values, sigma_m: float) -> Stac
     return Stacked([model], np.asarray(values, dtype=float)[keep])
 
 
+def corrected(frame: pd.DataFrame, correction: RangeCorrection) -> np.ndarray:
+    """The range differences (m) of the rows (anchor_id, ref_anchor_id, tdoa_m) under a range
+    calibration r = s d + b + b_a (range_calibration): d_a - d_ref = (tdoa - (b_a - b_ref)) / s;
+    the common offset b cancels, the pair bias is the difference of the anchors' offsets."""
+    offsets = dict(correction.offsets_m)
+    bias = (frame["anchor_id"].map(offsets).fillna(0.0).to_numpy(float)
+            - frame["ref_anchor_id"].map(offsets).fillna(0.0).to_numpy(float))
+    return (frame["tdoa_m"].to_numpy(float) - bias) / correction.scale
+
+
 class TdoaSource:
     """The range differences of the pairs whose two anchors are in the subset `anchors`."""
 
-    correction = RangeCorrection()
-
-    def __init__(self, data: RunData, anchors: str, sigma_m: float, max_range_m: float, range_calibration: str):
-        if range_calibration != "none":
-            raise ConfigError(f"config key 'range_calibration': {range_calibration!r} corrects ranges; "
-                              "TDOA measurements (measurements: tdoa) take 'none' (a common range offset "
-                              "cancels in a difference)")
-        self.data, self.sigma_m, self.max_range_m = data, sigma_m, max_range_m
+    def __init__(self, data: RunData, anchors: str, sigma_m: float, max_range_m: float,
+                 correction: RangeCorrection = RangeCorrection()):
+        self.data, self.sigma_m, self.max_range_m, self.correction = data, sigma_m, max_range_m, correction
         members = data.members(anchors)
         frame = data.usable_tdoa()
         frame = frame[frame["anchor_id"].isin(members) & frame["ref_anchor_id"].isin(members)]
         keys = (frame["anchor_id"] + PAIR + frame["ref_anchor_id"]).to_numpy(dtype=object)
         self._key = ("tdoa", anchors)
         self._records = Records(frame["t"].to_numpy(float), np.zeros(len(frame), dtype=np.int8), keys,
-                                frame["tdoa_m"].to_numpy(float))
+                                corrected(frame, correction))
 
     # ---- models ------------------------------------------------------------------------
     def model(self, keys, values, *_rss) -> Stacked | None:
