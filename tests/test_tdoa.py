@@ -235,6 +235,51 @@ def test_range_calibration_corrects_range_differences():
     assert fitted.attrs["calibrated_scale"] == scale and fitted.attrs["calibrated_offsets_m"] == offsets
 
 
+def test_tdoa_bias_fit_recovers_scale_and_offset_differences():
+    from wsnloc.metrics.ranging import fit_tdoa_bias
+
+    rng = np.random.default_rng(2)
+    times = np.arange(0.1, 60.0, 0.1)
+    frame = tdoa_table(times, walk, SQUARE)                          # reference A1 (the gauge)
+    anchors = {a: np.array(xy) for a, xy in SQUARE.items()}
+    p = walk(frame["t"].to_numpy())
+    d_a = np.array([np.hypot(*(q - anchors[a])) for q, a in zip(p, frame["anchor_id"])])
+    d_r = np.array([np.hypot(*(q - anchors[a])) for q, a in zip(p, frame["ref_anchor_id"])])
+    offsets = {"A1": 0.3, "A2": -0.2, "A3": 0.6, "A4": 0.0}
+    z = 1.07 * (d_a - d_r) + frame["anchor_id"].map(offsets) - frame["ref_anchor_id"].map(offsets)
+    fit = fit_tdoa_bias(z, d_a, d_r, frame["anchor_id"], frame["ref_anchor_id"])
+    assert fit["scale"] == pytest.approx(1.07, abs=1e-9)
+    assert fit["offsets_m"] == pytest.approx({a: b - offsets["A1"] for a, b in offsets.items()}, abs=1e-9)
+    z = z + rng.normal(0.0, 0.05, len(z))
+    z[::23] += 3.0                                                   # NLOS-like outliers
+    fit = fit_tdoa_bias(z, d_a, d_r, frame["anchor_id"], frame["ref_anchor_id"])
+    assert fit["scale"] == pytest.approx(1.07, abs=0.01)
+    assert fit["offsets_m"] == pytest.approx({a: b - offsets["A1"] for a, b in offsets.items()}, abs=0.05)
+
+
+def test_estimate_calibrates_a_tdoa_run_on_a_tdoa_donor(tmp_path):
+    """`wsnloc estimate --calibration DONOR --set range_calibration=other_run` on TDOA runs made
+    from biased ranges (scale 1.07, per-anchor offsets): the donor's differences give the fit."""
+    offsets = {"A1": 0.3, "A2": -0.2, "A3": 0.6, "A4": 0.0}
+    runs = {}
+    for name, seed in (("donor", 1), ("target", 2)):
+        data = tdoa_run(seconds=40.0, noise=0.05, seed=seed)
+        tdoa = data.tables["tdoa"]
+        tdoa["tdoa_m"] = 1.07 * tdoa["tdoa_m"] + tdoa["anchor_id"].map(offsets) - tdoa["ref_anchor_id"].map(offsets)
+        run = runs[name] = tmp_path / name
+        run.mkdir()
+        data.tables["anchors"].drop(columns="z").to_csv(run / "anchors.csv", index=False)
+        tdoa[["t", "anchor_id", "ref_anchor_id", "tdoa_m"]].to_csv(run / "tdoa.csv", index=False)
+        data.tables["truth"][["t", "x", "y"]].to_csv(run / "truth.csv", index=False)
+    median = {}
+    for label, extra in (("raw", []), ("calibrated", ["--calibration", str(runs["donor"]),
+                                                      "--set", "range_calibration=other_run"])):
+        assert main(["estimate", "--format", "generic", str(runs["target"]), "--out", str(tmp_path / label)]
+                    + extra) == 0
+        median[label] = json.loads((tmp_path / label / "metrics.json").read_text())["median_m"]
+    assert median["calibrated"] < 0.1 < median["raw"], median
+
+
 # ---- TDOA made from two-way ranges ---------------------------------------------------------------------
 def test_ranges_to_tdoa_pairs_by_interpolation_within_the_window():
     from wsnloc.io.tdoa_from_ranges import ranges_to_tdoa

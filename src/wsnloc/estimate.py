@@ -21,7 +21,7 @@ from wsnloc.diagnosis import diagnose_run, metrics_of as diagnosis_metrics, repo
 from wsnloc.estimators import registry
 from wsnloc.estimators.auto import measurements_for
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments.calibration import calibrate, calibrate_ranges
+from wsnloc.experiments.calibration import calibrate, calibrate_ranges, calibrate_tdoa
 from wsnloc.io import tables
 from wsnloc.io.convert import QUARANTINE_FILE
 from wsnloc.io.ingest import ingest_one
@@ -74,7 +74,8 @@ def donor_models(fmt: str, donor_dir: Path, campaign: Campaign | None, out_dir: 
                  reads_rss: bool) -> tuple[dict | None, dict | None]:
     """(RSS model, range calibration) fitted on a donor run with truth (same site): the RSS
     model P0, n, sigma when the estimator reads RSS; the range scale and per-anchor offsets
-    when it asks for `range_calibration=other_run`."""
+    when it asks for `range_calibration=other_run` (fitted on the donor's ranges, or on its
+    range differences when it has none: offsets relative to its main reference anchor)."""
     wants_ranges = p.get("range_calibration") == "other_run"
     if not (reads_rss or wants_ranges):
         raise WsnlocError(f"--calibration {donor_dir}: this estimator calibrates nothing on a donor (it reads no "
@@ -82,15 +83,16 @@ def donor_models(fmt: str, donor_dir: Path, campaign: Campaign | None, out_dir: 
     donor = load_run(fmt, donor_dir, campaign, out_dir)
     if len(donor["truth"]) == 0:
         raise WsnlocError(f"{donor_dir}: a calibration donor needs truth")
-    for table, wanted in (("rss", reads_rss), ("ranges", wants_ranges)):
+    for table, wanted in (("rss", reads_rss), ("ranges", wants_ranges and not len(donor["tdoa"]))):
         if wanted and len(donor[table]) == 0:
             raise WsnlocError(f"{donor_dir}: a calibration donor needs the {table} it calibrates, and has none")
     site = campaign or Campaign(name="generic", format="generic", spec={}, source="(no campaign file)")
     source = f"fitted on {donor_dir}"
     rss = dict(calibrate(donor["rss"], donor["truth"], site, p.get("d0_m", 1.0), donor["anchors"]),
                source=source) if reads_rss else None
-    ranges = dict(calibrate_ranges(donor["ranges"], donor["truth"], site, donor["anchors"]),
-                  source=source) if wants_ranges else None
+    fit_ranges = calibrate_ranges if len(donor["ranges"]) else calibrate_tdoa
+    ranges = dict(fit_ranges(donor["ranges" if len(donor["ranges"]) else "tdoa"], donor["truth"], site,
+                             donor["anchors"]), source=source) if wants_ranges else None
     return rss, ranges
 
 
