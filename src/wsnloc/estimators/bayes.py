@@ -44,7 +44,7 @@ from wsnloc.errors import ConfigError
 from wsnloc.estimators import array_ekf, range_calibration
 from wsnloc.estimators.core import CoastingDeleter, FilterBank, RunInputs, Track, WindowInitiator, \
     epoch_loop, sequential_loop
-from wsnloc.estimators.filter_options import UpdateCounts, configured_factory
+from wsnloc.estimators.filter_options import UpdateCounts, configured_factory, site_bounds
 from wsnloc.estimators.inertial import epoch_inputs, floor_input
 from wsnloc.estimators.measurements import MeasurementSource, rss_params
 from wsnloc.estimators.motion import MotionModel
@@ -180,7 +180,8 @@ def run_filters(cells: list[tuple[RunData, dict]], forward: ForwardPass | None =
         motion, (initiator, deleter) = motion_model(p), components(p)
         runs = [run_inputs(data, q, motion) for data, q in (cells[i] for i in members)]
         counts = [UpdateCounts() for _ in members]
-        makes = [configured_factory(FILTERS[q["filter"]](q, data), q, c, data.campaign)
+        makes = [configured_factory(FILTERS[q["filter"]](q, data), q, c, data.campaign,
+                                    bounds=site_bounds(data.positions(sorted(data.members(q["anchors"]))), q))
                  for (data, q), c in zip((cells[i] for i in members), counts)]
         if key[0] == "sequential":
             out = [sequential_loop(makes[0], runs[0], motion, initiator, deleter, forward)]

@@ -6,7 +6,12 @@ with the KalmanFilter interface (x, P, predict(F, Q, u, B), update(z, H, R, hx))
   (estimators.self_calibration);
 - NLOS-aware range noise: sigma_i = range_sigma_m + n_i range_sigma_per_wall_m, with n_i
   the campaign walls crossed by the straight line from the current position estimate to
-  anchor i (so links through walls, which carry excess path and multipath, weigh less).
+  anchor i (so links through walls, which carry excess path and multipath, weigh less);
+- site bound on RSS alone (`rss_site_margin_m`): after each update the position is projected
+  onto the receivers' bounding box enlarged by the margin (estimate projection, Simon 2010,
+  "Kalman filtering with state constraints", IET Control Theory Appl. 4(8)); RSS barely
+  changes with position outside the receivers' hull, where a filter drifts unopposed, and a
+  tag that every receiver hears is among them.
 
 The gate and the robust update are one pluggable component, the **updater**
 (`default_updater(p)`): a callable updater(filt, z, H, R, hx) -> bool mask of the measurements
@@ -52,6 +57,8 @@ PARAMS = (
           minimum=1e-9),
     Param("range_offset_sigma_m", 0.5, "m", "self-calibration: prior sigma of the range offset (around 0)",
           minimum=1e-9),
+    Param("rss_site_margin_m", 2.0, "m", "RSS only: keep the position inside the receivers' bounding box "
+          "enlarged by this margin (projection after each update; a large value: off)", minimum=0.0),
     Param("range_sigma_per_wall_m", 0.0, "m", "NLOS-aware noise: add this to the range sigma per campaign wall "
           "crossed by the line from the position estimate to the anchor (0: off)", minimum=0.0),
 )
@@ -87,8 +94,9 @@ class ConfiguredFilter:
     """A filter with the configured update options (see the module docstring); `updater`: the
     gate and robust update (default default_updater(p))."""
 
-    def __init__(self, filt, p: dict, counts: UpdateCounts, campaign=None, updater: Callable | None = None):
-        self.filt, self.counts, self.campaign = filt, counts, campaign
+    def __init__(self, filt, p: dict, counts: UpdateCounts, campaign=None, updater: Callable | None = None,
+                 bounds: np.ndarray | None = None):
+        self.filt, self.counts, self.campaign, self.bounds = filt, counts, campaign, bounds
         self.loss_share = p["gate_loss_share"]
         self.recent: deque = deque(maxlen=LOSS_WINDOW)          # (offered, gated) of the last updates
         self.lost = False
@@ -124,6 +132,8 @@ class ConfiguredFilter:
         hx, H = self_calibration.linearise(model, self.filt.x, self.mode)
         R = self.noise(model)
         keep = self.updater(self.filt, model.z, H, R, hx)
+        if self.bounds is not None:         # estimate projection onto the site box
+            self.filt.x[:2] = np.clip(self.filt.x[:2], self.bounds[0], self.bounds[1])
         self.used = int(keep.sum())
         self.counts.offered += len(keep)
         self.counts.gated += len(keep) - self.used
@@ -161,11 +171,21 @@ OFF = {"gate_probability": 0.0, "robust_loss": "none", "range_self_calibration":
        "range_sigma_per_wall_m": 0.0}
 
 
-def configured_factory(make, p: dict, counts: UpdateCounts, campaign=None, updater: Callable | None = None):
+def site_bounds(anchor_xy: np.ndarray, p: dict) -> np.ndarray | None:
+    """[[x_min, y_min], [x_max, y_max]] (m) of the RSS site bound (module docstring): the
+    anchors' bounding box enlarged by rss_site_margin_m; None when the filter reads ranges."""
+    if p.get("measurements") != "rss" or not len(anchor_xy):
+        return None
+    margin = p["rss_site_margin_m"]
+    return np.array([anchor_xy.min(0) - margin, anchor_xy.max(0) + margin])
+
+
+def configured_factory(make, p: dict, counts: UpdateCounts, campaign=None, updater: Callable | None = None,
+                       bounds: np.ndarray | None = None):
     """Wrap a filter factory make(x0, P0, motion) so that its filters have the update options
-    (updater: the gate and robust update, default default_updater(p)); with every option off,
-    the factory itself (any filter, linearised or not)."""
-    active = [k for k, off in OFF.items() if p[k] != off]
+    (updater: the gate and robust update, default default_updater(p); bounds: site_bounds); with
+    every option off, the factory itself (any filter, linearised or not)."""
+    active = [k for k, off in OFF.items() if p[k] != off] + (["rss_site_margin_m"] if bounds is not None else [])
     if not active:
         return make
     if p["range_sigma_per_wall_m"] and (campaign is None or campaign.walls.size == 0):
@@ -179,7 +199,7 @@ def configured_factory(make, p: dict, counts: UpdateCounts, campaign=None, updat
         if not hasattr(filt, "update"):
             raise ConfigError(f"config key '{active[0]}': the update options need a linearised filter with "
                               f"update(z, H, R, hx) (filter {p['filter']!r} has none)")
-        return ConfiguredFilter(filt, p, counts, campaign, updater)
+        return ConfiguredFilter(filt, p, counts, campaign, updater, bounds)
     return factory
 
 
