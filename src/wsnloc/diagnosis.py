@@ -51,7 +51,8 @@ def _nis(estimates: pd.DataFrame, p: dict) -> dict:
     return {"nis_mean": mean_per_dof, "nis_low": float(low), "nis_high": float(high)}
 
 
-def _range_fit(data: RunData, estimates: pd.DataFrame, p: dict) -> dict:
+def range_fit(data: RunData, estimates: pd.DataFrame, p: dict) -> dict:
+    """{range_scale, range_offsets_m} of the run's ranges against the estimated track ({} when too few)."""
     ranges = data.usable_ranges(p.get("preliminary_filter", True), p.get("max_range_m", np.inf))
     track = estimates.loc[np.isfinite(estimates["x"]) & np.isfinite(estimates["y"]), ["t", "x", "y"]]
     if len(ranges) < MIN_RANGES or len(track) < 2:
@@ -73,7 +74,7 @@ def diagnose_run(data: RunData, estimates: pd.DataFrame, p: dict) -> dict:
     a = estimates.attrs
     out = {"gated_share": float(a["gated_share"]) if "gated_share" in a else np.nan,
            "restarts": int(a.get("resets", 0)),
-           **_nis(estimates, p), **_range_fit(data, estimates, p)}
+           **_nis(estimates, p), **range_fit(data, estimates, p)}
     if "range_scale" in a:
         out["self_scale"] = float(a["range_scale"])
     if "range_offset_m" in a:

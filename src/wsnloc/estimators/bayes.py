@@ -41,7 +41,7 @@ import numpy as np
 import pandas as pd
 
 from wsnloc.errors import ConfigError
-from wsnloc.estimators import array_ekf, range_calibration
+from wsnloc.estimators import array_ekf, range_calibration, self_fit
 from wsnloc.estimators.core import CoastingDeleter, FilterBank, RunInputs, Track, WindowInitiator, \
     epoch_loop, sequential_loop
 from wsnloc.estimators.filter_options import UpdateCounts, configured_factory, site_bounds
@@ -129,14 +129,27 @@ def run_inputs(data: RunData, p: dict, motion: MotionModel) -> RunInputs:
 def run_filter(data: RunData, p: dict) -> pd.DataFrame:
     """Estimates (core.COLUMNS) of one run; `attrs`: resets (coasting-limit resets), gated / offered
     measurements and gated_share (filter_options), the self-calibration states range_scale /
-    range_offset_m, and the range calibration applied (range_calibration.RangeCorrection.describe)."""
+    range_offset_m, and the range calibration applied (range_calibration.RangeCorrection.describe).
+    With self_fit=two_pass on a run with ranges: the self-fitted estimates (estimators.self_fit)."""
+    if p.get("self_fit", "none") != "none" and p["measurements"] != "rss":
+        return self_fit.two_pass(data, p, _pass_with_innovations)
     return run_filters([(data, p)])[0].frame()
+
+
+def _pass_with_innovations(data: RunData, p: dict) -> tuple[pd.DataFrame, tuple[np.ndarray, np.ndarray]]:
+    """One pass of run_filter (no self-fit) and the innovations (y, S_ii) it recorded."""
+    counts: list[UpdateCounts] = []
+    frame = run_filters([(data, dict(p, self_fit="none"))], counts_out=counts)[0].frame()
+    return frame, counts[0].innovation_arrays()
 
 
 def run_smoother(data: RunData, p: dict) -> pd.DataFrame:
     """The fixed-interval RTS-smoothed estimates of one run (same rows as the forward pass;
     n_meas and nis are the forward pass's). In sequential mode the recorded forward pass
     steps the filter to every output time (see smoothing.py)."""
+    if p.get("self_fit", "none") != "none":
+        raise ConfigError("self_fit: the RTS smoothers run one pass; use the tracker's self-fit values "
+                          "(self_fit_* in its metrics) as range_sigma_m / accel_sigma_mps2 / range_calibration")
     if p.get("range_self_calibration", "none") != "none":
         raise ConfigError("range_self_calibration: the RTS smoothers do not smooth the calibration states; "
                           "use range_calibration (donor or configured) with a smoother")
@@ -161,12 +174,14 @@ def components(p: dict) -> tuple[WindowInitiator, CoastingDeleter]:
     return WindowInitiator(p["init_window_s"] or p["epoch_s"]), CoastingDeleter(p["max_coast_s"])
 
 
-def run_filters(cells: list[tuple[RunData, dict]], forward: ForwardPass | None = None) -> list[Track]:
+def run_filters(cells: list[tuple[RunData, dict]], forward: ForwardPass | None = None,
+                counts_out: list | None = None) -> list[Track]:
     """run_filter of every (run, resolved parameters) cell, as Tracks. Epoch-mode cells sharing
     a motion model, period, initiator, deleter and bank kind run through one core.epoch_loop
     (the bare EKF of ARRAY_MIN_CELLS cells or more as array_ekf.ArrayEKF, other filters and
     smaller groups as a core.FilterBank, the same numbers to round-off); sequential cells
-    through core.sequential_loop one at a time. forward (smoothing): one cell."""
+    through core.sequential_loop one at a time. forward (smoothing): one cell. counts_out: a
+    list that receives each cell's filter_options.UpdateCounts (innovations), in cell order."""
     groups: dict[tuple, list[int]] = {}
     for i, (_, p) in enumerate(cells):
         if p["update"] == "epoch":
@@ -175,6 +190,7 @@ def run_filters(cells: list[tuple[RunData, dict]], forward: ForwardPass | None =
         else:
             groups[("sequential", i)] = [i]
     tracks: list[Track | None] = [None] * len(cells)
+    all_counts: list = [None] * len(cells)
     for key, members in groups.items():
         p = cells[members[0]][1]
         motion, (initiator, deleter) = motion_model(p), components(p)
@@ -191,4 +207,7 @@ def run_filters(cells: list[tuple[RunData, dict]], forward: ForwardPass | None =
             out = epoch_loop(bank, runs, motion, p["epoch_s"], initiator, deleter, forward)
         for i, run, c, (rows, resets) in zip(members, runs, counts, out):
             tracks[i] = Track(rows, {"resets": resets, **c.attrs(), **run.source.correction.describe()})
+            all_counts[i] = c
+    if counts_out is not None:
+        counts_out.extend(all_counts)
     return tracks

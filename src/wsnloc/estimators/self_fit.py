@@ -1,0 +1,102 @@
+"""Two-pass self-fit (offline, no truth): the noise and the range errors of the run at hand.
+
+Real data break a filter's assumptions in a few common ways: the range noise is not the
+configured one, the motion is livelier or calmer than the process noise says, the ranges carry
+a common scale error and per-anchor offsets. `self_fit: two_pass` (the `tracker` default) learns
+them from the run itself, in three passes of the same filter:
+
+1. **Noise, by maximum likelihood of the innovations.** Two passes with the configured
+   (range_sigma_m, accel_sigma_mps2) and with a livelier candidate (sigma / 2, accel x 3: a
+   six times larger process-to-measurement noise ratio, i.e. a higher gain). Each pass records
+   every innovation y_i = z_i - h_i(x-) and its variance S_i = (H P- H' + R)_ii, gated ones
+   included. Scaling Q and R together by c leaves a linear filter's track unchanged and scales
+   every S_i by c, so per candidate the likelihood is profiled over c:
+       L(c) = sum_i log[(1 - eps) N(y_i; 0, c S_i) + eps / span],
+   a Gaussian with a uniform outlier component (eps = OUTLIER_SHARE over span = 2 max_range_m:
+   reflections and NLOS ranges do not decide the noise). The candidate with the larger
+   max_c L(c) wins; its noise is scaled by sqrt(c*): range_sigma_m sqrt(c*), accel sqrt(c*)
+   (c* on a log grid, CLAMP). Because the likelihood is that of the innovations, which carry
+   the state's own uncertainty H P H', sigma cannot collapse onto the track the way residuals
+   against the filter's own output do; it is floored at SIGMA_FLOOR_M as well.
+2. **Range scale and per-anchor offsets** against the winning pass's track: r = s d + b_a fitted
+   robustly (metrics.ranging.fit_range_bias, soft-L1) on the ranges against the distances from
+   the estimated positions (diagnosis.range_fit, the same fit the diagnosis reports). Applied only
+   with >= 4 anchors ranged (with 3 a common offset shifts every fix alike and is not observable)
+   and unless a range calibration is configured or comes from a donor (which wins).
+3. **Final pass** with the fitted noise and the ranges corrected (estimators.range_calibration):
+   its estimates are the output; attrs `self_fit_*` say what was fitted.
+
+Cost: three passes of the filter, plus two fits (innovations and ranges; milliseconds).
+Online (live) use has no second pass: `range_self_calibration` (state augmentation) and the
+gate's widening (filter_options) adapt as the data come.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pandas as pd
+
+MODES = ("none", "two_pass")
+LIVELIER = (0.5, 3.0)                  # candidate: sigma x 0.5, accel x 3 (ratio q / r x 36 in variance)
+OUTLIER_SHARE = 0.05                   # eps of the uniform outlier component
+CLAMP = (0.05, 20.0)                   # c* searched on a log grid in this range
+GRID = np.exp(np.linspace(np.log(CLAMP[0]), np.log(CLAMP[1]), 121))
+SIGMA_FLOOR_M = 0.01
+MIN_INNOVATIONS = 50
+MIN_ANCHORS_FOR_OFFSETS = 4
+
+
+def profile_likelihood(y: np.ndarray, S: np.ndarray, span: float) -> tuple[float, float]:
+    """(max_c L(c), c*) of innovations y with variances S (module docstring, step 1)."""
+    u = (y**2 / S)[None, :]
+    c = GRID[:, None]
+    gauss = np.exp(-0.5 * u / c) / np.sqrt(2.0 * np.pi * c * S[None, :])
+    ll = np.log((1.0 - OUTLIER_SHARE) * gauss + OUTLIER_SHARE / span).sum(axis=1)
+    best = int(np.argmax(ll))
+    return float(ll[best]), float(GRID[best])
+
+
+def _anchors_ranged(data, p) -> int:
+    ranges = data.usable_ranges(p["preliminary_filter"], p["max_range_m"])
+    return int(ranges["anchor_id"].isin(data.members(p["anchors"])).groupby(ranges["anchor_id"]).any().sum())
+
+
+def two_pass(data, p: dict, run_pass) -> pd.DataFrame:
+    """The self-fitted estimates of one run (module docstring); run_pass(data, p) -> (estimates,
+    (y, S)) runs one pass of the filter and returns its innovations."""
+    from wsnloc.diagnosis import range_fit
+
+    span = 2.0 * p["max_range_m"]
+    q = dict(p, self_fit="none")
+    candidates = [q, dict(q, range_sigma_m=q["range_sigma_m"] * LIVELIER[0],
+                          accel_sigma_mps2=q["accel_sigma_mps2"] * LIVELIER[1])]
+    scored = []
+    for candidate in candidates:
+        estimates, (y, S) = run_pass(data, candidate)
+        ok = np.isfinite(y) & (S > 0)
+        if ok.sum() < MIN_INNOVATIONS:
+            scored.append((-np.inf, 1.0, candidate, estimates))
+            continue
+        scored.append((*profile_likelihood(y[ok], S[ok], span), candidate, estimates))
+    ll, c, best, estimates = max(scored, key=lambda s: s[0])
+    if not np.isfinite(ll):          # too few innovations to fit anything: the configured filter
+        return scored[0][3]
+    root = np.sqrt(c)
+    final = dict(best, range_sigma_m=max(best["range_sigma_m"] * root, SIGMA_FLOOR_M),
+                 accel_sigma_mps2=best["accel_sigma_mps2"] * root)
+    fitted = {"self_fit_range_sigma_m": final["range_sigma_m"], "self_fit_accel_sigma_mps2": final["accel_sigma_mps2"],
+              "self_fit_candidate": "livelier" if best is not q else "configured"}
+    run = data
+    if p["range_calibration"] == "none" and _anchors_ranged(data, p) >= MIN_ANCHORS_FOR_OFFSETS:
+        fit = range_fit(data, estimates, p)
+        if fit:
+            model = {"scale": fit["range_scale"], "offsets_m": fit["range_offsets_m"],
+                     "source": "self-fitted on the run (two-pass)"}
+            run = replace(data, range_model=model, _cache=data._cache)
+            final["range_calibration"] = "other_run"
+            fitted["self_fit_range_scale"] = fit["range_scale"]
+    out, _ = run_pass(run, final)
+    out.attrs.update(fitted)
+    return out
