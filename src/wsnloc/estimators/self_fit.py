@@ -63,40 +63,48 @@ def _anchors_ranged(data, p) -> int:
     return int(ranges["anchor_id"].isin(data.members(p["anchors"])).groupby(ranges["anchor_id"]).any().sum())
 
 
+def range_correction(data, estimates: pd.DataFrame, p: dict, scale: float) -> dict | None:
+    """Per-anchor offsets b_a = median(r - s d) of the ranges against the track's distances d, with
+    the scale s the first pass estimated online (state augmentation, estimators.self_calibration:
+    a scale is observable among >= 4 anchors, while against the filter's own track it is mostly
+    absorbed); None with too few ranges."""
+    from wsnloc.diagnosis import track_distances
+
+    samples = track_distances(data, estimates, p)
+    if samples is None:
+        return None
+    error = samples["range_m"].to_numpy(float) - scale * samples["true_distance_m"].to_numpy(float)
+    offsets = pd.Series(error).groupby(samples["anchor_id"].astype(str).to_numpy()).median()
+    return {"scale": scale, "offsets_m": {str(a): float(b) for a, b in offsets.items()},
+            "source": "self-fitted on the run (two-pass)"}
+
+
 def two_pass(data, p: dict, run_pass) -> pd.DataFrame:
     """The self-fitted estimates of one run (module docstring); run_pass(data, p) -> (estimates,
     (y, S)) runs one pass of the filter and returns its innovations."""
-    from wsnloc.diagnosis import range_fit
-
     span = 2.0 * p["max_range_m"]
     q = dict(p, self_fit="none")
-    candidates = [q, dict(q, range_sigma_m=q["range_sigma_m"] * LIVELIER[0],
-                          accel_sigma_mps2=q["accel_sigma_mps2"] * LIVELIER[1])]
-    scored = []
-    for candidate in candidates:
-        estimates, (y, S) = run_pass(data, candidate)
-        ok = np.isfinite(y) & (S > 0)
-        if ok.sum() < MIN_INNOVATIONS:
-            scored.append((-np.inf, 1.0, candidate, estimates))
-            continue
-        scored.append((*profile_likelihood(y[ok], S[ok], span), candidate, estimates))
-    ll, c, best, estimates = max(scored, key=lambda s: s[0])
-    if not np.isfinite(ll):          # too few innovations to fit anything: the configured filter
-        return scored[0][3]
-    root = np.sqrt(c)
-    final = dict(best, range_sigma_m=max(best["range_sigma_m"] * root, SIGMA_FLOOR_M),
-                 accel_sigma_mps2=best["accel_sigma_mps2"] * root)
-    fitted = {"self_fit_range_sigma_m": final["range_sigma_m"], "self_fit_accel_sigma_mps2": final["accel_sigma_mps2"],
-              "self_fit_candidate": "livelier" if best is not q else "configured"}
-    run = data
-    if p["range_calibration"] == "none" and _anchors_ranged(data, p) >= MIN_ANCHORS_FOR_OFFSETS:
-        fit = range_fit(data, estimates, p)
-        if fit:
-            model = {"scale": fit["range_scale"], "offsets_m": fit["range_offsets_m"],
-                     "source": "self-fitted on the run (two-pass)"}
+    run, fitted = data, {}
+    if p["range_calibration"] == "none" and p["range_self_calibration"] == "none" \
+            and _anchors_ranged(data, p) >= MIN_ANCHORS_FOR_OFFSETS:
+        scaled, _ = run_pass(data, dict(q, range_self_calibration="scale"))
+        model = range_correction(data, scaled, p, float(scaled.attrs.get("range_scale", 1.0)))
+        if model is not None:
             run = replace(data, range_model=model, _cache=data._cache)
-            final["range_calibration"] = "other_run"
-            fitted["self_fit_range_scale"] = fit["range_scale"]
-    out, _ = run_pass(run, final)
+            q = dict(q, range_calibration="other_run")
+            fitted["self_fit_range_scale"] = model["scale"]
+    first, innovations = run_pass(run, q)
+    livelier = dict(q, range_sigma_m=q["range_sigma_m"] * LIVELIER[0],
+                    accel_sigma_mps2=q["accel_sigma_mps2"] * LIVELIER[1])
+    scored = []
+    for candidate, (estimates, (y, S)) in ((q, (first, innovations)), (livelier, run_pass(run, livelier))):
+        ok = np.isfinite(y) & (S > 0)
+        ll, c = profile_likelihood(y[ok], S[ok], span) if ok.sum() >= MIN_INNOVATIONS else (-np.inf, 1.0)
+        scored.append((ll, c, candidate, estimates))
+    ll, c, best, out = max(scored, key=lambda s: s[0])
+    if np.isfinite(ll):
+        fitted.update(self_fit_candidate="livelier" if best is livelier else "configured",
+                      self_fit_range_sigma_m=max(best["range_sigma_m"] * np.sqrt(c), SIGMA_FLOOR_M),
+                      self_fit_accel_sigma_mps2=best["accel_sigma_mps2"] * np.sqrt(c))
     out.attrs.update(fitted)
     return out
