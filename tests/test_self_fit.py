@@ -32,15 +32,16 @@ def _median(tables, overrides=None):
 
 @pytest.mark.parametrize("seed", [1, 2])
 def test_default_tracker_absorbs_a_seven_percent_scale_offsets_and_two_gaps(seed):
-    """Gated share < 5%, restarts <= gaps, the scale found. The issue asks for a median within
-    1.3x of the same run without the errors; measured 1.5-1.7x (the offsets are found to about
-    half against the filter's own track), so this checks the level reached: 2x."""
+    """Acceptance: median within 1.3x of the same run without the errors, gated share < 5%,
+    restarts <= gaps; the scale and the offsets found."""
     clean, _ = _median(_run(seed))
     median, estimates = _median(_run(seed, scale=1.07, offsets=OFFSETS))
-    assert median <= 2.0 * clean
+    assert median <= 1.3 * clean
     assert estimates.attrs["gated_share"] < 0.05
     assert estimates.attrs["resets"] <= len(GAPS)
     assert estimates.attrs["self_fit_range_scale"] == pytest.approx(1.07, abs=0.02)
+    offsets = estimates.attrs["calibrated_offsets_m"]
+    assert max(abs(offsets[a] - b) for a, b in OFFSETS.items()) < 0.2
     plain, _ = _median(_run(seed, scale=1.07, offsets=OFFSETS), {"self_fit": "none"})
     assert plain > 1.3 * clean            # without the self-fit the errors matter
 

@@ -46,6 +46,9 @@ GRID = np.exp(np.linspace(np.log(CLAMP[0]), np.log(CLAMP[1]), 121))
 SIGMA_FLOOR_M = 0.01
 MIN_INNOVATIONS = 50
 MIN_ANCHORS_FOR_OFFSETS = 4
+WINDOW_S = 1.0                         # windows of the offsets' projection fit
+MIN_SPREAD = 0.5                       # smallest singular value of a window's unit-vector matrix H
+MAX_CONDITION = 1e3
 
 
 def profile_likelihood(y: np.ndarray, S: np.ndarray, span: float) -> tuple[float, float]:
@@ -64,18 +67,52 @@ def _anchors_ranged(data, p) -> int:
 
 
 def range_correction(data, estimates: pd.DataFrame, p: dict, scale: float) -> dict | None:
-    """Per-anchor offsets b_a = median(r - s d) of the ranges against the track's distances d, with
-    the scale s the first pass estimated online (state augmentation, estimators.self_calibration:
-    a scale is observable among >= 4 anchors, while against the filter's own track it is mostly
-    absorbed); None with too few ranges."""
+    """Per-anchor offsets b_a of r = s d + b_a against the track's distances d, with the scale s the
+    first pass estimated online (state augmentation, estimators.self_calibration: a scale is
+    observable among >= 4 anchors, while against the filter's own track it is mostly absorbed);
+    None with too few ranges.
+
+    A track computed from biased ranges has moved to absorb part of the biases: over a short
+    window it is close to the least-squares fix of the window's ranges, whose residuals keep only
+    e = (I - P_H) b, P_H = H (H'H)^-1 H' the projector onto the columns of the window's Jacobian
+    H (rows: unit vectors from the track to the anchors ranged), i.e. about 1 - 2/m of a bias
+    with m anchors. So the offsets are the least-squares solution of
+        sum_w M_w' (I - P_w) M_w b = sum_w M_w' (I - P_w) e_w
+    over windows w of WINDOW_S with >= 3 anchors ranged in directions spread enough to fix a
+    position (the smallest singular value of H at least MIN_SPREAD; M_w selects them, e_w their
+    median residuals r - s d); the median residual per anchor where that system is singular or
+    ill-conditioned (condition number above MAX_CONDITION)."""
     from wsnloc.diagnosis import track_distances
 
     samples = track_distances(data, estimates, p)
     if samples is None:
         return None
+    ids = samples["anchor_id"].astype(str).to_numpy()
     error = samples["range_m"].to_numpy(float) - scale * samples["true_distance_m"].to_numpy(float)
-    offsets = pd.Series(error).groupby(samples["anchor_id"].astype(str).to_numpy()).median()
-    return {"scale": scale, "offsets_m": {str(a): float(b) for a, b in offsets.items()},
+    anchors, column = np.unique(ids, return_inverse=True)
+    xy = data.positions(anchors)
+    diff = samples[["true_x", "true_y"]].to_numpy(float) - xy[column]
+    unit = diff / np.maximum(samples["true_distance_m"].to_numpy(float), 1e-3)[:, None]
+    window = np.floor((samples["t"].to_numpy(float) - samples["t"].min()) / WINDOW_S).astype(int)
+    frame = pd.DataFrame({"w": window, "a": column, "e": error, "ux": unit[:, 0], "uy": unit[:, 1]})
+    means = frame.groupby(["w", "a"]).median().reset_index()
+    m = len(anchors)
+    G, g = np.zeros((m, m)), np.zeros(m)
+    for _, rows in means.groupby("w"):
+        if len(rows) < 3:
+            continue
+        a, H = rows["a"].to_numpy(), rows[["ux", "uy"]].to_numpy()
+        if np.linalg.svd(H, compute_uv=False)[-1] < MIN_SPREAD:
+            continue                    # anchors seen in nearly one direction: a shift along it is a bias
+        project = np.eye(len(a)) - H @ np.linalg.pinv(H)
+        G[np.ix_(a, a)] += project
+        g[a] += project @ rows["e"].to_numpy()
+    medians = pd.Series(error).groupby(column).median().to_numpy()
+    if np.linalg.cond(G) < MAX_CONDITION:
+        offsets = np.linalg.solve(G, g)
+    else:
+        offsets = medians
+    return {"scale": scale, "offsets_m": {str(a): float(b) for a, b in zip(anchors, offsets)},
             "source": "self-fitted on the run (two-pass)"}
 
 
