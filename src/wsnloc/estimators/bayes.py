@@ -131,9 +131,14 @@ def run_filter(data: RunData, p: dict) -> pd.DataFrame:
     measurements and gated_share (filter_options), the self-calibration states range_scale /
     range_offset_m, and the range calibration applied (range_calibration.RangeCorrection.describe).
     With self_fit=two_pass on a run with ranges: the self-fitted estimates (estimators.self_fit)."""
-    if p.get("self_fit", "none") != "none" and p["measurements"] != "rss":
+    if self_fitted(p):
         return self_fit.two_pass(data, p, _pass_with_innovations)
     return run_filters([(data, p)])[0].frame()
+
+
+def self_fitted(p: dict) -> bool:
+    """Whether parameters p ask for the self-fit (estimators.self_fit): a filter reading ranges."""
+    return p.get("self_fit", "none") != "none" and p["measurements"] != "rss"
 
 
 def _pass_with_innovations(data: RunData, p: dict) -> tuple[pd.DataFrame, tuple[np.ndarray, np.ndarray]]:
@@ -196,13 +201,15 @@ def run_filters(cells: list[tuple[RunData, dict]], forward: ForwardPass | None =
         motion, (initiator, deleter) = motion_model(p), components(p)
         runs = [run_inputs(data, q, motion) for data, q in (cells[i] for i in members)]
         counts = [UpdateCounts() for _ in members]
-        makes = [configured_factory(FILTERS[q["filter"]](q, data), q, c, data.campaign,
-                                    bounds=site_bounds(data.positions(sorted(data.members(q["anchors"]))), q))
-                 for (data, q), c in zip((cells[i] for i in members), counts)]
+        bounds = [site_bounds(data.positions(sorted(data.members(q["anchors"]))), q)
+                  for data, q in (cells[i] for i in members)]
+        makes = [configured_factory(FILTERS[q["filter"]](q, data), q, c, data.campaign, bounds=b)
+                 for (data, q), c, b in zip((cells[i] for i in members), counts, bounds)]
         if key[0] == "sequential":
             out = [sequential_loop(makes[0], runs[0], motion, initiator, deleter, forward)]
         else:
-            bank = array_ekf.ArrayEKF(runs, p["epoch_s"], motion.dim) if key[0] and len(runs) >= ARRAY_MIN_CELLS \
+            bank = array_ekf.ArrayEKF(runs, p["epoch_s"], motion.dim, bounds) \
+                if key[0] and len(runs) >= ARRAY_MIN_CELLS \
                 else FilterBank(makes, [r.source.epoch_models(r.times, p["epoch_s"]) for r in runs])
             out = epoch_loop(bank, runs, motion, p["epoch_s"], initiator, deleter, forward)
         for i, run, c, (rows, resets) in zip(members, runs, counts, out):

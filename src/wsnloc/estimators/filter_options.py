@@ -111,6 +111,7 @@ class ConfiguredFilter:
         self.recent: deque = deque(maxlen=LOSS_WINDOW)   # (offered, gated, max y^2 / S) of the last updates
         self.lost = self.widened = False
         self.gate_probability = p["gate_probability"] or 0.999
+        self.gated_filter = any(p[k] != off for k, off in OFF.items())
         self.mode = p["range_self_calibration"]
         self.extra = len(self_calibration.extra_states(self.mode))
         self.updater = updater or default_updater(p)
@@ -151,8 +152,9 @@ class ConfiguredFilter:
         if self.bounds is not None:         # estimate projection onto the site box
             self.filt.x[:2] = np.clip(self.filt.x[:2], self.bounds[0], self.bounds[1])
         self.used = int(keep.sum())
-        self.counts.offered += len(keep)
-        self.counts.gated += len(keep) - self.used
+        if self.gated_filter:            # offered / gated count what a gate saw (the bare array EKF has none)
+            self.counts.offered += len(keep)
+            self.counts.gated += len(keep) - self.used
         self.counts.calibration = self.calibration()
         self.recent.append((len(keep), len(keep) - self.used, float(np.max(y**2 / S, initial=0.0))))
         offered, gated, _ = (sum(column) for column in zip(*self.recent))
