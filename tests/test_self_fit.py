@@ -87,3 +87,12 @@ def test_a_gate_that_rejects_most_measurements_widens_before_it_restarts():
     assert estimates.attrs["resets"] <= len(GAPS)
     text = report(diagnose_run(run_data(tables), estimates, registry.get("tracker").resolve(p)), p)
     assert "widened" in text
+
+
+@pytest.mark.parametrize("seed", [1, 3])
+def test_the_self_fit_does_not_hurt_a_run_without_errors(seed):
+    """Nothing to fit: the self-fitted track stays within 1.15x of the configured single pass."""
+    tables = _run(seed)
+    fitted, _ = _median(tables)
+    plain, _ = _median(tables, {"self_fit": "none"})
+    assert fitted <= 1.15 * plain

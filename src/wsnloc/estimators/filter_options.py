@@ -211,8 +211,8 @@ OFF = {"gate_probability": 0.0, "robust_loss": "none", "range_self_calibration":
 def site_bounds(anchor_xy: np.ndarray, p: dict) -> np.ndarray | None:
     """[[x_min, y_min], [x_max, y_max]] (m) of the RSS site bound (module docstring): the
     anchors' bounding box enlarged by rss_site_margin_m; None when the filter reads ranges."""
-    if p.get("measurements") != "rss" or not len(anchor_xy):
-        return None
+    if p.get("measurements") != "rss" or not len(anchor_xy) or p.get("filter") == "pf":
+        return None                     # (a particle filter has no linearised update to project)
     margin = p["rss_site_margin_m"]
     return np.array([anchor_xy.min(0) - margin, anchor_xy.max(0) + margin])
 

@@ -49,6 +49,7 @@ MIN_ANCHORS_FOR_OFFSETS = 4
 WINDOW_S = 1.0                         # windows of the offsets' projection fit
 MIN_SPREAD = 0.5                       # smallest singular value of a window's unit-vector matrix H
 MAX_CONDITION = 1e3
+OUTLIER_SIGMAS = 4.0
 
 
 def profile_likelihood(y: np.ndarray, S: np.ndarray, span: float) -> tuple[float, float]:
@@ -81,7 +82,8 @@ def range_correction(data, estimates: pd.DataFrame, p: dict, scale: float) -> di
     over windows w of WINDOW_S with >= 3 anchors ranged in directions spread enough to fix a
     position (the smallest singular value of H at least MIN_SPREAD; M_w selects them, e_w their
     median residuals r - s d); the median residual per anchor where that system is singular or
-    ill-conditioned (condition number above MAX_CONDITION)."""
+    ill-conditioned (condition number above MAX_CONDITION). Residuals further than OUTLIER_SIGMAS
+    normalised MADs from their anchor's median (reflections, NLOS) are left out first."""
     from wsnloc.diagnosis import track_distances
 
     samples = track_distances(data, estimates, p)
@@ -90,6 +92,10 @@ def range_correction(data, estimates: pd.DataFrame, p: dict, scale: float) -> di
     ids = samples["anchor_id"].astype(str).to_numpy()
     error = samples["range_m"].to_numpy(float) - scale * samples["true_distance_m"].to_numpy(float)
     anchors, column = np.unique(ids, return_inverse=True)
+    centre = pd.Series(error).groupby(column).transform("median").to_numpy()
+    spread = 1.4826 * np.median(np.abs(error - centre))
+    inlier = np.abs(error - centre) <= OUTLIER_SIGMAS * max(spread, SIGMA_FLOOR_M)
+    samples, error, column = samples[inlier], error[inlier], column[inlier]
     xy = data.positions(anchors)
     diff = samples[["true_x", "true_y"]].to_numpy(float) - xy[column]
     unit = diff / np.maximum(samples["true_distance_m"].to_numpy(float), 1e-3)[:, None]
