@@ -5,7 +5,13 @@ configured one, the motion is livelier or calmer than the process noise says, th
 a common scale error and per-anchor offsets. `self_fit: two_pass` (the `tracker` default) learns
 them from the run itself, in three passes of the same filter:
 
-1. **Noise, by maximum likelihood of the innovations.** Two passes with the configured
+1. **Range scale and per-anchor offsets** (ranges, >= 4 anchors ranged, no configured or donor
+   calibration, which wins): a first pass with the state augmented by a common range scale
+   (estimators.self_calibration; observable while the target moves among >= 4 anchors); then
+   the per-anchor offsets against that pass's track (range_correction: least squares through
+   each window's geometry, undoing what the track absorbed). The ranges are corrected
+   (estimators.range_calibration) for the next passes.
+2. **Noise, by maximum likelihood of the innovations.** Two passes with the configured
    (range_sigma_m, accel_sigma_mps2) and with a livelier candidate (sigma / 2, accel x 3: a
    six times larger process-to-measurement noise ratio, i.e. a higher gain). Each pass records
    every innovation y_i = z_i - h_i(x-) and its variance S_i = (H P- H' + R)_ii, gated ones
@@ -13,20 +19,14 @@ them from the run itself, in three passes of the same filter:
    every S_i by c, so per candidate the likelihood is profiled over c:
        L(c) = sum_i log[(1 - eps) N(y_i; 0, c S_i) + eps / span],
    a Gaussian with a uniform outlier component (eps = OUTLIER_SHARE over span = 2 max_range_m:
-   reflections and NLOS ranges do not decide the noise). The candidate with the larger
-   max_c L(c) wins; its noise is scaled by sqrt(c*): range_sigma_m sqrt(c*), accel sqrt(c*)
-   (c* on a log grid, CLAMP). Because the likelihood is that of the innovations, which carry
-   the state's own uncertainty H P H', sigma cannot collapse onto the track the way residuals
-   against the filter's own output do; it is floored at SIGMA_FLOOR_M as well.
-2. **Range scale and per-anchor offsets** against the winning pass's track: r = s d + b_a fitted
-   robustly (metrics.ranging.fit_range_bias, soft-L1) on the ranges against the distances from
-   the estimated positions (diagnosis.range_fit, the same fit the diagnosis reports). Applied only
-   with >= 4 anchors ranged (with 3 a common offset shifts every fix alike and is not observable)
-   and unless a range calibration is configured or comes from a donor (which wins).
-3. **Final pass** with the fitted noise and the ranges corrected (estimators.range_calibration):
-   its estimates are the output; attrs `self_fit_*` say what was fitted.
+   reflections and NLOS ranges do not decide the noise), c on a log grid (CLAMP).
+3. The pass with the larger max_c L(c) is the output; attrs `self_fit_*` give the candidate and
+   the fitted noise, range_sigma_m sqrt(c*) (floored at SIGMA_FLOOR_M) and accel sqrt(c*), and
+   the range scale. Because the likelihood is that of the innovations, which carry the state's
+   own uncertainty H P H', the fitted sigma does not collapse onto the track the way residuals
+   against the filter's own output do.
 
-Cost: three passes of the filter, plus two fits (innovations and ranges; milliseconds).
+Cost: three passes of the filter plus the fits (milliseconds); about 3x one plain pass.
 Online (live) use has no second pass: `range_self_calibration` (state augmentation) and the
 gate's widening (filter_options) adapt as the data come.
 """
@@ -128,8 +128,8 @@ def two_pass(data, p: dict, run_pass) -> pd.DataFrame:
     span = 2.0 * p["max_range_m"]
     q = dict(p, self_fit="none")
     run, fitted = data, {}
-    if p["range_calibration"] == "none" and p["range_self_calibration"] == "none" \
-            and _anchors_ranged(data, p) >= MIN_ANCHORS_FOR_OFFSETS:
+    if p["measurements"] in ("toa", "hybrid") and p["range_calibration"] == "none" \
+            and p["range_self_calibration"] == "none" and _anchors_ranged(data, p) >= MIN_ANCHORS_FOR_OFFSETS:
         scaled, _ = run_pass(data, dict(q, range_self_calibration="scale"))
         model = range_correction(data, scaled, p, float(scaled.attrs.get("range_scale", 1.0)))
         if model is not None:
