@@ -4,6 +4,7 @@
       <study>:
         scenarios: [dataset/scenario, ...]
         subsets: [all, "UWB=9"]               # anchor subsets (default: all)
+        parameters: {max_range_m: 60}         # shared by every cell whose estimator has the parameter
         estimators:                           # cell name: parameter overrides
           tracker: {}                         #   the registry entry of the same name
           ekf_slow: {estimator: ekf, accel_sigma_mps2: 0.2}   # or the one named by `estimator`
@@ -13,8 +14,9 @@
 
 A cell is (study, dataset/scenario, estimator cell); one job runs every run and subset of
 it, so adding a scenario or an estimator re-runs only the new cells. Parameters resolve
-in this order: registry default < the study's entry < overrides[dataset] <
-overrides[dataset/scenario] (within one, a cell's own mapping after the shared keys).
+in this order: registry default < `parameters` < the cell's entry < overrides[dataset] <
+overrides[dataset/scenario] (within one, a cell's own mapping after the shared keys). The
+papers (wsnloc.experiments) declare their cells the same way.
 """
 
 from __future__ import annotations
@@ -35,7 +37,9 @@ from wsnloc.experiments import calibration
 from wsnloc.metrics.tracking import RUN_METRICS, run_metrics, score
 
 EXPERIMENT_PREFIX = "study:"
-QUALITY_TABLE = ["run", "subset"] + QUALITY_COLUMNS   # a cell's per-epoch bound and consistency values
+# a cell's per-epoch bound and consistency values; epoch_update: 1 where the filter updated per epoch
+# (its `update: auto` resolved so on that run), else 0 (the NIS of sequential updates gives no ANIS)
+QUALITY_TABLE = ["run", "subset"] + QUALITY_COLUMNS + ["epoch_update"]
 REPORTED = RUN_METRICS + ("resets", "gated", "time_per_step")   # per cell and run; results.csv: mean and 95% interval
 BOUND_METRICS = ("sqrt_pcrb", "efficiency")  # Bayesian filters only
 CALIBRATION = ("calibrated_scale", "calibration_fitted", "range_scale", "range_offset")   # where a cell has them
@@ -57,16 +61,30 @@ def estimator_of(spec: dict, cell: str) -> str:
     return (spec["estimators"][cell] or {}).get("estimator", cell)
 
 
-def cell_params(spec: dict, cell: str, dataset: str, scenario: str, where: str) -> dict:
-    """The resolved parameters of one cell on one dataset/scenario (see the module docstring)."""
+def cell_params(spec: dict, cell: str, dataset: str, scenario: str, where: str, extra: dict | None = None) -> dict:
+    """The resolved parameters of one cell on one dataset/scenario (see the module docstring);
+    `extra`: the parameters a paper's table layout sets last (its row's measurements, anchors)."""
     estimator = registry.get(estimator_of(spec, cell), f"{where}.estimators.{cell}.estimator")
     names = {p.name for p in estimator.params}
-    merged = {k: v for k, v in (spec["estimators"][cell] or {}).items() if k != "estimator"}
+    merged = {k: v for k, v in (spec.get("parameters") or {}).items() if k in names}
+    merged.update({k: v for k, v in (spec["estimators"][cell] or {}).items() if k != "estimator"})
     for key in (dataset, f"{dataset}/{scenario}"):
         layer = (spec.get("overrides") or {}).get(key) or {}
         merged.update({k: v for k, v in layer.items() if k in names and k not in spec["estimators"]})
         merged.update(layer.get(cell) or {})
+    merged.update(extra or {})
     return estimator.resolve(merged, f"{where}.estimators.{cell}")
+
+
+def check_shared(spec: dict, where: str) -> None:
+    """Every key of `parameters` is a parameter of at least one cell's estimator (a misspelt
+    shared key would otherwise be ignored)."""
+    known = {p.name for c in spec["estimators"]
+             for p in registry.get(estimator_of(spec, c), f"{where}.estimators.{c}.estimator").params}
+    for name in spec.get("parameters") or {}:
+        if name not in known:
+            raise ConfigError(f"config key '{where}.parameters.{name}': not a parameter of any of its estimators"
+                              f"{did_you_mean(name, known)}")
 
 
 def validate_studies(config: dict) -> None:
@@ -75,6 +93,7 @@ def validate_studies(config: dict) -> None:
     campaigns: dict[str, Campaign] = {}
     for study, spec in (config.get("studies") or {}).items():
         where = f"studies.{study}"
+        check_shared(spec, where)
         for label in spec["scenarios"]:
             if label not in declared:
                 raise ConfigError(f"config key '{where}.scenarios': {label!r} is not a declared dataset/scenario"
@@ -202,7 +221,8 @@ def run_cell(label: str, cell: str, name: str, p: dict, subsets: list[str], runs
             efficiency = {}
             if bayesian:
                 quality, efficiency = run_quality(data, q, scored)
-                scored = scored.join(quality[["pcrb_m2", "nees"]])
+                scored = scored.join(quality[["pcrb_m2", "nees"]]).assign(
+                    epoch_update=float(est.attrs.get("update", q.get("update")) == "epoch"))
             estimates.append(scored)
             metrics.append({"run": run, "subset": subset, **run_metrics(scored, run_tables["truth"]),
                             **diagnosis.metrics_of(diagnosis.diagnose_run(data, est, q)),
@@ -278,8 +298,10 @@ def bound_summary(study: str, cells: list[dict], qualities: list[pd.DataFrame]) 
     rows, bound_panels, consistency_panels = [], [], []
     for cell, quality in zip(cells, qualities):
         for subset, group in quality.groupby("subset", sort=False):
+            update = "epoch" if group["epoch_update"].all() else "sequential"        # as the runs resolved it
             cell_rows, bound, panels = cell_outputs(
-                group, dict(cell["parameters"], anchors=subset), cell["cell"], f"{cell['label']}: {cell['cell']} [{subset}]",
+                group, dict(cell["parameters"], anchors=subset, update=update), cell["cell"],
+                f"{cell['label']}: {cell['cell']} [{subset}]",
                 experiment=EXPERIMENT_PREFIX + study, table=subset, row=cell["cell"], scenario=cell["label"])
             rows += cell_rows
             bound_panels.append(bound)
