@@ -1,0 +1,98 @@
+"""The papers' set-ups read from their text (issue 29 item 3): paper B's own scenario, paper C's
+tilted accelerometer, no unsourced rests."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from wsnloc.campaign import Campaign
+from wsnloc.sim import imu, trajectory
+
+
+@pytest.fixture(scope="module")
+def newcom():
+    return Campaign.load("config/campaigns/newcom.yaml")
+
+
+@pytest.fixture(scope="module")
+def cricket():
+    return Campaign.load("config/campaigns/cricket.yaml")
+
+
+def test_paper_b_scenario_is_18_m_continuously_moving(newcom):
+    """Seed 001 §V.A: a path of about 18 m, the cart continuously moving at 0.1-0.5 m/s."""
+    for scenario in ("b_real", "b_simulation"):
+        spec = newcom.section("scenarios", scenario)
+        traj = trajectory.for_scenario(spec, newcom.path.length, np.random.default_rng(3))
+        assert traj.s[-1] == pytest.approx(18.0)
+        moving = traj.v > 0.01
+        # at rest only while starting from 0 and braking onto the end point: well below 1% of the run
+        assert 1.0 - moving.mean() < 0.01
+        first, last = np.flatnonzero(moving)[[0, -1]]
+        assert np.all(moving[first:last + 1])                 # no stop between start and end
+        assert traj.v[moving].mean() == pytest.approx(0.29, abs=0.05)
+
+
+def test_stop_s_zero_means_no_stop_half_way():
+    with_stop = trajectory.variable_speed(10.0, np.random.default_rng(1), 0.0, 2.0, (0.2, 0.4), 0.3, 1.0, 0.0)
+    without = trajectory.variable_speed(10.0, np.random.default_rng(1), 0.0, 2.0, (0.2, 0.4), 0.3, 0.0, 0.0)
+    half = lambda traj: np.flatnonzero((traj.v < 1e-9) & (np.abs(traj.s - 5.0) < 1e-6))   # noqa: E731
+    assert len(half(with_stop)) >= 1000                        # 1 s held at 5 m
+    assert len(half(without)) == 0
+
+
+def test_path_length_must_fit_the_campaign_path(newcom):
+    spec = dict(newcom.section("scenarios", "b_real"), path_length_m=30.0)
+    with pytest.raises(ValueError, match="path_length_m"):
+        trajectory.for_scenario(spec, newcom.path.length, np.random.default_rng(0))
+
+
+def test_cricket_runs_have_no_rest(cricket):
+    """Seed 002 mentions no rest: the cart moves from the first to the last sample."""
+    for scenario in ("speed_20", "speed_40", "speed_60"):
+        spec = cricket.section("scenarios", scenario)
+        traj = trajectory.for_scenario(spec, cricket.path.length, np.random.default_rng(0))
+        assert np.mean(traj.v < 0.01) < 0.01
+
+
+def test_tilt_angles_have_the_configured_statistics(cricket):
+    """Pitch/roll = per-run mount tilt + floor slope with exponential autocorrelation."""
+    spec = dict(cricket.section("imu"), mount_tilt_sigma_deg=0.0)
+    s = np.arange(0.0, 2000.0, 0.01)
+    pitch, roll = imu.tilt_angles(s, spec, np.random.default_rng(2))
+    sigma = np.deg2rad(spec["floor_slope_sigma_deg"])
+    assert np.std(pitch) == pytest.approx(sigma, rel=0.1)
+    assert np.std(roll) == pytest.approx(sigma, rel=0.1)
+    lag = int(round(spec["floor_slope_correlation_m"] / 0.01))
+    corr = np.corrcoef(pitch[:-lag], pitch[lag:])[0, 1]
+    assert corr == pytest.approx(np.exp(-1.0), abs=0.08)       # sigma^2 exp(-|ds| / ell) at ds = ell
+    assert abs(np.corrcoef(pitch, roll)[0, 1]) < 0.1
+    mounted = dict(spec, mount_tilt_sigma_deg=1.0, floor_slope_sigma_deg=0.0)
+    pitch, roll = imu.tilt_angles(s[:10], mounted, np.random.default_rng(2))
+    assert np.ptp(pitch) == 0.0 and pitch[0] != 0.0            # a constant per run
+    level = {k: v for k, v in spec.items() if k not in ("mount_tilt_sigma_deg", "floor_slope_sigma_deg")}
+    assert not np.any(imu.tilt_angles(s[:10], level, np.random.default_rng(2)))
+
+
+def test_tilt_leaks_gravity_into_the_horizontal_axes():
+    g = 9.80665
+    force = np.array([[0.1, 0.0, g], [0.0, 0.2, g]])
+    pitch, roll = np.deg2rad([1.0, 0.0]), np.deg2rad([0.0, -2.0])
+    out = imu.tilt_leakage(force, pitch, roll, g)
+    assert out[0] == pytest.approx([0.1 + g * np.sin(np.deg2rad(1.0)), 0.0, g * np.cos(np.deg2rad(1.0))])
+    assert out[1] == pytest.approx([0.0, 0.2 + g * np.sin(np.deg2rad(2.0)), g * np.cos(np.deg2rad(2.0))])
+    assert np.linalg.norm(out[1] - [0.0, 0.2, 0.0]) == pytest.approx(g)   # gravity's magnitude is kept
+
+
+def test_cricket_accelerometer_error_is_in_band(cricket):
+    """The tilt leakage survives the 5 Hz output: at 0.2-0.6 m/s over 0.3 m the slope varies
+    at 0.7-2 Hz, below the 2.5 Hz Nyquist frequency of the 5 Hz stream."""
+    spec = cricket.section("imu")
+    fs, speed = 500.0, 0.4
+    t = np.arange(0.0, 120.0, 1.0 / fs)
+    pitch, _ = imu.tilt_angles(speed * t, dict(spec, mount_tilt_sigma_deg=0.0), np.random.default_rng(5))
+    leak = 9.80665 * np.sin(pitch)
+    spectrum = np.abs(np.fft.rfft(leak - leak.mean())) ** 2
+    freq = np.fft.rfftfreq(len(leak), 1.0 / fs)
+    assert spectrum[freq < 2.5].sum() / spectrum.sum() > 0.8
