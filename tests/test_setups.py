@@ -4,6 +4,7 @@ tilted accelerometer, no unsourced rests."""
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from wsnloc.campaign import Campaign
@@ -96,3 +97,70 @@ def test_cricket_accelerometer_error_is_in_band(cricket):
     spectrum = np.abs(np.fft.rfft(leak - leak.mean())) ** 2
     freq = np.fft.rfftfreq(len(leak), 1.0 / fs)
     assert spectrum[freq < 2.5].sum() / spectrum.sum() > 0.8
+
+
+def test_multilateration_without_refinement_is_the_closed_form_linear_solution():
+    """Seed 004 §3.2, "simple geometric techniques": refine=False returns the linearised least squares
+    (subtract the last circle, solve A p = b), which differs from the Gauss-Newton fix on noisy ranges."""
+    from wsnloc.geometry.lateration import multilateration
+
+    anchors = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 8.0], [0.0, 8.0]])
+    truth = np.array([3.0, 2.0])
+    ranges = np.hypot(*(anchors - truth).T) + np.array([0.3, -0.2, 0.4, 0.1])
+    ref, d_ref = anchors[-1], ranges[-1]
+    A = 2.0 * (ref - anchors[:-1])
+    b = ranges[:-1] ** 2 - d_ref**2 - np.sum(anchors[:-1] ** 2, axis=1) + np.sum(ref**2)
+    closed_form = np.linalg.lstsq(A, b, rcond=None)[0]
+    assert multilateration(anchors, ranges, refine=False) == pytest.approx(closed_form, abs=1e-9)
+    refined = multilateration(anchors, ranges, refine=True)
+    assert np.linalg.norm(refined - closed_form) > 1e-3
+    cost = lambda p: np.sum((np.hypot(*(anchors - p).T) - ranges) ** 2)   # noqa: E731
+    assert cost(refined) < cost(closed_form)
+
+
+def test_registry_multilateration_refine_option_reaches_the_solver():
+    from wsnloc.estimators import registry
+
+    assert registry.get("multilateration").resolve({})["refine"] is True
+    assert registry.get("multilateration").resolve({"refine": False})["refine"] is False
+    assert "refine" not in registry.get("minmax").resolve({})
+
+
+def test_kalman_over_fixes_with_speed_input_uses_the_velocity_algorithms_speed():
+    """Paper D §4.2: the KF also takes the velocity algorithm's speed. On a straight constant-speed
+    track with noise-free fixes and a KF that starts at rest, the speed measurement (exactly the
+    true speed here) pulls the speed state to the truth faster than position updates alone."""
+    from wsnloc.estimators import trackers
+
+    t = np.arange(0.0, 10.0, 0.5)
+    fixes = pd.DataFrame({"t": t, "x": 0.4 * t, "y": 0.0})
+    matrices = trackers.kalman_matrices(0.5, 0.1, 0.5, 0.5)
+    plain = trackers.kalman_track(fixes, matrices)
+    fed = trackers.kalman_track(fixes, matrices, speed=(6, "raw", 0.05))
+    early = slice(2, 6)
+    assert np.abs(fed["x"] - fixes["x"])[early].mean() < np.abs(plain["x"] - fixes["x"])[early].mean()
+    assert not np.allclose(plain["x"], fed["x"])
+
+
+def test_speed_measurement_jacobian_is_numerical():
+    from wsnloc.estimators.trackers import _position_and_speed, _position_and_speed_jacobian
+
+    state = np.array([1.0, 2.0, 0.3, -0.4])
+    numeric = np.column_stack([(_position_and_speed(state + e) - _position_and_speed(state - e)) / 2e-6
+                               for e in np.eye(4) * 1e-6])
+    assert _position_and_speed_jacobian(state) == pytest.approx(numeric, abs=1e-8)
+
+
+def test_heading_from_fixes_is_the_direction_of_the_first_metre_despite_an_outlier():
+    """No true initial heading for the PVA input: it is measured from the first fixes."""
+    from wsnloc.estimators.inertial import heading_from_fixes
+
+    rng = np.random.default_rng(4)
+    t = np.arange(0.0, 8.0, 0.5)
+    direction = np.deg2rad(30.0)
+    x = 1.0 + 0.3 * t * np.cos(direction) + rng.normal(0, 0.02, len(t))
+    y = 1.0 + 0.3 * t * np.sin(direction) + rng.normal(0, 0.02, len(t))
+    x[1] += 1.5                                               # one reflected range: a fix 1.5 m off
+    heading = heading_from_fixes(pd.DataFrame({"t": t, "x": x, "y": y}))
+    assert np.rad2deg(heading) == pytest.approx(30.0, abs=5.0)
+    assert heading_from_fixes(pd.DataFrame({"t": t, "x": 1.0, "y": 1.0})) is None   # never moves 1 m
