@@ -164,3 +164,24 @@ def test_heading_from_fixes_is_the_direction_of_the_first_metre_despite_an_outli
     heading = heading_from_fixes(pd.DataFrame({"t": t, "x": x, "y": y}))
     assert np.rad2deg(heading) == pytest.approx(30.0, abs=5.0)
     assert heading_from_fixes(pd.DataFrame({"t": t, "x": 1.0, "y": 1.0})) is None   # never moves 1 m
+
+
+def test_why_formulas_and_every_non_holding_claim_gets_a_mechanism():
+    """claims.json `why` (issue 29 item 4): the fusion bounds used in the mechanisms, and a claim that
+    does not hold without a computed mechanism is refused."""
+    from wsnloc.experiments import why
+    from wsnloc.metrics.verdicts import DOES_NOT_HOLD, HOLDS
+
+    assert why.independent_combination(0.3, 0.4) == pytest.approx(1.0 / np.sqrt(1 / 0.09 + 1 / 0.16))
+    assert why.barycentre(0.5, 2.0) == pytest.approx(np.sqrt(0.25**2 + 1.0**2))
+    rng = np.random.default_rng(0)
+    runs = [f"run-{k:02d}" for k in range(1, 6)]
+    per_run = pd.DataFrame([{"method": m, "rmse": level + rng.normal(0, 0.01), "max": 3 * level, "n": 300.0, "run": r}
+                            for m, level in (("uwb", 1.0), ("imu", 20.0), ("sskf", 5.0), ("kf", 5.01)) for r in runs])
+    records = [{"claim": "Fusion beats both UWB only and IMU only", "verdict": DOES_NOT_HOLD},
+               {"claim": "The classical KF is somewhat better than the steady-state KF", "verdict": HOLDS}]
+    out = why.explain_b(records, {"newcom/b_real": per_run}, {"newcom/b_real": 0.0})
+    assert "IMU only 20.00" in out[0]["why"] and "b T^2 / 2 = 36 m over the 60 s run" in out[0]["why"]
+    assert "why" not in out[1]
+    with pytest.raises(KeyError, match="no computed mechanism"):
+        why._attach([{"claim": "unknown", "verdict": DOES_NOT_HOLD}], {})

@@ -16,7 +16,7 @@ from wsnloc.analysis.paper_bounds import PAPER_C_KEYS, paper_bound_outputs, pape
 from wsnloc.campaign import Campaign
 from wsnloc.config import read_yaml
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments import claims as claims_of, paper_c, sensitivity
+from wsnloc.experiments import claims as claims_of, paper_c, sensitivity, why
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import bound_figures, figures
@@ -72,7 +72,10 @@ def summarize(speeds: dict[str, str]) -> None:
     per_run, grids, estimates = files["metrics"], files["sensitivity"], files["estimates"]
     rows = [row for label in labels
             for row in paper_c.results_rows(per_run[label], label, speeds[label], settings, paper)]
-    decided = paper_c.claims(per_run, speeds, settings)
+    decided = why.explain_c(paper_c.claims(per_run, speeds, settings), per_run, speeds, settings.table_1_subset,
+                            settings.table_2_subsets, settings.table_2_scenario,
+                            Campaign.load(sm.input.campaigns[0]).spec["path"].get("corner_radius_m", 0.0),
+                            settings.pv_accel_sigma_mps2)
     rows += sensitivity.results_rows(paper_c.EXPERIMENT, grids, lambda m: paper_c.claims(m, speeds, settings))
     rows += paper_c.setup_rows(estimates, settings)
     bound_rows, bound_panels, consistency_panels = paper_bound_outputs("C", files["quality"], PAPER_C_KEYS,

@@ -56,6 +56,7 @@ class Settings:
     tracker_speed_from: str
     kalman: dict
     cost_iterations: int
+    multilateration_refine: bool = False
 
     @classmethod
     def from_config(cls, spec: dict) -> "Settings":
@@ -65,7 +66,7 @@ class Settings:
                    rss_calibration=spec["rss_calibration"], rss_model=spec["rss_model"],
                    pmix_weights=spec["pmix_weights"], tracker_window=spec["tracker"]["window"],
                    tracker_speed_from=spec["tracker"]["speed_from"], kalman=spec["kalman"],
-                   cost_iterations=spec["cost_iterations"])
+                   cost_iterations=spec["cost_iterations"], multilateration_refine=spec["multilateration_refine"])
 
 
     def check_against(self, campaign: Campaign) -> None:
@@ -90,7 +91,8 @@ def estimator_params(settings: Settings) -> dict:
             "d0_m": settings.rss_model.get("d0_m", 1.0), "pmix_toa_weight": w["uwb"] / (w["uwb"] + w["narrowband"]),
             "window": settings.tracker_window, "speed_from": settings.tracker_speed_from,
             "accel_sigma_mps2": k["accel_sigma_mps2"], "position_sigma_m": k["position_sigma_m"],
-            "initial_speed_sigma_mps": k["initial_speed_sigma_mps"]}
+            "initial_speed_sigma_mps": k["initial_speed_sigma_mps"], "speed_input": k["speed_input"],
+            "speed_sigma_mps": k["speed_sigma_mps"], "refine": settings.multilateration_refine}
 
 
 def cells(settings: Settings) -> list[tuple[str, str, str, str, dict]]:
