@@ -22,8 +22,9 @@ SETTINGS = {
     "uwb_preliminary_filter": True, "max_range_m": 50.0, "rss_calibration": "configured",
     "rss_model": {"p0_dbm": -50.0, "path_loss_exponent": 3.0, "d0_m": 1.0},
     "pmix_weights": {"uwb": 0.5, "narrowband": 0.5}, "tracker": {"window": 6, "speed_from": "raw"},
-    "kalman": {"accel_sigma_mps2": 0.5, "position_sigma_m": 1.5, "initial_speed_sigma_mps": 0.5},
-    "cost_iterations": 200,
+    "kalman": {"accel_sigma_mps2": 0.5, "position_sigma_m": 1.5, "initial_speed_sigma_mps": 0.5,
+               "speed_input": False, "speed_sigma_mps": 0.5},      # the references below: position-only KF
+    "cost_iterations": 200, "multilateration_refine": True,      # and Gauss-Newton-refined multilateration
 }
 
 
