@@ -51,6 +51,7 @@ def small_workflow(target: Path, shards: int = 1) -> Path:
     experiments["paper_a"]["scenarios"] = ["newcom/constant"]
     experiments["paper_c"]["scenarios"] = ["cricket/speed_40"]
     experiments["paper_c"]["table_2_scenario"] = "cricket/speed_40"
+    config["ranging_validation"]["scenarios"] = ["newcom/constant"]
     workbench = config["studies"]["workbench"]
     workbench["scenarios"] = ["newcom/constant", "cricket/speed_40"]
     workbench["estimators"] = {k: workbench["estimators"][k] for k in SMALL_WORKBENCH}

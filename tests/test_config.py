@@ -163,6 +163,7 @@ def test_real_log_scenario_without_runs_is_named(config, tmp_path):
     for experiment in ("paper_a", "paper_b", "paper_d"):
         config["experiments"][experiment]["scenarios"] = ["newcom/constant"]
     config["experiments"]["paper_b"]["simulation_scenarios"] = []
+    config["ranging_validation"]["scenarios"] = ["newcom/constant"]
     config["studies"] = {}
     validate_config(config, SCHEMA)
     config["datasets"]["newcom"]["scenarios"] = ["constant", "variable"]
@@ -239,4 +240,13 @@ def test_dataset_kind_defaults_from_source_and_must_fit_it(config):
     assert config["datasets"]["newcom"]["kind"] == "simulated"
     config["datasets"]["newcom"]["kind"] = "measured"
     with pytest.raises(ConfigError, match=r"'datasets.newcom.kind': 'measured' does not fit source 'simulate'"):
+        validate_config(config, SCHEMA)
+
+
+def test_ranging_validation_scenario_must_be_declared(config):
+    config["ranging_validation"] = {"scenarios": ["newcom/constnt"]}
+    with pytest.raises(ConfigError, match=r"'ranging_validation.scenarios': 'newcom/constnt' is not a declared"):
+        validate_config(config, SCHEMA)
+    config["ranging_validation"] = {"scenarios": ["cricket/speed_20"]}
+    with pytest.raises(ConfigError, match=r"'ranging_validation.scenarios': the campaign of 'cricket/speed_20' has no"):
         validate_config(config, SCHEMA)

@@ -249,7 +249,8 @@ def test_paper_d_on_a_simulated_run(campaign, simulated_run):
     assert set(metrics["stage"]) == {"raw", "velocity", "kalman"} and len(metrics) == 2 * 4 * 3
     uwb = metrics[(metrics["localizer"] == "multilateration") & (metrics["technique"] == "uwb")
                   & (metrics["stage"] == "raw")]
-    assert uwb["rmse"].iloc[0] < 1.0 and uwb["availability"].iloc[0] > 0.9
+    # metre-level: the link budget's NLOS leading-edge errors (docs/simulation.md); a broken solver gives many metres
+    assert uwb["rmse"].iloc[0] < 2.0 and uwb["availability"].iloc[0] > 0.9
     rows = paper_d.results_rows(metrics.assign(run="run-01"), "newcom/constant")
     frame = results.frame(rows)
     assert set(frame["table"]) == {"Table 1", "Table 2", "Table 3"}

@@ -109,8 +109,10 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
                          converted_quarantine(run_dir)] if q]
     if "imu_5hz" in estimator.tables(p):
         run_tables["imu_5hz"] = resample_imu(run_tables["imu"], **RESAMPLE)
-    chosen = measurements_for(RunData(run_tables, campaign, None, str(run_dir)), p, set(overrides))
-    notes += [f"{k}={v}: the run has RSS and no usable range" for k, v in chosen.items() if p[k] != v]
+    chosen = measurements_for(RunData(run_tables, campaign, None, str(run_dir)), p, set(overrides),
+                              {param.name: param.choices for param in estimator.params})
+    notes += [f"{k}={v}: the run has {'range differences' if v == 'tdoa' else 'RSS'} and no usable range"
+              for k, v in chosen.items() if p[k] != v]
     p = chosen
     if calibration_dir is not None and "range_calibration" in p and "range_calibration" not in overrides \
             and len(run_tables["ranges"]) and p.get("measurements", "toa") != "rss":

@@ -116,5 +116,20 @@ def validate_config(config: dict, schema_path: str | Path) -> dict:
     validate(config, read_yaml(schema_path), source="config")
     campaigns = _check_datasets(config)
     _check_experiments(config, campaigns)
+    _check_ranging_validation(config, campaigns)
     validate_studies(config)
     return config
+
+
+def _check_ranging_validation(config: dict, campaigns: dict) -> None:
+    """The ranging validation shows declared scenarios; the first one's campaign has the UWB
+    receiver (radio.uwb) that reads the channel models alone."""
+    declared = {f"{d}/{s}" for d, spec in config["datasets"].items() for s in spec["scenarios"]}
+    labels = (config.get("ranging_validation") or {}).get("scenarios", [])
+    for label in labels:
+        if label not in declared:
+            raise ConfigError(f"config key 'ranging_validation.scenarios': {label!r} is not a declared "
+                              f"dataset/scenario{did_you_mean(label, declared)} (declared: {', '.join(sorted(declared))})")
+    if labels and "uwb" not in campaigns[labels[0].split("/")[0]].spec.get("radio", {}):
+        raise ConfigError(f"config key 'ranging_validation.scenarios': the campaign of {labels[0]!r} has no radio.uwb "
+                          f"receiver to read the IEEE 802.15.4a channel models")

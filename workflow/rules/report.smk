@@ -50,6 +50,7 @@ rule report:
             else []
         ),
         studies=[f"data/processed/studies/{study}/{name}" for study in STUDIES for name in STUDY_OUTPUTS],
+        ranging=RANGING_OUTPUTS,
         bounds=[f"data/processed/{d}/bounds/{name}" for d in BOUND_DATASETS
                 for name in ("results.csv", "figures/crlb_maps.png")]
         + [f"data/processed/{d}/{s}/bounds/subset_monte_carlo.csv" for d, s in SUBSET_MONTE_CARLO],

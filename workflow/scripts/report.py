@@ -17,14 +17,15 @@ from wsnloc.config import read_yaml
 from wsnloc.report import explanations
 from wsnloc.report.render import PAGES_DIR, FigureFiles, build_context, render_pages
 from wsnloc.report.sections import (paper_a_section, paper_b_section, paper_c_section, paper_d_section,
-                                    sensitivity_table, static_bounds_section, study_section, summary)
+                                    ranging_section, sensitivity_table, static_bounds_section, study_section, summary)
 
 config = sm.params.config
 
 summaries = [json.loads(Path(p).read_text()) for p in sm.input.summaries]
 paper_outputs = list(sm.input.studies) + list(sm.input.paper_a) + list(sm.input.paper_b) + list(sm.input.paper_c) + list(sm.input.paper_d)
 result_files = list(sm.input.results) + [p for p in paper_outputs if p.endswith("results.csv")] \
-    + [p for p in sm.input.bounds if p.endswith(".csv")]   # static bounds and subset Monte Carlo rows
+    + [p for p in sm.input.bounds if p.endswith(".csv")] \
+    + [p for p in sm.input.ranging if p.endswith(".csv")]   # static bounds, subset Monte Carlo, ranging validation rows
 all_results = pd.concat([results.read(p) for p in result_files], ignore_index=True)
 results.write(all_results, sm.output.results)
 
@@ -44,6 +45,11 @@ context = build_context(config, summaries, final_results, scenario_figures, floo
 for ds in context["datasets"]:   # static bounds of the dataset (rule geometry), when configured
     maps = [Path(p) for p in sm.input.bounds if p.endswith(".png") and Path(p).parts[2] == ds["name"]]
     ds["bounds"] = static_bounds_section(final_results, ds["name"], figure(maps[0].read_bytes())) if maps else None
+if sm.input.ranging:    # the ranging validation (rule ranging_validation): table, figure, what was skipped
+    ranging = {Path(p).name: Path(p) for p in sm.input.ranging}
+    note = json.loads(ranging["note.json"].read_text())
+    context["ranging"] = ranging_section(final_results, note["scenarios"],
+                                         figure(ranging["ranging_validation.png"].read_bytes()), note["notes"])
 papers = read_yaml(sm.input.papers)
 for study, spec in sm.params.studies.items():
     pngs = [Path(p) for p in sm.input.studies if p.endswith(".png") and Path(p).parts[3] == study]

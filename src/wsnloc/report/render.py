@@ -238,6 +238,7 @@ def build_context(config: dict, summaries: list[dict], results: pd.DataFrame, fi
         "experiments": sorted(results["experiment"].dropna().unique()),
         "summary": [],                   # per paper, filled in once the paper sections are built (sections.summary)
         "papers": [], "studies": [],     # filled in by the report job (sections)
+        "ranging": None,                 # the ranging validation section, when configured (sections.ranging_section)
         "provenance": {
             "config_hash": config_hash(config),
             "config_yaml": yaml.safe_dump(config, sort_keys=False),

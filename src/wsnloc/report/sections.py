@@ -348,3 +348,26 @@ def sensitivity_table(results: pd.DataFrame, experiment: str, claims: list[dict]
                      "robust": len(set(cells)) == 1 and cells[0] is not None,
                      "runs": int(runs.min()) if len(runs) else None})
     return {"settings": settings, "rows": rows}
+
+
+def ranging_section(results: pd.DataFrame, scenarios: list[str], figure: str, notes: list[str]) -> dict:
+    """The `Ranging validation` table (metrics.ranging_validation): one line per link class and
+    distance bin ('LOS 5-10 m'), per source (the simulated `scenarios` of the data stage, then
+    the validation job's real runs and channel-model rows) its median error and p95 |error|
+    cells (mean over runs with the 95% interval)."""
+    from wsnloc.metrics import ranging_validation as rv
+
+    rows = results[(results["table"] == rv.TABLE)
+                   & (results["scenario"].isin(scenarios) | (results["experiment"] == rv.EXPERIMENT))]
+    sources = [s for s in scenarios if s in set(rows["scenario"])] \
+        + [s for s in dict.fromkeys(rows["scenario"]) if s not in scenarios]
+    labels = rows["row"].str.extract(r"^(?P<link>\S+) (?P<low>[0-9.]+)").assign(row=rows["row"])
+    order = labels.assign(low=labels["low"].astype(float)).drop_duplicates("row").sort_values(["link", "low"])["row"]
+    lines = []
+    for label in order:
+        cells = []
+        for source in sources:
+            for column in rv.STATS.values():
+                cells.append(_cell(rows, table=rv.TABLE, row=label, column=column, scenario=source))
+        lines.append({"label": label, "cells": cells})
+    return {"sources": sources, "stats": list(rv.STATS.values()), "lines": lines, "figure": figure, "notes": notes}
