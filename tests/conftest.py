@@ -48,6 +48,7 @@ def small_workflow(target: Path, shards: int = 1) -> Path:
     experiments["paper_d"]["cost_iterations"] = 500
     experiments["paper_b"]["scenarios"] = ["newcom/constant"]
     experiments["paper_b"]["simulation_scenarios"] = []
+    experiments["paper_b"]["overrides"] = {}      # its simulation scenario's
     experiments["paper_a"]["scenarios"] = ["newcom/constant"]
     experiments["paper_c"]["scenarios"] = ["cricket/speed_40"]
     experiments["paper_c"]["table_2_scenario"] = "cricket/speed_40"

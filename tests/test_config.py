@@ -135,11 +135,12 @@ def test_experiment_on_an_undeclared_scenario_is_named(config):
 
 
 @pytest.mark.parametrize("edit, key, value", [
-    (lambda c: c["experiments"]["paper_b"].update(uwb_subset="UWB=11"), "experiments.paper_b.uwb_subset", "UWB=11"),
-    (lambda c: c["experiments"]["paper_a"]["rows"][3].update(zigbee="ZigBee=5"), "experiments.paper_a.rows[3].zigbee",
+    (lambda c: c["experiments"]["paper_b"]["parameters"].update(anchors="UWB=11"), "experiments.paper_b.parameters.anchors",
+     "UWB=11"),
+    (lambda c: c["experiments"]["paper_a"]["rows"][3].update(anchors="ZigBee=5"), "experiments.paper_a.rows[3].anchors",
      "ZigBee=5"),
-    (lambda c: c["experiments"]["paper_d"]["subsets"].update(narrowband="ZigBee=2"),
-     "experiments.paper_d.subsets.narrowband", "ZigBee=2"),
+    (lambda c: c["experiments"]["paper_d"]["parameters"].update(anchors="UWB=12+ZigBee=2"),
+     "experiments.paper_d.parameters.anchors", "ZigBee=2"),
     (lambda c: c["experiments"]["paper_c"]["table_2_subsets"].append("5: B1..B5"),
      "experiments.paper_c.table_2_subsets[3]", "5: B1..B5"),
 ])
@@ -165,6 +166,10 @@ def test_real_log_scenario_without_runs_is_named(config, tmp_path):
     config["experiments"]["paper_b"]["simulation_scenarios"] = []
     config["ranging_validation"]["scenarios"] = ["newcom/constant"]
     config["studies"] = {}
+    with pytest.raises(ConfigError, match=r"'experiments.paper_b.overrides.newcom/b_simulation': not a dataset or "
+                                          r"dataset/scenario the paper runs on \(newcom/constant\)"):
+        validate_config(config, SCHEMA)
+    config["experiments"]["paper_b"]["overrides"] = {}
     validate_config(config, SCHEMA)
     config["datasets"]["newcom"]["scenarios"] = ["constant", "variable"]
     with pytest.raises(ConfigError, match=r"'datasets.newcom.scenarios': 'variable' has no run directories"):

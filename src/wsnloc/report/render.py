@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from wsnloc import experiments
 from wsnloc.config import config_hash
 from wsnloc.validation import dataset_kind
 
@@ -130,7 +131,8 @@ PAGES_DIR = "pages"      # the pages beside the summary (reports/index.html), an
 
 def _environment(template_dir: str | Path) -> jinja2.Environment:
     env = jinja2.Environment(
-        loader=jinja2.FileSystemLoader(str(template_dir)),
+        # the shared templates, then each paper's own partial (wsnloc/experiments/paper_x/section.html.j2)
+        loader=jinja2.FileSystemLoader([str(template_dir), str(Path(experiments.__file__).parent)]),
         autoescape=jinja2.select_autoescape(default=True, default_for_string=True),
         undefined=jinja2.StrictUndefined,
         trim_blocks=True,
