@@ -189,7 +189,7 @@ def test_one_published_run_is_compared_with_the_per_run_band_a_mean_with_the_mea
     assert (one_run["band_low"], one_run["band_high"]) == pytest.approx(tuple(np.percentile(per_run, [2.5, 97.5])))
     assert mean["band_low"] is None and one_run["ci95_low"] > 0.33            # outside the mean's interval
     res = results.frame([one_run, mean])
-    run_cell, mean_cell = _cell(res, column="run"), _cell(res, column="mean")
+    run_cell, mean_cell = cell_of(res, column="run"), cell_of(res, column="mean")
     assert run_cell["basis"] == "run" and run_cell["inside"] and run_cell["delta"] is None
     assert mean_cell["basis"] == "mean" and not mean_cell["inside"] and mean_cell["delta"] == pytest.approx(0.45 - 0.33)
     too_few = results.row_over_runs(per_run[:4], experiment="A", table="T", row="r", column="few", scenario="s",
