@@ -59,13 +59,15 @@ def explain_a(records: list[dict], metrics: dict[str, pd.DataFrame], rows: list[
     parts = []
     for label in labels:
         t, r, h = (_mean(metrics[label], table="Table I", row=row) for row in (toa, rss, hybrid))
-        parts.append(f"{label}: TOA-only {t:.3f}, RSS-only {r:.3f} ({r / t:.1f}x worse), so independent errors "
-                     f"combined at best give {independent_combination(t, r):.3f} (a gain of "
-                     f"{t - independent_combination(t, r):.3f} over TOA-only); hybrid measured {h:.3f}")
+        bound = independent_combination(t, r)
+        parts.append(f"{label}: TOA-only {t:.3f}, RSS-only {r:.3f} (TOA {'better' if t < r else 'worse'}); independent "
+                     f"unbiased errors combined would give {bound:.3f}, the hybrid measures {h:.3f} "
+                     f"({h - bound:+.3f} from that bound)")
     whys["Hybrid beats TOA-only, which beats RSS-only"] = (
-        "The RSS ranges carry little information beside accurate UWB ranges: " + "; ".join(parts)
-        + ". A gain of a few centimetres is within the run-to-run spread of the paired differences, and any "
-        "bias of the RSS distances (wall losses the path-loss model lacks) eats it.")
+        "Each part of the ordering is set by the two sources' errors and by how far the stacked filter gets from "
+        "combining them optimally: " + "; ".join(parts) + ". Where the TOA rows are worse than the RSS rows, the UWB "
+        "ranges' NLOS errors (positive biases the filter's range noise does not model) exceed the RSS spread; a hybrid "
+        "well above the independent-combination bound shows biased, not random, errors in at least one source.")
     moving = []
     for table in ("Table I", "Table II"):
         for row in (toa, rss, hybrid):
@@ -165,7 +167,7 @@ def explain_d(records: list[dict], metrics: dict[str, pd.DataFrame], pmix_weight
         for loc, name in (("minmax", "Min-Max"), ("multilateration", "Multilateration")):
             u, n, p, f = (_mean(per_run, localizer=loc, technique=t, stage="raw")
                           for t in ("uwb", "narrowband", "pmix", "fmix"))
-            fusion.append(f"{label} {name}: UWB {u:.2f}, narrowband {n:.2f} ({n / u:.1f}x worse), P-mix {p:.2f} "
+            fusion.append(f"{label} {name}: UWB {u:.2f}, narrowband {n:.2f} (ratio {n / u:.1f}), P-mix {p:.2f} "
                           f"(an equal-weight barycentre of independent fixes: {barycentre(u, n, pmix_weight):.2f})")
             fmix.append(f"{label} {name}: F-mix {f:.2f} vs UWB {u:.2f}")
         mm, ml = (_mean(per_run, localizer=loc, technique="uwb", stage="raw") for loc in ("minmax", "multilateration"))
@@ -175,11 +177,12 @@ def explain_d(records: list[dict], metrics: dict[str, pd.DataFrame], pmix_weight
         tracked.append(f"{label}: " + ", ".join(
             f"{loc} {t} {_mean(per_run, localizer=loc, technique=t, stage='velocity'):.2f}"
             for loc in ("minmax", "multilateration") for t in ("uwb", "fmix")))
-    why_fusion = ("Fusion helps only when the sources are of similar quality: a barycentre weighs in the narrowband "
-                  "fix's error, and our UWB ranges are several times better than the RSS distances: "
+    why_fusion = ("A barycentre of independent fixes beats the better one only when the two are of similar quality "
+                  "(sqrt(w^2 a^2 + (1-w)^2 b^2) < a); the measured P-mix against that figure and the single sources: "
                   + "; ".join(fusion) + ".")
-    why_fmix = (f"F-mix keeps the {k_smallest} smallest of all distances; RSS distances of nearby anchors are often "
-                "shorter than the UWB ranges and displace accurate UWB ranges from the selection: " + "; ".join(fmix) + ".")
+    why_fmix = (f"F-mix keeps the {k_smallest} smallest of all distances, whichever source they come from: an RSS "
+                "distance that comes out short (shadowing, a fitted exponent) displaces a UWB range from the selection, "
+                "so F-mix inherits the narrowband errors where they are short: " + "; ".join(fmix) + ".")
     why_fmix_tracked = ("The velocity tracker bounds each step but keeps the source's error; with UWB better than "
                         "F-mix the tracked UWB cells stay ahead: " + "; ".join(tracked) + ".")
     why_minmax = ("Min-Max returns the centre of the boxes' intersection, which is biased toward the anchors' "
