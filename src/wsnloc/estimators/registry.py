@@ -121,7 +121,10 @@ PARTICLE = (
           "name), so results are reproducible and runs independent", int, minimum=0),
 )
 SLIDING_WINDOW = (
-    Param("range_sigma_m", 0.3, "m", "range noise standard deviation (residuals are whitened by it)", minimum=1e-6),
+    Param("measurements", "toa", "", "toa: ranges; tdoa: range differences (tdoa table, each time group whitened "
+          "by its correlated noise)", str, ("toa", "tdoa")),
+    Param("range_sigma_m", 0.3, "m", "range noise standard deviation (residuals are whitened by it; TDOA: of "
+          "each anchor's arrival)", minimum=1e-6),
     Param("window_s", 2.0, "s", "window W: ranges of the last W seconds are solved jointly (4 rounds at 2 Hz; "
           "cost and latency grow with W)", minimum=1e-3),
     Param("knot_s", 0.5, "s", "spacing of the constant-velocity knots (one per 2 Hz round); at most window_s",
