@@ -12,7 +12,9 @@ there at rest. Coasting limit (core.CoastingDeleter): after `max_coast_s` second
 without a range the solution is dropped (counted as a reset) and restarted by the initiator;
 so is a window whose least squares do not converge (filters.least_squares.ConvergenceError)
 or whose prior, the previous window's covariance, is numerically singular (on real data with
-poor geometry, e.g. range differences far from a small anchor cluster).
+poor geometry, e.g. range differences far from a small anchor cluster), or whose solution is
+not finite: such a window is counted in attrs `skipped`; covariances that are not positive
+definite where a factor is needed are regularised (filters.numerics, attrs `regularised`).
 Range differences (`measurements: tdoa`, estimators.tdoa.TdoaSource): each group of records
 sharing a time stamp is one factor block with its TdoaModel's correlated noise (whitened by
 its Cholesky factor), and the initiator's fix is the hyperbolic solver's.
@@ -28,6 +30,7 @@ from wsnloc.estimators.measurements import MeasurementSource
 from wsnloc.estimators.run_data import RunData
 from wsnloc.estimators.tdoa import TdoaSource
 from wsnloc.filters.least_squares import ConvergenceError
+from wsnloc.filters.numerics import Guards, usable
 from wsnloc.filters.sliding_window import STATE, SlidingWindowEstimator
 
 
@@ -72,7 +75,7 @@ def sliding_window(data: RunData, p: dict) -> pd.DataFrame:
     times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
     window = p["window_s"]
     deleter = CoastingDeleter(p["max_coast_s"])
-    rows, resets, solver, last_range = [], 0, None, -np.inf
+    rows, resets, solver, last_range, guards = [], 0, None, -np.inf, Guards()
     for t_k in times:
         a = int(np.searchsorted(records.t, t_k - window, side="left"))
         b = int(np.searchsorted(records.t, t_k, side="right"))
@@ -87,7 +90,7 @@ def sliding_window(data: RunData, p: dict) -> pd.DataFrame:
             if fix is None:
                 continue
             solver = SlidingWindowEstimator(window, p["knot_s"], p["accel_sigma_mps2"], p["loss"], p["f_scale"],
-                                            p["prior_inflation"])
+                                            p["prior_inflation"], guards)
             initial = np.array([fix[0], fix[1], 0.0, 0.0])
         try:
             if tdoa:
@@ -97,9 +100,11 @@ def sliding_window(data: RunData, p: dict) -> pd.DataFrame:
                 estimate = solver.estimate(t_k, records.t[a:b], anchors_xy[a:b], dz[a:b], records.value[a:b],
                                            p["range_sigma_m"], initial)
         except (ConvergenceError, np.linalg.LinAlgError):   # a window the solver cannot settle, or whose
-            # previous solution's covariance is numerically singular: drop the solution (a reset)
+            estimate = None         # previous solution's covariance is numerically singular
+        if estimate is None or not usable(estimate.x, estimate.P):     # drop the solution (a reset)
+            guards.skipped += 1
             solver, resets = None, resets + 1
             continue
         P = estimate.P
         rows.append((t_k, estimate.x[0], estimate.x[1], P[0, 0], P[0, 1], P[1, 1], estimate.n_ranges, np.nan))
-    return Track(np.array(rows, dtype=float).reshape(len(rows), len(COLUMNS)), {"resets": resets}).frame()
+    return Track(np.array(rows, dtype=float).reshape(len(rows), len(COLUMNS)), {"resets": resets, **guards.attrs()}).frame()

@@ -21,7 +21,9 @@ and robust-loss scaling, in numpy; ftol = xtol = gtol = 1e-12), warm-started fro
 previous window; the robust loss rho (huber, soft_l1, cauchy or linear) acts on the range
 residuals only, with f_scale in units of sigma (the priors stay Gaussian). Covariance of the
 knots: (J^T J)^-1 with J the loss-weighted Jacobian at the solution; the estimate is the last
-knot (x, P).
+knot (x, P). On real data (filters.numerics, counted in `guards.regularised`): a J^T J that is
+singular or whose inverse is not positive definite (ranges from too few anchors in the window,
+a degenerate geometry) and a prior covariance that is not positive definite are regularised.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ import numpy as np
 from wsnloc.filters.least_squares import LOSSES, robust_least_squares
 from wsnloc.filters.measurement_models import MIN_DISTANCE
 from wsnloc.filters.motion_models import constant_velocity
+from wsnloc.filters.numerics import Guards, regularise, safe_cholesky
 
 STATE = 4
 
@@ -69,7 +72,8 @@ class SlidingWindowEstimator:
     """Call estimate() once per output time, with increasing t_end."""
 
     def __init__(self, window_s: float = 2.0, knot_s: float = 0.5, accel_sigma: float = 0.5,
-                 loss: str = "huber", f_scale: float = 1.345, prior_inflation: float = 10.0):
+                 loss: str = "huber", f_scale: float = 1.345, prior_inflation: float = 10.0,
+                 guards: Guards | None = None):
         if loss not in LOSSES:
             raise ValueError(f"sliding window loss must be one of {sorted(LOSSES)}, got {loss!r}")
         for name, value in (("window_s", window_s), ("knot_s", knot_s), ("accel_sigma", accel_sigma),
@@ -87,6 +91,7 @@ class SlidingWindowEstimator:
         self._J_cv = (np.kron(np.eye(self.n_knots - 1, self.n_knots, 1), self._W_cv)
                       - np.kron(np.eye(self.n_knots - 1, self.n_knots), self._W_cv @ self.Phi))
         self._previous = None      # (knot times (K,), states (K, 4), covariance (4K, 4K))
+        self.guards = guards if guards is not None else Guards()
 
     def _propagate(self, times):
         """The previous solution carried to the given times by the constant-velocity model, each
@@ -133,15 +138,27 @@ class SlidingWindowEstimator:
             start, prior = np.tile(guess, (self.n_knots, 1)), None
         else:
             start, first_cov = self._propagate(knots)
-            prior = (start[0], np.linalg.inv(np.linalg.cholesky(self.prior_inflation * first_cov)))
+            prior = (start[0], np.linalg.inv(safe_cholesky(self.prior_inflation * first_cov, self.guards)))
         j = np.clip(np.floor((t - knots[0]) / self.knot_s + 1e-9).astype(int), 0, self.n_knots - 1)
         ranges = RangeFactors(j, t - knots[j], anchors_xy, dz_m, ranges_m, sigma_m, *(differences or ()))
         n_gaussian = STATE * (self.n_knots - 1) + (0 if prior is None else STATE)
         theta, J = self._solve(start.ravel(), prior, ranges, n_gaussian)
-        cov = np.linalg.inv(J.T @ J)
+        cov = self._covariance(J)
         states = theta.reshape(self.n_knots, STATE)
         self._previous = (knots, states, cov)
         return WindowEstimate(states[-1].copy(), cov[-STATE:, -STATE:].copy(), len(t))
+
+    def _covariance(self, J: np.ndarray) -> np.ndarray:
+        """(J^T J)^-1, of regularise(J^T J) when J^T J is singular or its inverse not positive
+        definite (counted)."""
+        information = J.T @ J
+        try:
+            cov = np.linalg.inv(information)
+            np.linalg.cholesky(cov)
+            return cov
+        except np.linalg.LinAlgError:
+            self.guards.regularised += 1
+            return np.linalg.inv(regularise(information))
 
     def _solve(self, start, prior, ranges, n_gaussian):
         """(theta, loss-weighted J at theta): the window's minimiser from start, the first
