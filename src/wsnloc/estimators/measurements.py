@@ -21,7 +21,7 @@ from wsnloc.estimators.epochs import AnchorMeans, Epoch, anchor_means, per_epoch
 from wsnloc.estimators.range_calibration import RangeCorrection
 from wsnloc.estimators.run_data import RunData
 from wsnloc.filters.measurement_models import RangeModel, RssModel, Stacked
-from wsnloc.geometry.lateration import multilateration
+from wsnloc.geometry.lateration import multilateration, weighted_centroid
 from wsnloc.geometry.selection import rss_to_distance
 
 KINDS = {"toa": ("ranges",), "rss": ("rss",), "hybrid": ("ranges", "rss"), "tdoa": ("tdoa",)}   # tdoa: estimators.tdoa
@@ -129,7 +129,8 @@ class MeasurementSource:
             z.append(np.asarray(ranges, dtype=float))
         if len(rss):
             p = self.rss_params
-            parts.append(RssModel(self.data.positions(rss_ids), p.p0_dbm, p.path_loss_exponent, p.sigma_db, p.d0_m))
+            parts.append(RssModel(self.data.positions(rss_ids), p.p0_dbm, p.path_loss_exponent, p.sigma_db, p.d0_m,
+                                  self.data.height_offsets(rss_ids) if self.data.three_d else None))
             z.append(np.asarray(rss, dtype=float))
         return Stacked(parts, np.concatenate(z)) if parts else None
 
@@ -187,12 +188,19 @@ class MeasurementSource:
 
     def window_fix(self, t: float, window: float) -> np.ndarray | None:
         """Multilateration (fix) on the per-anchor means of the records in (t - window, t]
-        (Records.window_means); None with fewer than 3 records. Cached per run: sources that
+        (Records.window_means), on RSS alone the weighted centroid of the receivers nearest by
+        the path-loss model (geometry.lateration.weighted_centroid); None with fewer than 3 records. Cached per run: sources that
         share the measurement set and RSS model share it."""
         def build():
             records = self.records()
             a, b = np.searchsorted(records.t, [t - window, t], side="right")
-            return None if b - a < 3 else self.fix(*records.window_means(a, b))
+            if b - a < 3:
+                return None
+            means = records.window_means(a, b)
+            if len(means[1]) == 0:          # RSS only: the weighted centroid of the 3 nearest receivers
+                full = t - window >= records.t[0]      # over a full window: a few samples say little
+                return weighted_centroid(*self.horizontal_distances(*means)) if full else None
+            return self.fix(*means)
         return self.data.cached(("window_fix", self._data_key, self.rss_params, t, window), build)
 
 
