@@ -4,6 +4,8 @@
 a run without usable ranges but with RSS (e.g. a BLE RSSI campaign) is estimated on its RSS
 instead of giving no estimate. Runs that have ranges keep them (RSS needs a path-loss model
 that ranges do not). Applied by `wsnloc estimate` to parameters not given with --set.
+`motion_for`: a filter with the default constant-velocity model (`motion: pv`, 2-D) on a run
+with an odometry table uses it (`motion: odometry`, the unicycle model it drives).
 """
 
 from __future__ import annotations
@@ -20,3 +22,13 @@ def measurements_for(data: RunData, p: dict, explicit: set[str]) -> dict:
     if len(ranges) or not len(data.usable_rss()):
         return p
     return dict(p, **{k: "rss" for k in CHOICE_KEYS if p.get(k) == "toa" and k not in explicit})
+
+
+def motion_for(run_tables: dict, p: dict, explicit: set[str]) -> dict:
+    """The parameters with `motion: odometry` where the run has odometry rows, the estimator's
+    motion is the default pv in 2-D and neither key was set explicitly; else p unchanged."""
+    odometry = run_tables.get("odometry")
+    if odometry is None or not len(odometry) or p.get("motion") != "pv" or p.get("dimensions", 2) != 2 \
+            or explicit & {"motion", "dimensions"}:
+        return p
+    return dict(p, motion="odometry")

@@ -5,7 +5,9 @@ Files (CSV or Parquet, by name; `anchors` and one of `ranges` / `rss` required):
   ranges:  t, anchor_id, range_m [, status]   (s, m)
   rss:     t, anchor_id, rss_dbm              (s, dBm)
   imu:     t, ax, ay, az, gz                  (s, m/s^2 body frame, rad/s)
-  truth:   t, x, y                            (s, m)
+  truth:   t, x, y [, z]                      (s, m; z: the tag's height, for 3-D metrics)
+  odometry: t, v_mps, yaw_rate_rps            (s, m/s forward speed, rad/s counter-clockwise;
+                                               body frame: the odometry motion model's input)
   meta.yaml (optional): tag_height_m          (m: the mobile's antenna height, for 3-D
                                                ranges to anchors with z; see run_campaign)
 Rows that cannot be used go to the quarantine with file, line and a reason naming the
@@ -40,7 +42,8 @@ COLUMNS = {
     "ranges": (["t", "anchor_id", "range_m"], ["status"]),
     "rss": (["t", "anchor_id", "rss_dbm"], []),
     "imu": (["t", "ax", "ay", "az", "gz"], []),
-    "truth": (["t", "x", "y"], []),
+    "truth": (["t", "x", "y"], ["z"]),
+    "odometry": (["t", "v_mps", "yaw_rate_rps"], []),
 }
 TEXT_COLUMNS = {"anchor_id", "tech"}
 NON_NEGATIVE_COLUMNS = {"range_m"}
@@ -186,6 +189,8 @@ def ingest_run(run_dir: str | Path, campaign: Campaign | None = None) -> tuple[d
                for name in ("ranges", "rss") if name in parsed}
     result = {name: (parsed[name].usable() if name in parsed else tables.empty(name))
               for name in ("ranges", "rss", "imu", "truth")}
+    if "odometry" in parsed:              # an optional table: written only where the run has it
+        result["odometry"] = parsed["odometry"].usable()
     if "status" not in result["ranges"]:
         result["ranges"]["status"] = 0
     result["ranges"]["status"] = result["ranges"]["status"].astype(np.int32)
