@@ -151,7 +151,8 @@ OPTIONAL_TABLES = ("odometry",)       # raw tables only some runs have (a file o
 
 
 def empty(table: str) -> pd.DataFrame:
-    return SCHEMAS[table].empty_table().to_pandas()
+    """The table with no rows: its columns (without the optional ones) and types."""
+    return pa.schema([f for f in SCHEMAS[table] if not _optional(f)]).empty_table().to_pandas()
 
 
 def _column(frame: pd.DataFrame, field: pa.Field) -> pa.Array:
@@ -163,14 +164,18 @@ def _column(frame: pd.DataFrame, field: pa.Field) -> pa.Array:
     return array
 
 
+def schema_for(table: str, frame: pd.DataFrame) -> pa.Schema:
+    """The schema `frame` is written with: SCHEMAS[table] without the optional columns it lacks."""
+    return pa.schema([f for f in SCHEMAS[table] if f.name in frame or not _optional(f)])
+
+
 def to_arrow(table: str, frame: pd.DataFrame, extra_metadata: dict[str, str] | None = None) -> pa.Table:
     """Cast a DataFrame to the table's schema (columns in schema order); raises on mismatch.
 
     Column by column, on the calling thread: pa.Table.from_pandas would give the same table
     but copies the frame's columns first and starts a thread pool for every table.
     """
-    schema = SCHEMAS[table]
-    schema = pa.schema([f for f in schema if f.name in frame or not _optional(f)])
+    schema = schema_for(table, frame)
     meta = {b"table": table.encode(), **{k.encode(): str(v).encode() for k, v in (extra_metadata or {}).items()}}
     return pa.Table.from_arrays([_column(frame, field) for field in schema], schema=schema).replace_schema_metadata(meta)
 

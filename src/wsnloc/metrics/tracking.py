@@ -31,8 +31,10 @@ def score(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
     position = truth_at(truth, estimates["t"].to_numpy(float))
     error = np.hypot(estimates["x"].to_numpy(float) - position[:, 0], estimates["y"].to_numpy(float) - position[:, 1])
     spatial = {}
-    if "z" in estimates and "z" in truth:
-        true_z = np.interp(estimates["t"].to_numpy(float), truth["t"], truth["z"], left=np.nan, right=np.nan)
+    if "z" in estimates and "z" in truth and np.isfinite(truth["z"].to_numpy(float)).any():
+        given = np.isfinite(truth["z"].to_numpy(float))           # rows with a height (z may be left empty)
+        true_z = np.interp(estimates["t"].to_numpy(float), truth["t"][given], truth["z"][given],
+                           left=np.nan, right=np.nan)
         spatial = {"true_z": true_z, "error_3d_m": np.hypot(error, estimates["z"].to_numpy(float) - true_z)}
     out = pd.DataFrame({**{name: estimates[name].array for name in estimates.columns},
                         "true_x": position[:, 0], "true_y": position[:, 1], "error_m": error, **spatial},
