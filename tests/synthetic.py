@@ -87,3 +87,21 @@ def epoch_stamped_bursts(n_epochs: int, seed: int = 3) -> tuple[RunData, np.ndar
     tables = tables_for(np.repeat(ends, len(SQUARE)), ids, walk, SQUARE, noise_m=0.1, rng=np.random.default_rng(seed))
     tables["rss"] = pd.DataFrame({"t": [0.3], "seq": [-1], "anchor_id": ["A1"], "rss_dbm": [-60.0], "line": [1]})
     return run_data(tables), ends
+
+
+def tdoa_table(times: np.ndarray, positions, anchors: dict = SQUARE, reference: str | None = None,
+               noise_m: float = 0.0, rng=None) -> pd.DataFrame:
+    """Range differences d(anchor) - d(reference) of every other anchor at each time (one group
+    per time), each anchor's arrival with its own noise N(0, noise_m^2) (so pairs sharing the
+    reference are correlated, as the TDOA model assumes); `reference`: default the first anchor."""
+    reference = reference or next(iter(anchors))
+    others = [a for a in anchors if a != reference]
+    xy = np.array([anchors[a] for a in [reference] + others])
+    d = np.hypot(*(positions(times)[:, None, :] - xy[None]).transpose(2, 0, 1))      # (T, 1 + m)
+    if noise_m:
+        d = d + rng.normal(0.0, noise_m, d.shape)
+    values = (d[:, 1:] - d[:, :1]).ravel()
+    n = len(values)
+    return pd.DataFrame({"t": np.repeat(times, len(others)), "anchor_id": np.tile(np.array(others, dtype=object),
+                         len(times)), "ref_anchor_id": reference, "tdoa_m": values,
+                         "line": np.arange(2, n + 2, dtype=np.int32)})

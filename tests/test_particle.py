@@ -175,9 +175,22 @@ def test_invalid_parameters_are_rejected():
         ParticleFilter(np.zeros(2), np.eye(2), 10, rng, outlier_probability=1.0)
     with pytest.raises(ValueError, match="n_particles"):
         ParticleFilter(np.zeros(2), np.eye(2), 0, rng)
-    with pytest.raises(ValueError, match="diagonal"):
-        ParticleFilter(np.zeros(2), np.eye(2), 10, rng).update_model(
-            type("Correlated", (), {"z": np.zeros(2), "h_many": lambda self, X: X, "R": lambda self: np.ones((2, 2))})())
+
+
+def test_correlated_noise_weights_are_the_multivariate_normal_likelihood():
+    """A non-diagonal R (TDOA pairs sharing an anchor): the particles' weights and the marginal
+    likelihood are those of N(z; h(X_i), R), as scipy's multivariate normal gives them."""
+    from scipy.stats import multivariate_normal
+
+    rng = np.random.default_rng(0)
+    pf = ParticleFilter(np.zeros(2), np.eye(2), 50, rng, resample_threshold=0.0)
+    R = np.array([[2.0, 1.0], [1.0, 2.0]])
+    z = np.array([0.3, -0.4])
+    prior = pf.weights.copy()
+    pf.update_model(type("Correlated", (), {"z": z, "h_many": lambda self, X: X, "R": lambda self: R})())
+    density = multivariate_normal(cov=R).pdf(z - pf.particles)
+    np.testing.assert_allclose(pf.weights, prior * density / np.sum(prior * density), rtol=1e-10)
+    assert pf.log_likelihood == pytest.approx(np.log(np.sum(prior * density)), rel=1e-10)
 
 
 def test_log_sum_exp_matches_scipy():

@@ -150,3 +150,24 @@ def test_3d_flight_rmse_is_within_1_5_of_the_pcrb():
     assert bound > 0.0
     print(f"3-D flight: RMSE {rmse:.3f} m, sqrt(PCRB) {bound:.3f} m, ratio {rmse / bound:.2f}")
     assert 1 / 1.5 <= rmse / bound <= 1.5, (rmse, bound)
+
+
+def test_tdoa_tracks_a_3d_flight_with_a_3d_state():
+    """Range differences to anchor C1 (made from the flight's true ranges, per-arrival noise) with
+    dimensions 3: the height is tracked too (TdoaModel with the receivers' z)."""
+    data, states = flight(2)
+    ranges = data.table("ranges")
+    rng = np.random.default_rng(7)
+    rows = []
+    for t, group in ranges.groupby("t"):
+        r = dict(zip(group["anchor_id"], group["range_m"]))
+        rows += [(t, a, "C1", r[a] - r["C1"] + rng.normal(0.0, 0.05)) for a in ANCHORS_3D if a != "C1"]
+    tdoa = pd.DataFrame(rows, columns=["t", "anchor_id", "ref_anchor_id", "tdoa_m"]).assign(
+        line=np.arange(1, len(rows) + 1, dtype=np.int32))
+    tables = dict(data.tables, tdoa=tdoa, ranges=ranges.iloc[:0])
+    run = RunData(tables, name="flight-tdoa")
+    est = registry.run("ekf", run, dict(FLIGHT, measurements="tdoa", range_sigma_m=0.1))
+    metrics = run_metrics(score(est, run.table("truth")), run.table("truth"))
+    assert "z" in est and metrics["availability"] > 0.9 and metrics["rmse_3d"] < 0.5, metrics
+    flat = registry.run("ekf", run, dict(FLIGHT, measurements="tdoa", range_sigma_m=0.1, dimensions=2))
+    assert "z" not in flat

@@ -87,8 +87,9 @@ def cmd_ingest(args) -> int:
 
 def cmd_convert(args) -> int:
     from wsnloc.io.convert import CONVERTERS, QUARANTINE_FILE
+    from wsnloc.io.tdoa_from_ranges import convert_tdoa
 
-    for run in CONVERTERS[args.dataset](args.src, args.out):
+    for run in {**CONVERTERS, "tdoa": convert_tdoa}[args.dataset](args.src, args.out):
         bad = f"; {len(run.quarantine)} source line(s) quarantined, see {run.run_dir / QUARANTINE_FILE}" \
             if run.quarantine else ""
         print(f"wrote {run.run_dir}{bad}")
@@ -104,7 +105,8 @@ def cmd_estimators(args) -> int:
         return 0
     for e in described:
         default = " (default of `wsnloc estimate`)" if e["name"] == registry.DEFAULT_ESTIMATOR else ""
-        print(f"{e['name']}{default}: {e['summary']}")
+        tdoa = " [TDOA]" if e["tdoa"] else ""
+        print(f"{e['name']}{default}{tdoa}: {e['summary']}")
         for p in e["parameters"]:
             unit = f" [{p['unit']}]" if p["unit"] else ""
             choices = f" ({' | '.join(p['choices'])})" if p.get("choices") else ""
@@ -167,8 +169,10 @@ def parser() -> argparse.ArgumentParser:
     ing.set_defaults(func=cmd_ingest)
 
     conv = sub.add_parser("convert", help="convert a public dataset into the generic format")
-    conv.add_argument("dataset", choices=["cucudasluv", "philotuxo"],
-                      help="cucudasluv: outdoor UWB (OUT/<los|nlos>/<case>); philotuxo: BLE RSSI (OUT/tracks/<track>)")
+    conv.add_argument("dataset", choices=["cucudasluv", "philotuxo", "tdoa"],
+                      help="cucudasluv: outdoor UWB (OUT/<los|nlos>/<case>); philotuxo: BLE RSSI (OUT/tracks/<track>); "
+                           "tdoa: the generic run(s) below SRC with range differences to one anchor made from their "
+                           "ranges (wsnloc.io.tdoa_from_ranges)")
     conv.add_argument("src", help="the dataset's folder (e.g. realdata/cucudasluv-uwb, realdata/philotuxo-ble-rssi)")
     conv.add_argument("out", help="output folder; runs go to OUT/<scenario>/<run>")
     conv.set_defaults(func=cmd_convert)

@@ -42,8 +42,7 @@ def load_run(fmt: str, run_dir: Path, campaign: Campaign | None, out_dir: Path) 
     inventory = ingest_one(fmt, run_dir, campaign, out_dir)
     quarantine = tables.read(out_dir / "quarantine.parquet")
     check_quarantine_limits(run_dir, inventory, quarantine, QuarantineLimits(), out_dir / "quarantine.parquet")
-    loaded = {name: tables.read(out_dir / f"{name}.parquet") for name in tables.RAW_TABLES + tables.OPTIONAL_TABLES
-              if name in tables.RAW_TABLES or (out_dir / f"{name}.parquet").is_file()}
+    loaded = {name: tables.read(out_dir / f"{name}.parquet") for name in tables.RAW_TABLES}
     loaded["quarantine"] = quarantine
     return loaded
 
@@ -111,8 +110,10 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
                          converted_quarantine(run_dir)] if q]
     if "imu_5hz" in estimator.tables(p):
         run_tables["imu_5hz"] = resample_imu(run_tables["imu"], **RESAMPLE)
-    chosen = measurements_for(RunData(run_tables, campaign, None, str(run_dir)), p, set(overrides))
-    notes += [f"{k}={v}: the run has RSS and no usable range" for k, v in chosen.items() if p[k] != v]
+    chosen = measurements_for(RunData(run_tables, campaign, None, str(run_dir)), p, set(overrides),
+                              {param.name: param.choices for param in estimator.params})
+    notes += [f"{k}={v}: the run has {'range differences' if v == 'tdoa' else 'RSS'} and no usable range"
+              for k, v in chosen.items() if p[k] != v]
     p, chosen = chosen, motion_for(run_tables, chosen, set(overrides))
     notes += [f"{k}={v}: the run has odometry" for k, v in chosen.items() if p[k] != v]
     p = chosen

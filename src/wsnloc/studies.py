@@ -170,8 +170,11 @@ def diagnose(data: RunData, p: dict) -> str:
     ranges = ranges[ranges["anchor_id"].isin(members)]
     rss = data.usable_rss()
     rss = rss[rss["anchor_id"].isin(members)]
+    tdoa = data.usable_tdoa()
+    reads = "" if not len(tdoa) or p.get("measurements") == "tdoa" else \
+        f"; the run has {len(tdoa)} range differences (TDOA), read by the estimators `wsnloc estimators` marks [TDOA]"
     return (f"{len(ranges)} usable ranges from {ranges['anchor_id'].nunique()} anchors and {len(rss)} RSS samples "
-            f"from {rss['anchor_id'].nunique()} anchors of subset {p.get('anchors', ALL_ANCHORS)!r}")
+            f"from {rss['anchor_id'].nunique()} anchors of subset {p.get('anchors', ALL_ANCHORS)!r}{reads}")
 
 
 def run_cell(label: str, cell: str, name: str, p: dict, subsets: list[str], runs: dict[str, dict],

@@ -16,7 +16,9 @@ initiator's: the filter starts there from a fix of that step's measurements with
 ignoring it would be above the filter's error when P0 is wider than the fix's error). H_j is evaluated at the true position (truth
 interpolated at s_j); range and RSS models observe the position only, so the true velocity
 is not needed (the per-anchor Fisher terms of metrics.bounds: 3-D ranges with the anchors'
-height offsets as RangeModel, RSS by the log-distance model as RssModel).
+height offsets as RangeModel, RSS by the log-distance model as RssModel; TDOA by the
+filter's own TdoaModel of each update, H^T R^-1 H with the correlated noise of pairs sharing
+an anchor, metrics.bounds.model_information).
 A coasting-limit reset of the filter does not restart the bound (it keeps its information).
 """
 
@@ -28,12 +30,12 @@ import pandas as pd
 from wsnloc.estimators import bayes
 from wsnloc.estimators.motion import MotionModel
 from wsnloc.estimators.run_data import RunData
-from wsnloc.metrics.bounds import (available_information, pcrb, rss_information_terms, to_matrices,
-                                   toa_information_terms)
+from wsnloc.metrics.bounds import (available_information, model_information, pcrb, rss_information_terms,
+                                   to_matrices, toa_information_terms)
 from wsnloc.metrics.ranging import truth_at
 
 BOUND_COLUMNS = ["t", "pcrb_xx", "pcrb_xy", "pcrb_yy"]
-MEASUREMENT_TEXT = {"toa": "ranges", "rss": "RSS", "hybrid": "ranges + RSS"}
+MEASUREMENT_TEXT = {"toa": "ranges", "rss": "RSS", "hybrid": "ranges + RSS", "tdoa": "range differences"}
 
 
 def is_bayesian(function) -> bool:
@@ -87,6 +89,9 @@ def _pcrb_inputs(data: RunData, p: dict):
     times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
     if len(times) == 0:
         return None
+    if p["measurements"] == "tdoa":
+        steps, information, outputs = _tdoa_information(data, source, times, p)
+        return _with_motion(data, p, times, outputs, steps, information)
     steps, range_step, range_ids, rss_step, rss_ids, outputs = _measurement_steps(source, times, p)
     position = truth_at(data.require("truth", "the PCRB"), steps)
     information = np.zeros((len(steps), 3))
@@ -100,6 +105,33 @@ def _pcrb_inputs(data: RunData, p: dict):
         terms = rss_information_terms(position, data.positions(rss_members), rss.path_loss_exponent, rss.sigma_db)
         information += available_information(terms, _counts(rss_step, rss_ids, rss_members, len(steps)))
     information[~np.isfinite(position).all(axis=1)] = 0.0  # outside the truth span: unknown geometry
+    return _with_motion(data, p, times, outputs, steps, information)
+
+
+def _tdoa_information(data: RunData, source, times: np.ndarray, p: dict):
+    """(steps, position information (steps, 3), output index of times) of a TDOA filter: the
+    TdoaModel of each update (epoch means or record groups) evaluated at the true position."""
+    if p["update"] == "epoch":
+        steps, outputs = times, np.arange(len(times))
+        models, step_of = source.epoch_models(times, p["epoch_s"]), np.arange(len(times))
+    else:
+        records = source.records()
+        bounds = records.groups()
+        steps = np.union1d(records.t, times)
+        outputs = np.searchsorted(steps, times)
+        models = [source.model(*records.split(a, b)) for a, b in zip(bounds[:-1], bounds[1:])]
+        step_of = np.searchsorted(steps, records.t[bounds[:-1]])
+    position = truth_at(data.require("truth", "the PCRB"), steps)
+    information = np.zeros((len(steps), 3))
+    for k, model in zip(step_of, models):
+        if model is not None and np.all(np.isfinite(position[k])):
+            J = model_information(model, position[k][None])[0]
+            information[k] += (J[0, 0], J[0, 1], J[1, 1])
+    return steps, information, outputs
+
+
+def _with_motion(data: RunData, p: dict, times, outputs, steps, information):
+    """The bound's inputs (see _pcrb_inputs) from its steps and their position information."""
     motion = bayes.motion_model(p)
     static = bayes.static_flags(data, p, times)[np.minimum(np.searchsorted(times, steps), len(times) - 1)]
     F, Q = _transitions(motion, steps, static)
@@ -152,6 +184,8 @@ def bound_model(p: dict) -> str:
         noise.append(f"Gaussian ranges sigma {p['range_sigma_m']:g} m")
     if p["measurements"] in ("rss", "hybrid"):
         noise.append("log-normal RSS (the filter's path-loss model)")
+    if p["measurements"] == "tdoa":
+        noise.append(f"range differences, arrival noise sigma {p['range_sigma_m']:g} m per anchor")
     update = "epoch updates" if p["update"] == "epoch" else "sequential updates"
     detection = ", static epochs frozen" if p["motion_detection"] else ""
     return f"{motion}; {', '.join(noise)}; anchors {p['anchors']}; {update} every {p['epoch_s']:g} s{detection}"

@@ -50,6 +50,7 @@ from wsnloc.estimators.measurements import MeasurementSource, rss_params
 from wsnloc.estimators.motion import MotionModel
 from wsnloc.estimators.run_data import RunData
 from wsnloc.estimators.smoothing import ForwardPass
+from wsnloc.estimators.tdoa import TdoaSource
 from wsnloc.filters.kalman import ExtendedKalmanFilter
 from wsnloc.filters.particle import ParticleFilter
 from wsnloc.filters.reference import FilterpyEKF
@@ -109,7 +110,11 @@ def motion_model(p: dict) -> MotionModel:
 
 def measurement_source(data: RunData, p: dict) -> MeasurementSource:
     """The measurements (and their models) a filter with parameters p reads from the run, the
-    ranges corrected by the configured range calibration (range_calibration.correction)."""
+    ranges corrected by the configured range calibration (range_calibration.correction); TDOA
+    (`measurements: tdoa`) through estimators.tdoa.TdoaSource."""
+    if p["measurements"] == "tdoa":
+        args = (p["anchors"], p["range_sigma_m"], p["max_range_m"], p["range_calibration"], p.get("dimensions", 2))
+        return data.cached(("tdoa_source",) + args, lambda: TdoaSource(data, *args))
     args = (p["measurements"], p["anchors"], p["range_sigma_m"], p["preliminary_filter"], p["max_range_m"],
             rss_params(data, p) if p["measurements"] != "toa" else None, range_calibration.correction(data, p),
             p.get("dimensions", 2))

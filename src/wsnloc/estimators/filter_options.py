@@ -141,7 +141,7 @@ class ConfiguredFilter:
             return R
         k = 0
         for part in getattr(model, "parts", [model]):
-            m = len(part.anchors)
+            m = len(part.R())
             if isinstance(part, RangeModel):
                 walls = np.array([self.campaign.walls_between(self.filt.x[None, :2], a)[0] for a in part.anchors])
                 sigma = np.broadcast_to(part.sigma_m, m) + walls * self.per_wall

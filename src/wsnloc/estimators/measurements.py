@@ -26,7 +26,7 @@ from wsnloc.filters.measurement_models import RangeModel, RssModel, Stacked
 from wsnloc.geometry.lateration import multilateration, multilateration_3d
 from wsnloc.geometry.selection import rss_to_distance
 
-KINDS = {"toa": ("ranges",), "rss": ("rss",), "hybrid": ("ranges", "rss")}
+KINDS = {"toa": ("ranges",), "rss": ("rss",), "hybrid": ("ranges", "rss"), "tdoa": ("tdoa",)}   # tdoa: estimators.tdoa
 
 
 @dataclass(frozen=True)

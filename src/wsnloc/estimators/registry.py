@@ -64,7 +64,8 @@ KALMAN_FIXES = (
 )
 FILTER = (
     Param("filter", "ekf", "", "Bayesian filter (ukf, pf and filterpy have their own estimators)", str, ("ekf",)),
-    Param("measurements", "toa", "", "toa: ranges; rss: RSS; hybrid: both stacked", str, tuple(KINDS)),
+    Param("measurements", "toa", "", "toa: ranges; rss: RSS; hybrid: both stacked; tdoa: range differences "
+          "(tdoa table, correlated noise of pairs sharing an anchor)", str, tuple(KINDS)),
     Param("motion", "pv", "", "p: random walk; pv: constant velocity; pva: measured acceleration input + bias; "
           "odometry: unicycle driven by the run's odometry table (speed, yaw rate; heading in the state)",
           str, MOTIONS),
@@ -77,7 +78,8 @@ FILTER = (
           "wheel-base uncertainty and slip of differential-drive odometry)", minimum=1e-6),
     Param("update", "epoch", "", "epoch: one update per period; sequential: at each measurement's time", str,
           ("epoch", "sequential")),
-    Param("range_sigma_m", 0.3, "m", "range noise standard deviation in R", minimum=1e-6),
+    Param("range_sigma_m", 0.3, "m", "range noise standard deviation in R (TDOA: of each anchor's arrival or "
+          "range; a pair's difference has sqrt(2) times it)", minimum=1e-6),
     Param("p_sigma_m", 0.15, "m", "P model: position change per period T", minimum=0.0),
     Param("accel_sigma_mps2", 0.5, "m/s^2", "PV: white acceleration; PVA: acceleration input noise", minimum=0.0),
     Param("bias_walk_sigma", 0.01, "m/s^2/sqrt(s)", "PVA: accelerometer bias random walk", minimum=0.0),
@@ -171,10 +173,17 @@ class Estimator:
 
     def tables(self, p: dict) -> tuple[str, ...]:
         """The processed tables this estimator reads with parameters p."""
-        return ("ranges", "rss", "truth", "anchors") + self.inputs(p)
+        return ("ranges", "rss", "truth", "anchors") + (("tdoa",) if p.get("measurements") == "tdoa" else ()) \
+            + self.inputs(p)
+
+    @property
+    def reads_tdoa(self) -> bool:
+        """Whether the estimator accepts range differences (`measurements: tdoa`)."""
+        return any(p.name == "measurements" and "tdoa" in (p.choices or ()) for p in self.params)
 
     def describe(self) -> dict:
-        return {"name": self.name, "summary": self.summary, "parameters": [p.describe() for p in self.params]}
+        return {"name": self.name, "summary": self.summary, "tdoa": self.reads_tdoa,
+                "parameters": [p.describe() for p in self.params]}
 
 
 def _solver_run(solver: str | None, technique: str | None):

@@ -117,9 +117,17 @@ class RunData:
             return rss[rss["anchor_id"].isin(self._xy) & np.isfinite(rss["rss_dbm"])]
         return self.cached(("usable_rss",), build)
 
+    def usable_tdoa(self) -> pd.DataFrame:
+        """Range differences (tdoa table) of pairs of two distinct known anchors, finite."""
+        def build():
+            tdoa = self.table("tdoa")
+            return tdoa[tdoa["anchor_id"].isin(self._xy) & tdoa["ref_anchor_id"].isin(self._xy)
+                        & (tdoa["anchor_id"] != tdoa["ref_anchor_id"]) & np.isfinite(tdoa["tdoa_m"])]
+        return self.cached(("usable_tdoa",), build)
+
     def grid(self, period: float, apply_filter: bool, max_range_m: float) -> np.ndarray:
         """Epoch end times (s) of the run: every `period` s from its first usable measurement
-        (any anchor, ranges or RSS) to its last. One grid per run, shared by every estimator
+        (any anchor, ranges, RSS or TDOA) to its last. One grid per run, shared by every estimator
         and anchor subset, so that their outputs fall at the same times and pair up.
 
         The phase of the grid against periodic ranging rounds matters to estimators that do
@@ -127,7 +135,8 @@ class RunData:
         the round, up to one period at the epoch end."""
         def build():
             stamps = np.concatenate([self.usable_ranges(apply_filter, max_range_m)["t"].to_numpy(float),
-                                     self.usable_rss()["t"].to_numpy(float)])
+                                     self.usable_rss()["t"].to_numpy(float),
+                                     self.usable_tdoa()["t"].to_numpy(float)])
             return grid_over(stamps, period)
         return self.cached(("grid", period, apply_filter, max_range_m), build)
 

@@ -10,6 +10,14 @@ d_i = ||p - a_i|| (floored at 1 mm to keep the Jacobian finite).
 - RSS (log-normal shadowing):          h_i = P0 - 10 n log10(d_i / d0)
                                        H_i = [-10 n / ln10 (x - x_i)/d_i^2, -10 n / ln10 (y - y_i)/d_i^2, 0 ...]
 - hybrid: the two stacked, R = blockdiag(R_TOA, R_RSS).
+- TDOA range difference of pair i = (receiver a_i, reference receiver b_i), with r_j the
+  (3-D when dz_j is known) distance to receiver j:
+                                       h_i = r_{a_i} - r_{b_i}
+                                       H_i = [(p - a_i)/r_{a_i} - (p - b_i)/r_{b_i}, 0 ...]
+  Each receiver's arrival time carries its own noise (sigma_j, in m): with the incidence
+  matrix D (D[i, a_i] = 1, D[i, b_i] = -1) the pairs' noise is R = D diag(sigma^2) D^T, so
+  two pairs sharing a reference are correlated (covariance sigma_ref^2; correlation 1/2 for
+  equal sigmas) and one pair has variance sigma_a^2 + sigma_b^2.
 h_many(X) evaluates h at N states at once, X (N, n) -> (N, m) (particle filters).
 """
 
@@ -91,6 +99,49 @@ class RssModel:
 
     def R(self) -> np.ndarray:
         return np.eye(len(self.anchors)) * self.sigma_db**2
+
+
+@dataclass
+class TdoaModel:
+    """Range differences of receiver pairs (module docstring). The position is the state's first
+    two entries, or three with 3-D receivers (k, 3): H then has (z - z_j) / r_j as for x and y."""
+
+    receivers: np.ndarray      # (k, 2) receiver (anchor) positions, or (k, 3) with a 3-D state
+    pairs: np.ndarray          # (m, 2) int: (receiver, reference receiver) of each range difference
+    sigma_m: np.ndarray        # (k,) or scalar: arrival-time noise std of each receiver, in m
+    dz_m: np.ndarray | None = None   # (k,) receiver height - tag height; None: 2-D distances
+
+    def _ranges(self, d: np.ndarray) -> np.ndarray:
+        return d if self.dz_m is None else np.sqrt(d**2 + self.dz_m**2)
+
+    def h(self, x) -> np.ndarray:
+        r = self._ranges(_geometry(x, self.receivers)[1])
+        return r[self.pairs[:, 0]] - r[self.pairs[:, 1]]
+
+    def h_many(self, X) -> np.ndarray:
+        """h at every row of X (N, n): (N, m) range differences in m."""
+        d = _distances_many(X, self.receivers)
+        r = d if self.dz_m is None else np.sqrt(d**2 + self.dz_m[None, :] ** 2)
+        return r[:, self.pairs[:, 0]] - r[:, self.pairs[:, 1]]
+
+    def jacobian(self, x) -> np.ndarray:
+        diff, d = _geometry(x, self.receivers)
+        unit = diff / np.maximum(self._ranges(d), MIN_DISTANCE)[:, None]
+        H = np.zeros((len(self.pairs), len(x)))
+        H[:, :diff.shape[1]] = unit[self.pairs[:, 0]] - unit[self.pairs[:, 1]]
+        return H
+
+    def incidence(self) -> np.ndarray:
+        """D (m, k): +1 at each pair's receiver, -1 at its reference."""
+        D = np.zeros((len(self.pairs), len(self.receivers)))
+        rows = np.arange(len(self.pairs))
+        D[rows, self.pairs[:, 0]], D[rows, self.pairs[:, 1]] = 1.0, -1.0
+        return D
+
+    def R(self) -> np.ndarray:
+        D = self.incidence()
+        variances = np.broadcast_to(np.asarray(self.sigma_m, dtype=float) ** 2, (len(self.receivers),))
+        return (D * variances) @ D.T
 
 
 @dataclass

@@ -5,7 +5,9 @@ predict:  X_i <- F X_i (+ B u) + q_i,  q_i = S e_i,  e_i ~ N(0, I),  S = V diag(
           from the eigen-decomposition Q = V diag(lambda) V^T (so a singular Q, e.g. the
           rank-2 constant-velocity noise, is fine)
 update:   log w_i <- log w_i + sum_j log p(z_j | X_i),  then normalised with log-sum-exp;
-          per element j, r_ij = z_j - h_j(X_i), sigma_j^2 = R_jj (R must be diagonal):
+          per element j, r_ij = z_j - h_j(X_i), sigma_j^2 = R_jj (a non-diagonal R, the correlated
+          TDOA noise: the residuals whitened by R = L L^T, r_i <- L^-1 r_i, sigma_j = 1, log det L
+          subtracted; Gaussian, no outlier component):
             Gaussian:        p = N(r_ij; 0, sigma_j^2)
             range elements with outlier_probability eps > 0 (Gaussian + uniform outlier mixture):
                              p = (1 - eps) N(r_ij; 0, sigma_j^2) + eps / span     (span in m)
@@ -133,17 +135,20 @@ class ParticleFilter:
         """Weight the particles by p(z | X_i), then resample if the ESS fell below the threshold."""
         R = np.asarray(model.R())
         variances = np.diag(R)
-        if np.any(R != np.diag(variances)):
-            raise ValueError("particle filter: the measurement noise R must be diagonal")
         w = self.weights
         residuals = model.z - model.h_many(self.particles)           # (N, m)
         y = w @ residuals                                              # z - sum w_i h(X_i)
         spread = residuals - y
         self.nis = float(y @ np.linalg.solve((w[:, None] * spread).T @ spread + R, y))
         heavy_tailed = range_elements(model) if self.outlier_probability > 0 else np.zeros(len(y), dtype=bool)
+        log_det = 0.0
+        if np.any(R != np.diag(variances)):        # correlated noise (TDOA): whitened residuals L^-1 r, R = L L^T
+            L = np.linalg.cholesky(R)
+            residuals, variances, log_det = np.linalg.solve(L, residuals.T).T, np.ones(len(y)), np.log(np.diag(L)).sum()
+            heavy_tailed = np.zeros(len(y), dtype=bool)
         log_p = element_log_likelihoods(residuals, variances, heavy_tailed,
                                         self.outlier_probability, self.outlier_span_m)
-        joint = self.log_weights + log_p.sum(axis=1)
+        joint = self.log_weights + log_p.sum(axis=1) - log_det
         self.log_likelihood = log_sum_exp(joint)
         self.log_weights = joint - self.log_likelihood
         self.resampled = self.ess < self.resample_threshold * len(self.particles)

@@ -1,9 +1,11 @@
 """Generic adapter: a run directory of CSV or Parquet tables from any other dataset.
 
-Files (CSV or Parquet, by name; `anchors` and one of `ranges` / `rss` required):
+Files (CSV or Parquet, by name; `anchors` and one of `ranges` / `rss` / `tdoa` required):
   anchors: anchor_id, tech, x, y [, z]        (m)
   ranges:  t, anchor_id, range_m [, status]   (s, m)
   rss:     t, anchor_id, rss_dbm              (s, dBm)
+  tdoa:    t, anchor_id, ref_anchor_id, tdoa_m (s, m: range difference d(anchor) - d(ref), one
+           row per pair; pairs of one time stamp are one measurement, see docs/raw-formats.md)
   imu:     t, ax, ay, az, gz                  (s, m/s^2 body frame, rad/s)
   truth:   t, x, y [, z]                      (s, m; z: the tag's height, for 3-D metrics)
   odometry: t, v_mps, yaw_rate_rps            (s, m/s forward speed, rad/s counter-clockwise;
@@ -13,11 +15,12 @@ Files (CSV or Parquet, by name; `anchors` and one of `ranges` / `rss` required):
 Rows that cannot be used go to the quarantine with file, line and a reason naming the
 value: CSV rows with the wrong number of fields or cut off at the end of the file
 (wsnloc.io.csvrows), missing or non-finite numbers, negative ranges, anchors missing
-from the anchors table (also counted per anchor in the inventory). The line number is
+from the anchors table (also counted per anchor in the inventory), a TDOA pair whose
+anchor is its own reference. The line number is
 the CSV line (header = line 1) or the Parquet row + 1. Rows need not be sorted: each
 table is sorted by time (stable), and the number of rows out of order is reported.
-Refused with IngestError naming the file: a missing column, an anchors, ranges or rss
-table with no data row, a duplicate anchor id. No campaign is needed.
+Refused with IngestError naming the file: a missing column, an anchors, ranges, rss or
+tdoa table with no data row, a duplicate anchor id. No campaign is needed.
 """
 
 from __future__ import annotations
@@ -41,13 +44,14 @@ COLUMNS = {
     "anchors": (["anchor_id", "tech", "x", "y"], ["z"]),
     "ranges": (["t", "anchor_id", "range_m"], ["status"]),
     "rss": (["t", "anchor_id", "rss_dbm"], []),
+    "tdoa": (["t", "anchor_id", "ref_anchor_id", "tdoa_m"], []),
     "imu": (["t", "ax", "ay", "az", "gz"], []),
     "truth": (["t", "x", "y"], ["z"]),
     "odometry": (["t", "v_mps", "yaw_rate_rps"], []),
 }
-TEXT_COLUMNS = {"anchor_id", "tech"}
+TEXT_COLUMNS = {"anchor_id", "ref_anchor_id", "tech"}
 NON_NEGATIVE_COLUMNS = {"range_m"}
-NEVER_EMPTY = ("anchors", "ranges", "rss")     # a run without their rows has nothing to localise with
+NEVER_EMPTY = ("anchors", "ranges", "rss", "tdoa")     # a run without their rows has nothing to localise with
 
 
 def run_campaign(run_dir: str | Path) -> Campaign | None:
@@ -100,7 +104,7 @@ class _Table:
             raise IngestError(f"{path}: missing column(s) {missing} (expected {required + optional})")
         if name in NEVER_EMPTY and self.n_records == 0:
             raise IngestError(f"{path}: no data rows (the {name} table is required; leave an empty "
-                              f"{'ranges or rss ' if name != 'anchors' else ''}file out of the run)")
+                              f"{'ranges, rss or tdoa ' if name != 'anchors' else ''}file out of the run)")
         self.columns = required + [c for c in optional if c in self.frame.columns]
         self.ok = np.ones(len(self.frame), dtype=bool)
         self.reasons = np.full(len(self.frame), "", dtype=object)
@@ -129,11 +133,20 @@ class _Table:
         self.ok[rows] = False
 
     def known_anchors(self, anchors: set[str], anchors_file: str) -> dict[str, int]:
-        """Refuse rows whose anchor is not in the anchors table; returns the count per such anchor."""
-        ids = self.values["anchor_id"]
-        unknown = ~np.isin(ids, list(anchors)) & self.ok
-        self._reject(unknown, pd.Series(ids), f"unknown anchor {{value!r}} (not in {anchors_file})")
-        return dict(Counter(ids[unknown].tolist()))
+        """Refuse rows whose anchor (and reference anchor, in a TDOA table) is not in the anchors
+        table, and TDOA pairs whose anchor is its own reference; returns the count per unknown anchor."""
+        counts: Counter = Counter()
+        for column in [c for c in ("anchor_id", "ref_anchor_id") if c in self.values]:
+            ids = self.values[column]
+            unknown = ~np.isin(ids, list(anchors)) & self.ok
+            what = "reference anchor" if column == "ref_anchor_id" else "anchor"
+            self._reject(unknown, pd.Series(ids), f"unknown {what} {{value!r}} (not in {anchors_file})")
+            counts.update(ids[unknown].tolist())
+        if "ref_anchor_id" in self.values:
+            same = self.values["anchor_id"] == self.values["ref_anchor_id"]
+            self._reject(same, pd.Series(self.values["anchor_id"]),
+                         "anchor {value!r} is its own reference (a range difference needs two anchors)")
+        return dict(counts)
 
     def usable(self) -> pd.DataFrame:
         """The rows kept, sorted by time (stable) when the table has one; counts `reordered`."""
@@ -178,19 +191,17 @@ def ingest_run(run_dir: str | Path, campaign: Campaign | None = None) -> tuple[d
     paths = {name: find(run_dir, name) for name in COLUMNS}
     if paths["anchors"] is None:
         raise IngestError(f"{run_dir}: no anchors.csv or anchors.parquet")
-    if paths["ranges"] is None and paths["rss"] is None:
-        raise IngestError(f"{run_dir}: needs ranges.csv/.parquet or rss.csv/.parquet")
+    if paths["ranges"] is None and paths["rss"] is None and paths["tdoa"] is None:
+        raise IngestError(f"{run_dir}: needs ranges.csv/.parquet, rss.csv/.parquet or tdoa.csv/.parquet")
     parsed = {name: _Table(path, name) for name, path in paths.items() if path is not None}
     anchors = parsed["anchors"].usable()
     _unique_anchors(parsed["anchors"], anchors)
     if "z" not in anchors:
         anchors["z"] = np.nan
     unknown = {name: parsed[name].known_anchors(set(anchors["anchor_id"]), paths["anchors"].name)
-               for name in ("ranges", "rss") if name in parsed}
+               for name in ("ranges", "rss", "tdoa") if name in parsed}
     result = {name: (parsed[name].usable() if name in parsed else tables.empty(name))
-              for name in ("ranges", "rss", "imu", "truth")}
-    if "odometry" in parsed:              # an optional table: written only where the run has it
-        result["odometry"] = parsed["odometry"].usable()
+              for name in ("ranges", "rss", "tdoa", "imu", "truth", "odometry")}
     if "status" not in result["ranges"]:
         result["ranges"]["status"] = 0
     result["ranges"]["status"] = result["ranges"]["status"].astype(np.int32)

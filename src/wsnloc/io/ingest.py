@@ -41,6 +41,7 @@ def ingest_one(fmt: str, run_dir: str | Path, campaign: Campaign | None, out_dir
     if campaign is None and fmt != "generic":
         raise IngestError(f"the {fmt} format needs a campaign file (anchors, path, radio parameters)")
     result, inventory = parser_for(fmt)(Path(run_dir), campaign)
+    result = {**{name: tables.empty(name) for name in tables.RAW_TABLES}, **result}   # tables a format lacks: empty
     out_dir = Path(out_dir)
     for name, frame in result.items():
         tables.write(name, frame, out_dir / f"{name}.parquet",

@@ -63,6 +63,14 @@ SCHEMAS: dict[str, pa.Schema] = {
         _field("status", pa.int32(), "1", "device status, 0 = valid; other values flag a meaningless range"),
         _LINE,
     ]),
+    "tdoa": pa.schema([
+        _field("t", pa.float64(), "s", "time of the tag's transmission (or of the paired ranges)"),
+        _field("anchor_id", pa.string(), "", "anchor identifier"),
+        _field("ref_anchor_id", pa.string(), "", "reference anchor of the pair"),
+        _field("tdoa_m", pa.float64(), "m", "range difference d(anchor) - d(ref): c * (arrival at anchor - "
+               "arrival at ref)"),
+        _LINE,
+    ]),
     "rss": pa.schema([
         _field("t", pa.float64(), "s", "receive time on the logger clock"),
         _field("seq", pa.int32(), "1", "broadcast sequence counter (-1 when the format has none)"),
@@ -146,8 +154,7 @@ SCHEMAS: dict[str, pa.Schema] = {
     ]),
 }
 
-RAW_TABLES = ("ranges", "rss", "imu", "truth", "anchors", "quarantine")
-OPTIONAL_TABLES = ("odometry",)       # raw tables only some runs have (a file only where the run has it)
+RAW_TABLES = ("ranges", "rss", "tdoa", "imu", "truth", "odometry", "anchors", "quarantine")
 
 
 def empty(table: str) -> pd.DataFrame:

@@ -8,6 +8,7 @@ Static, at a point p = (x, y) (m), anchors a_i, d_i = ||p - a_i|| (floored at 1 
 - Fisher information J(p) = sum_i g_i g_i^T / sigma_i^2 (2 x 2); hybrid = J_TOA + J_RSS.
 - Position bound (m): sqrt(trace(J^-1)), a lower bound on the RMSE of any unbiased estimator;
   infinite where J is singular (fewer than two anchors, or all in line with the point).
+- TDOA (pairs of receivers, correlated noise, TdoaModel): J = H^T R^-1 H (tdoa_crlb, tdoa_gdop).
 - TOA GDOP = sqrt(trace((G^T G)^-1)), G rows g_i (unit vectors for 2-D ranges), i.e. the TOA
   bound with sigma = 1 m: CRLB = sigma GDOP for equal sigmas.
 The 2 x 2 information matrices are kept as their three unique entries (Jxx, Jxy, Jyy) in the
@@ -22,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from wsnloc.filters.measurement_models import MIN_DISTANCE
+from wsnloc.filters.measurement_models import MIN_DISTANCE, TdoaModel
 
 LN10 = np.log(10.0)
 
@@ -95,6 +96,28 @@ def hybrid_crlb(points, toa_anchors, sigma_m, rss_anchors, exponent: float, sigm
 def gdop(points, anchors, dz_m=None) -> np.ndarray:
     """TOA geometric dilution of precision sqrt(trace((G^T G)^-1)) (dimensionless) at each point."""
     return toa_crlb(points, anchors, 1.0, dz_m)
+
+
+def tdoa_crlb(points, receivers, pairs, sigma_m, dz_m=None) -> np.ndarray:
+    """TDOA position bound sqrt(trace(J^-1)) (m) at each point (P,): J = H^T R^-1 H of the pairs
+    (receiver, reference) = receivers[pairs[i]] (TdoaModel: h_i = r_a - r_b, R = D diag(sigma^2) D^T,
+    sigma_m the arrival noise of each receiver, m; dz_m their heights above the tag, None in 2-D)."""
+    model = TdoaModel(np.asarray(receivers, dtype=float)[:, :2], np.asarray(pairs, dtype=np.intp), sigma_m,
+                      None if dz_m is None else np.asarray(dz_m, dtype=float))
+    R_inv = np.linalg.inv(model.R())
+    information = []
+    for point in np.asarray(points, dtype=float):
+        H = model.jacobian(point[:2])
+        J = H.T @ R_inv @ H
+        information.append((J[0, 0], J[0, 1], J[1, 1]))
+    return position_bound(np.array(information).reshape(-1, 3))
+
+
+def tdoa_gdop(points, receivers, pairs, dz_m=None) -> np.ndarray:
+    """TDOA GDOP (dimensionless): tdoa_crlb with 1 m arrival noise, so CRLB = sigma GDOP. With
+    receivers close together and the tag far away it grows with the distance squared over the
+    aperture: the range differences fix the bearing and hardly the distance."""
+    return tdoa_crlb(points, receivers, pairs, 1.0, dz_m)
 
 
 def grid_points(width_m: float, height_m: float, spacing_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -36,14 +36,12 @@ def load_runs(tables_dirs, names=tables.RAW_TABLES, imu_dirs=None, first: int | 
     """{run: {table: DataFrame}} for every run directory under the (shard) folder(s), in run order.
 
     names: the tables to read (default all; an estimator without IMU input skips the large
-    500 Hz table); "imu_5hz" is read from `imu_dirs` (the resample stage's folders); an
-    optional table (tables.OPTIONAL_TABLES: odometry) only where the run has its file;
+    500 Hz table); "imu_5hz" is read from `imu_dirs` (the resample stage's folders);
     first: only the first N runs.
     """
     imu = imu_files(imu_dirs) if "imu_5hz" in names else {}
     return {run: {name: tables.read(imu[run] if name == "imu_5hz" else folder / f"{name}.parquet")
-                  for name in names if name not in tables.OPTIONAL_TABLES or (folder / f"{name}.parquet").is_file()}
-            for run, folder in list(run_folders(tables_dirs).items())[:first]}
+                  for name in names} for run, folder in list(run_folders(tables_dirs).items())[:first]}
 
 
 def run_folders(tables_dirs) -> dict[str, Path]:

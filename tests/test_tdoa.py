@@ -1,0 +1,261 @@
+"""TDOA: generic tdoa.csv ingest, the measurement model, the hyperbolic solver, the filters on
+range differences, their bounds, and `wsnloc estimate` picking TDOA on its own."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from wsnloc.analysis.filter_bounds import filter_pcrb
+from wsnloc.cli import main
+from wsnloc.estimators import registry
+from wsnloc.estimators.run_data import RunData
+from wsnloc.estimators.tdoa import independent_pairs
+from wsnloc.filters.measurement_models import TdoaModel
+from wsnloc.geometry.hyperbolic import tdoa_fix
+from wsnloc.io.generic import ingest_run
+from wsnloc.metrics.bounds import tdoa_crlb, tdoa_gdop
+from wsnloc.metrics.tracking import score
+
+from synthetic import SQUARE, tables_for, tdoa_table, walk
+from wsnloc.filters.motion_models import constant_velocity
+
+FIELD = {"A1": (0.0, 0.0), "A2": (60.0, 0.0), "A3": (60.0, 60.0), "A4": (0.0, 60.0)}
+PERIOD = 0.5
+
+
+# ---- ingest ----------------------------------------------------------------------------------------
+@pytest.fixture
+def run_dir(tmp_path):
+    (tmp_path / "anchors.csv").write_text("anchor_id,tech,x,y\nA1,uwb,0,0\nA2,uwb,10,0\nA3,uwb,0,10\n")
+    (tmp_path / "tdoa.csv").write_text(
+        "t,anchor_id,ref_anchor_id,tdoa_m\n0.0,A2,A1,1.5\n0.0,A3,A1,-0.5\n0.1,A2,A2,0.0\n0.1,A9,A1,1.0\n"
+        "0.2,A2,A7,1.0\n0.3,A3,A1,inf\n0.05,A2,A1,1.4\n0.4,,A1,1.0\n0.5,A3,A1\n")
+    return tmp_path
+
+
+def test_tdoa_table_ingested_with_quarantine(run_dir):
+    result, inventory = ingest_run(run_dir)
+    tdoa = result["tdoa"]
+    assert tdoa[["t", "anchor_id", "ref_anchor_id", "tdoa_m", "line"]].values.tolist() == [
+        [0.0, "A2", "A1", 1.5, 2], [0.0, "A3", "A1", -0.5, 3], [0.05, "A2", "A1", 1.4, 8]]   # sorted by t
+    q = result["quarantine"].set_index("line")["reason"].to_dict()
+    assert q == {4: "anchor 'A2' is its own reference (a range difference needs two anchors)",
+                 5: "unknown anchor 'A9' (not in anchors.csv)",
+                 6: "unknown reference anchor 'A7' (not in anchors.csv)",
+                 7: "tdoa_m 'inf' is not a finite number", 9: "anchor_id is empty",
+                 10: "expected 4 fields (t,anchor_id,ref_anchor_id,tdoa_m), found 3"}
+    assert set(result["quarantine"]["file"]) == {"tdoa.csv"}
+    assert inventory["tdoa.csv"]["quarantined"] == 6 and inventory["tdoa.csv"]["unknown_anchors"] == {"A9": 1, "A7": 1}
+    assert len(result["ranges"]) == 0 and len(result["rss"]) == 0
+
+
+def test_tdoa_alone_is_a_run_and_the_cli_writes_its_parquet(run_dir, tmp_path):
+    out = tmp_path / "out"
+    (run_dir / "tdoa.csv").write_text("t,anchor_id,ref_anchor_id,tdoa_m\n0.0,A2,A1,1.5\n0.0,A3,A1,-0.5\n"
+                                      "0.05,A2,A1,1.4\n")
+    assert main(["ingest", "--format", "generic", str(run_dir), str(out)]) == 0
+    written = pd.read_parquet(next(out.rglob("tdoa.parquet")))
+    assert written["tdoa_m"].tolist() == [1.5, -0.5, 1.4]
+    (run_dir / "tdoa.csv").write_text("t,anchor_id,ref_anchor_id,tdoa_m\n")
+    with pytest.raises(Exception, match="tdoa.csv: no data rows"):
+        ingest_run(run_dir)
+
+
+# ---- model -----------------------------------------------------------------------------------------
+def _numerical_jacobian(f, x, step=1e-6):
+    return np.column_stack([(f(x + e) - f(x - e)) / (2 * step) for e in np.eye(len(x)) * step])
+
+
+@pytest.mark.parametrize("dz", [None, np.array([1.5, -0.5, 2.0, 0.3])])
+def test_tdoa_model_jacobian_and_correlated_noise(dz):
+    receivers = np.array([[0.0, 0.0], [20.0, 0.0], [20.0, 20.0], [3.0, 17.0]])
+    pairs = np.array([[1, 0], [2, 0], [3, 0], [3, 1]])
+    model = TdoaModel(receivers, pairs, np.array([0.1, 0.2, 0.3, 0.4]), dz)
+    x = np.array([7.0, 4.0, 0.3, -0.2])
+    np.testing.assert_allclose(model.jacobian(x), _numerical_jacobian(model.h, x), atol=1e-8)
+    r = np.hypot(*(x[:2] - receivers).T)
+    r = r if dz is None else np.sqrt(r**2 + dz**2)
+    np.testing.assert_allclose(model.h(x), r[pairs[:, 0]] - r[pairs[:, 1]])
+    np.testing.assert_allclose(model.h_many(np.array([x, x])), np.array([model.h(x)] * 2))
+    R = model.R()
+    # var of pair (1, 0) = s1^2 + s0^2; pairs sharing reference 0 covary by s0^2; (3,0) and (3,1) by s3^2;
+    # (1,0) and (3,1): -s1^2 (receiver 1 is the reference of one, the receiver of the other)
+    assert R[0, 0] == pytest.approx(0.05) and R[0, 1] == pytest.approx(0.01) and R[2, 3] == pytest.approx(0.16)
+    assert R[0, 3] == pytest.approx(-0.04) and np.allclose(R, R.T)
+
+
+def test_redundant_pairs_are_left_out():
+    assert independent_pairs(np.array([[1, 0], [2, 1], [2, 0], [3, 0]])).tolist() == [True, True, False, True]
+
+
+# ---- hyperbolic solver ------------------------------------------------------------------------------
+@pytest.mark.parametrize("truth", [(7.0, 4.0), (25.0, -8.0), (10.0, 10.0), (-30.0, 45.0)])
+@pytest.mark.parametrize("dz", [None, np.array([1.5, -0.5, 2.0, 0.3])])
+def test_hyperbolic_solver_recovers_noise_free_positions(truth, dz):
+    receivers = np.array([[0.0, 0.0], [20.0, 0.0], [20.0, 20.0], [3.0, 17.0]])
+    for pairs in (np.array([[1, 0], [2, 0], [3, 0]]), np.array([[1, 0], [2, 1], [3, 2]])):   # one or several refs
+        model = TdoaModel(receivers, pairs, 0.1, dz)
+        fix = tdoa_fix(model, model.h(np.array(truth)))
+        assert fix is not None and np.hypot(*(fix - truth)) < 1e-6
+
+
+def test_hyperbolic_solver_refuses_too_few_pairs_and_far_branches():
+    receivers = np.array([[0.0, 0.0], [20.0, 0.0], [20.0, 20.0], [3.0, 17.0]])
+    model = TdoaModel(receivers, np.array([[1, 0]]), 0.1)
+    assert tdoa_fix(model, [3.0]) is None
+    model = TdoaModel(receivers, np.array([[1, 0], [2, 0], [3, 0]]), 0.1)
+    assert tdoa_fix(model, model.h(np.array([300.0, 40.0])), max_range_m=100.0) is None
+
+
+# ---- bounds ---------------------------------------------------------------------------------------
+def test_tdoa_gdop_grows_with_distance_from_a_small_cluster():
+    """The geometry limit of TDOA from clustered anchors: 4 anchors within 2.6 m, tag 5..50 m away."""
+    cluster = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.6], [0.0, 1.6]])
+    pairs = np.array([[1, 0], [2, 0], [3, 0]])
+    near, far = tdoa_gdop(np.array([[6.0, 0.8], [50.0, 0.8]]), cluster, pairs)
+    assert far > 30 * near                             # ~ (distance / aperture)^2
+    square = np.array([[0.0, 0.0], [20.0, 0.0], [20.0, 20.0], [0.0, 20.0]])
+    assert tdoa_crlb(np.array([[10.0, 10.0]]), square, pairs, 0.1)[0] == pytest.approx(
+        0.1 * tdoa_gdop(np.array([[10.0, 10.0]]), square, pairs)[0])
+    assert tdoa_gdop(np.array([[10.0, 10.0]]), square, pairs)[0] < 2.0
+
+
+# ---- filters ---------------------------------------------------------------------------------------
+def tdoa_run(seconds=60.0, noise=0.1, seed=0, rate_hz=10.0):
+    rng = np.random.default_rng(seed)
+    times = np.arange(1.0 / rate_hz, seconds, 1.0 / rate_hz)
+    tables = tables_for(times[:1], np.array(["A1"], dtype=object), walk, SQUARE)
+    tables["ranges"] = tables["ranges"].iloc[:0]
+    tables["truth"] = tables_for(times, np.repeat(np.array(["A1"], dtype=object), len(times)), walk)["truth"]
+    tables["tdoa"] = tdoa_table(times, walk, SQUARE, noise_m=noise, rng=rng)
+    return RunData(tables, None, None, f"tdoa-{seed}")
+
+
+@pytest.mark.parametrize("name", ["tracker", "ekf", "ukf", "pf", "ekf_rts", "ekf_filterpy"])
+def test_filters_track_range_differences(name):
+    data = tdoa_run()
+    estimates = registry.run(name, data, {"measurements": "tdoa", "range_sigma_m": 0.1})
+    errors = score(estimates, data.table("truth"))["error_m"]
+    assert errors.notna().mean() > 0.95 and np.nanmedian(errors) < 0.25, (name, np.nanmedian(errors))
+
+
+def test_tdoa_gate_rejects_outlier_groups():
+    data = tdoa_run(seed=3)
+    tdoa = data.tables["tdoa"]
+    bad = tdoa.index[::37]
+    tdoa.loc[bad, "tdoa_m"] += 8.0                      # NLOS-like outliers
+    clean = registry.run("tracker", tdoa_run(seed=3), {"measurements": "tdoa", "range_sigma_m": 0.1})
+    gated = registry.run("tracker", data, {"measurements": "tdoa", "range_sigma_m": 0.1})
+    plain = registry.run("tracker", data, {"measurements": "tdoa", "range_sigma_m": 0.1, "gate_probability": 0.0})
+    truth = data.table("truth")
+    median = {k: np.nanmedian(score(e, truth)["error_m"]) for k, e in
+              {"clean": clean, "gated": gated, "plain": plain}.items()}
+    assert gated.attrs["gated"] >= len(bad) and median["gated"] < 1.5 * median["clean"] < median["plain"], median
+
+
+def test_tdoa_ekf_rmse_over_sqrt_pcrb_on_data_from_its_own_model():
+    """EKF (PV, sequential updates) on a PV random-acceleration trajectory with TDOA of correlated
+    arrival noise, 40 Monte Carlo runs: RMSE / sqrt(mean PCRB) over all outputs in [0.9, 1.3]."""
+    rng = np.random.default_rng(7)
+    accel, sigma, speed = 0.1, 0.05, 0.3
+    p = registry.get("ekf").resolve({"measurements": "tdoa", "update": "sequential", "accel_sigma_mps2": accel,
+                                     "range_sigma_m": sigma, "initial_speed_sigma_mps": speed,
+                                     "initial_sigma_m": 1.0, "max_range_m": 1e3})
+    F, Q = constant_velocity(PERIOD, accel)
+    chol = np.linalg.cholesky(Q + 1e-15 * np.eye(4))
+    squared, bound = [], []
+    for _ in range(40):
+        n = int(30.0 / PERIOD) + 2
+        state = np.empty((n, 4))
+        state[0] = [30.0, 30.0, *rng.normal(0.0, speed, 2)]
+        for k in range(1, n):
+            state[k] = F @ state[k - 1] + chol @ rng.normal(size=4)
+        t_samples = np.arange(n) * PERIOD
+
+        def positions(t, state=state, t_samples=t_samples):
+            return np.column_stack([np.interp(t, t_samples, state[:, 0]), np.interp(t, t_samples, state[:, 1])])
+
+        times = t_samples[1:-1]
+        tables = tables_for(times, np.repeat(np.array([next(iter(FIELD))], dtype=object), len(times)), positions,
+                            FIELD, truth_step_s=PERIOD)
+        tables["ranges"] = tables["ranges"].iloc[:0]
+        tables["tdoa"] = tdoa_table(times, positions, FIELD, noise_m=sigma, rng=rng)
+        data = RunData(tables, None, None, "mc")
+        scored = score(registry.run("ekf", data, p), data.table("truth"))
+        pcrb = filter_pcrb(data, p)
+        merged = scored.merge(pcrb, on="t")
+        squared.append(merged["error_m"].to_numpy() ** 2)
+        bound.append((merged["pcrb_xx"] + merged["pcrb_yy"]).to_numpy())
+    ratio = np.sqrt(np.nanmean(np.concatenate(squared)) / np.nanmean(np.concatenate(bound)))
+    assert 0.9 <= ratio <= 1.3, ratio
+
+
+# ---- wsnloc estimate ---------------------------------------------------------------------------------
+def test_estimate_picks_tdoa_on_a_tdoa_run(tmp_path, capsys):
+    data = tdoa_run(seconds=30.0, seed=5)
+    run = tmp_path / "run"
+    run.mkdir()
+    anchors = data.tables["anchors"].drop(columns="z")
+    anchors.to_csv(run / "anchors.csv", index=False)
+    data.tables["tdoa"].drop(columns="line").to_csv(run / "tdoa.csv", index=False)
+    data.tables["truth"][["t", "x", "y"]].to_csv(run / "truth.csv", index=False)
+    out = tmp_path / "out"
+    assert main(["estimate", "--format", "generic", str(run), "--out", str(out)]) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["availability"] > 0.9 and metrics["median_m"] < 0.5, metrics
+    assert "measurements=tdoa" in capsys.readouterr().out
+    assert main(["estimate", "--format", "generic", str(run), "--out", str(out), "--estimator", "minmax"]) != 0
+    assert "range differences (TDOA), read by the estimators `wsnloc estimators` marks [TDOA]" in capsys.readouterr().err
+
+
+def test_registry_lists_tdoa_among_the_filters_measurements(capsys):
+    accepting = {name for name, e in registry.ESTIMATORS.items() if e.reads_tdoa}
+    assert {"ekf", "tracker", "ukf", "pf", "ekf_rts"} <= accepting and "minmax" not in accepting
+    assert main(["estimators"]) == 0
+    listed = {line.split(":")[0].split()[0] for line in capsys.readouterr().out.splitlines() if "[TDOA]" in line}
+    assert listed == accepting
+
+
+# ---- TDOA made from two-way ranges ---------------------------------------------------------------------
+def test_ranges_to_tdoa_pairs_by_interpolation_within_the_window():
+    from wsnloc.io.tdoa_from_ranges import ranges_to_tdoa
+
+    ranges = pd.DataFrame({
+        "t": [0.0, 0.01, 0.02, 0.1, 0.11, 0.12, 0.2, 0.21, 2.0, 2.01],
+        "anchor_id": ["R", "B", "C", "R", "B", "C", "R", "B", "R", "C"],
+        "range_m": [5.0, 6.0, 7.0, 5.0, 6.2, 7.0, 5.5, 6.4, 5.0, 9.0],
+        "status": [0, 0, 0, 0, 0, 1, 0, 0, 0, 0]})
+    tdoa = ranges_to_tdoa(ranges, window_s=0.25)
+    assert set(tdoa["ref_anchor_id"]) == {"R"}                      # the anchor with the most ranges
+    got = {(round(t, 3), a): round(v, 9) for t, a, v in tdoa[["t", "anchor_id", "tdoa_m"]].itertuples(index=False)}
+    # B at t_ref = 0.1: between (0.01, 6.0) and (0.11, 6.2) -> 6.18; C at 0.1: its 0.12 sample is flagged, so
+    # (0.02, 7.0) and (2.01, 9.0) bracket it, too far apart -> no pair; R at 0.0 has no B sample before it
+    assert got == {(0.1, "B"): round(6.18 - 5.0, 9), (0.2, "B"): round(6.38 - 5.5, 9)}, got
+
+
+def test_convert_tdoa_cli_writes_a_tdoa_run_that_estimate_tracks(tmp_path):
+    data = tdoa_run(seconds=20.0)
+    times = np.arange(0.1, 20.0, 0.1)
+    ids = np.tile(np.array(list(SQUARE), dtype=object), len(times))
+    stamps = np.repeat(times, len(SQUARE)) + np.tile(np.arange(len(SQUARE)) * 0.002, len(times))   # one round
+    ranges = tables_for(stamps, ids, walk, SQUARE)["ranges"]
+    run = tmp_path / "src" / "case"
+    run.mkdir(parents=True)
+    data.tables["anchors"].drop(columns="z").to_csv(run / "anchors.csv", index=False)
+    ranges[["t", "anchor_id", "range_m"]].to_csv(run / "ranges.csv", index=False)
+    data.tables["truth"][["t", "x", "y"]].to_csv(run / "truth.csv", index=False)
+    assert main(["convert", "tdoa", str(tmp_path / "src"), str(tmp_path / "out")]) == 0
+    converted = tmp_path / "out" / "case"
+    assert not (converted / "ranges.csv").exists() and (converted / "truth.csv").exists()
+    tdoa = pd.read_csv(converted / "tdoa.csv")
+    assert len(tdoa) >= 0.95 * 3 * len(times)
+    truth = walk(tdoa["t"].to_numpy())
+    anchors = {a: np.array(xy) for a, xy in SQUARE.items()}
+    true = [np.hypot(*(p - anchors[a])) - np.hypot(*(p - anchors[b]))
+            for p, a, b in zip(truth, tdoa["anchor_id"], tdoa["ref_anchor_id"])]
+    assert np.max(np.abs(tdoa["tdoa_m"] - true)) < 0.01              # interpolation over 2 ms at 0.5 m/s
+    assert main(["estimate", "--format", "generic", str(converted), "--out", str(tmp_path / "est")]) == 0
+    metrics = json.loads((tmp_path / "est" / "metrics.json").read_text())
+    assert metrics["availability"] > 0.9 and metrics["median_m"] < 0.3, metrics
