@@ -171,3 +171,17 @@ def test_tdoa_tracks_a_3d_flight_with_a_3d_state():
     assert "z" in est and metrics["availability"] > 0.9 and metrics["rmse_3d"] < 0.5, metrics
     flat = registry.run("ekf", run, dict(FLIGHT, measurements="tdoa", range_sigma_m=0.1, dimensions=2))
     assert "z" not in flat
+
+
+def test_study_tables_stack_3d_tracks_beside_planar_ones():
+    """A study stacks its cells' tracks on the planar columns (batched.stacked): a 3-D cell beside
+    a 2-D one stacks, its horizontal estimates kept."""
+    from wsnloc.estimators.batched import cell_tracks, stacked
+
+    data, _ = flight(3)
+    planar, spatial = cell_tracks("ekf", [(data, {k: v for k, v in FLIGHT.items() if k != "dimensions"}),
+                                          (data, FLIGHT)])
+    assert spatial.columns[-2:] == ["z", "p_zz"] and planar.rows.shape[1] == 8
+    frame = stacked([planar, spatial], {"cell": ["2d", "3d"]})
+    assert len(frame) == len(planar.rows) + len(spatial.rows)
+    np.testing.assert_array_equal(frame["x"].to_numpy()[len(planar.rows):], spatial.rows[:, 1])

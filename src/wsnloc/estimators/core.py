@@ -127,10 +127,10 @@ class Track:
     @classmethod
     def of(cls, estimates: pd.DataFrame) -> "Track":
         """The Track of an estimator's frame, as registry.finish would leave it: the columns
-        it lacks NaN, rows sorted by time (stable) when they are not."""
+        it lacks NaN (COLUMNS_3D for a frame with z), rows sorted by time (stable) when they are not."""
         n = len(estimates)
         rows = np.column_stack([estimates[c].to_numpy(float) if c in estimates else np.full(n, np.nan)
-                                for c in COLUMNS])
+                                for c in (COLUMNS_3D if "z" in estimates else COLUMNS)])
         if not estimates["t"].is_monotonic_increasing:
             rows = rows[np.argsort(rows[:, 0], kind="stable")]
         return cls(rows, dict(estimates.attrs))
