@@ -186,13 +186,12 @@ def _position(x: np.ndarray, P: np.ndarray, axes: int = 2) -> tuple:
     return (x[0], x[1], P[0, 0], P[0, 1], P[1, 1]) + ((x[2], P[2, 2]) if axes == 3 else ())
 
 
-def _rows(t, estimates: np.ndarray, used, nis) -> np.ndarray:
-    """Estimate rows (columns(axes)) from t, the bank's estimates (rows, 5 or 7: x, y, p_xx,
-    p_xy, p_yy [, z, p_zz]), n_meas and nis."""
-    estimates = np.atleast_2d(estimates)
-    n = len(estimates)
-    return np.column_stack([np.broadcast_to(t, n), estimates[:, :5], np.broadcast_to(used, n),
-                            np.broadcast_to(nis, n), estimates[:, 5:]])
+def _put(out: np.ndarray, rows, k: int, t, estimates: np.ndarray, used, nis) -> None:
+    """Write the estimate rows (columns(axes)) of `rows` at epoch k: t, the bank's estimates
+    (rows, 5 or 7: x, y, p_xx, p_xy, p_yy [, z, p_zz]), n_meas and nis."""
+    out[rows, k, 0], out[rows, k, 1:6], out[rows, k, 6], out[rows, k, 7] = t, estimates[:, :5], used, nis
+    if estimates.shape[1] > 5:
+        out[rows, k, 8:] = estimates[:, 5:]
 
 
 # ---- the loops -----------------------------------------------------------------------------------
@@ -227,7 +226,7 @@ def epoch_loop(bank, runs: list[RunInputs], motion, period: float, initiator, de
                     continue
                 bank.start(i, *prior, motion)
                 live[i], last_update[i], emitted[i, k] = True, t[i], True
-                out[i, k] = _rows(t[i], bank.estimates([i]), 0, np.nan)[0]
+                _put(out, i, k, t[i], bank.estimates([i]), 0, np.nan)
                 if forward is not None:
                     forward.start(bank.track(i))
                     forward.output()
@@ -249,7 +248,7 @@ def epoch_loop(bank, runs: list[RunInputs], motion, period: float, initiator, de
             resets[rows[drop]] += 1
             rows, used, nis = rows[~drop], used[~drop], nis[~drop]
         emitted[rows, k] = True
-        out[rows, k] = _rows(t[rows], bank.estimates(rows), used, nis)
+        _put(out, rows, k, t[rows], bank.estimates(rows), used, nis)
         if forward is not None and len(rows):
             forward.node(bank.track(0), steps[0] if len(moving) else None)
             forward.output()

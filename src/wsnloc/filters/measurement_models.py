@@ -40,7 +40,8 @@ def _norm(diff):
 def _geometry(x, anchors):
     """(p - a_i (m, k), d_i (m,)) with k = 2 or 3, the anchors' coordinates."""
     diff = np.asarray(x, dtype=float)[None, :anchors.shape[1]] - anchors
-    return diff, np.maximum(_norm(diff), MIN_DISTANCE)
+    d = np.hypot(diff[:, 0], diff[:, 1]) if anchors.shape[1] == 2 else np.sqrt(np.sum(diff**2, axis=1))
+    return diff, np.maximum(d, MIN_DISTANCE)
 
 
 def _distances_many(X, anchors):
