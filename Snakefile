@@ -37,6 +37,7 @@ include: "workflow/rules/paper_b.smk"
 include: "workflow/rules/papers_ac.smk"
 include: "workflow/rules/studies.smk"
 include: "workflow/rules/bounds.smk"
+include: "workflow/rules/ranging.smk"
 include: "workflow/rules/report.smk"
 
 

@@ -131,6 +131,7 @@ def small_config(config: dict) -> None:
     for name in ("paper_a", "paper_b", "paper_d"):
         experiments[name]["scenarios"] = ["newcom/constant"]
     experiments["paper_b"]["simulation_scenarios"] = []
+    experiments["paper_b"]["overrides"] = {}      # its simulation scenario's
     experiments["paper_d"]["cost_iterations"] = 500
     experiments["paper_c"]["scenarios"] = ["cricket/speed_40"]
     experiments["paper_c"]["table_2_scenario"] = "cricket/speed_40"

@@ -21,17 +21,20 @@ from wsnloc.sim.newcom import simulate_run
 from wsnloc.sim.seeding import run_seed_sequence
 
 RSS_MODEL = {"p0_dbm": -50.0, "path_loss_exponent": 3.0, "sigma_db": 5.0, "d0_m": 1.0}
-SETTINGS_A = dict(epoch_s=0.5, rows=[{"measurements": "toa", "uwb": "UWB=12"}, {"measurements": "toa", "uwb": "UWB=9"},
-                                     {"measurements": "rss", "zigbee": "ZigBee=21"},
-                                     {"measurements": "hybrid", "uwb": "UWB=9", "zigbee": "ZigBee=17"}],
-                  uwb_preliminary_filter=True, max_range_m=50.0, range_sigma_m=0.3, rss_calibration="configured",
-                  rss_model=RSS_MODEL, accel_sigma_mps2=0.3, initial_sigma_m=1.0, initial_speed_sigma_mps=0.3,
-                  motion_threshold_mps2=0.05, static_reference_s=4.0)
-SETTINGS_C = dict(epoch_s=0.5, table_1_subset="6: B1..B6",
-                  table_2_subsets=["3: B1,B3,B4", "4: B1,B3,B4,B6", "6: B1..B6"],
-                  table_2_scenario="cricket/speed_40", range_sigma_m=0.05, max_range_m=12.0, p_sigma_m=0.15,
-                  pv_accel_sigma_mps2=0.3, pva_accel_sigma_mps2=0.1, pva_bias_walk_sigma=0.01, initial_sigma_m=0.5,
-                  initial_speed_sigma_mps=0.3, initial_bias_sigma_mps2=0.05, static_bias_s=4.0)
+SPEC_A = {"scenarios": ["newcom/constant"],   # experiments.paper_a as in config/config.yaml
+          "parameters": dict(epoch_s=0.5, max_range_m=50.0, range_sigma_m=0.3, rss_calibration="configured",
+                             **RSS_MODEL, accel_sigma_mps2=0.3, initial_speed_sigma_mps=0.3),
+          "estimators": {"Table I": {"estimator": "ekf"}, "Table II": {"estimator": "ekf", "motion_detection": True}},
+          "rows": [{"measurements": "toa", "anchors": "UWB=12"}, {"measurements": "toa", "anchors": "UWB=9"},
+                   {"measurements": "rss", "anchors": "ZigBee=21"},
+                   {"measurements": "hybrid", "anchors": "UWB=9+ZigBee=17"}]}
+SPEC_C = {"scenarios": ["cricket/speed_40"], "table_1_subset": "6: B1..B6",   # experiments.paper_c
+          "table_2_subsets": ["3: B1,B3,B4", "4: B1,B3,B4,B6", "6: B1..B6"], "table_2_scenario": "cricket/speed_40",
+          "parameters": dict(epoch_s=0.5, range_sigma_m=0.05, max_range_m=12.0, accel_sigma_mps2=0.3,
+                             initial_sigma_m=0.5, initial_speed_sigma_mps=0.3),
+          "estimators": {"P": {"estimator": "ekf", "motion": "p"}, "PV": {"estimator": "ekf"},
+                         "PVA": {"estimator": "ekf", "motion": "pva", "accel_sigma_mps2": 0.1}}}
+LABEL_A = "newcom/constant"
 
 
 def _arrays(monkeypatch, call):
@@ -195,13 +198,12 @@ def test_batched_kf_over_fixes_with_a_gap_in_one_run():
 def test_paper_a_runs_and_rows_stepped_together_equal_registry_run(campaign, simulated_runs):
     """paper_a.run_all steps its cells (rows x with / without motion detection) of every run
     together, and splits them back per run."""
-    settings = paper_a.Settings.from_config(SETTINGS_A)
     datas = _datas(simulated_runs[:2], campaign)
-    params = [paper_a.estimator_params(settings, row, md) for row in settings.rows for md in (False, True)]
+    params = [paper_a.cell_params(SPEC_A, LABEL_A, table, row) for row in SPEC_A["rows"] for table in paper_a.TABLES]
     cells = [(data, q) for data in datas for q in params]
     single = [registry.run("ekf", data, q, where="experiments.paper_a") for data, q in cells]
     _assert_same(batched.run_cells("ekf", cells, where="experiments.paper_a"), single)
-    scored = paper_a.run_all(datas, settings)
+    scored = paper_a.run_all(datas, SPEC_A, LABEL_A)
     n = len(params)
     assert [len(s) for s in scored] == [sum(len(f) for f in single[:n]), sum(len(f) for f in single[n:])]
 
@@ -210,17 +212,16 @@ def test_paper_a_run_all_equals_its_cells_frames_labelled_and_concatenated(campa
     """run_all stacks each run's cell arrays into one frame: the same frame (values exactly,
     dtypes, column order, attrs) as the former pd.concat of every cell's run_cells frame with
     its row and table assigned, then scored; and registry.run's cells to 1e-9."""
-    settings = paper_a.Settings.from_config(SETTINGS_A)
-    cells = [(row, table, md) for row in settings.rows for table, md in (("Table I", False), ("Table II", True))]
-    params = [paper_a.estimator_params(settings, row, md) for row, _, md in cells]
+    cells = [(row, table) for row in SPEC_A["rows"] for table in paper_a.TABLES]
+    params = [paper_a.cell_params(SPEC_A, LABEL_A, table, row) for row, table in cells]
     for datas in (_datas(simulated_runs, campaign), _datas(simulated_runs, campaign)[1:]):
         frames = batched.run_cells("ekf", [(d, q) for d in datas for q in params], where="experiments.paper_a")
         single = [registry.run("ekf", d, q, where="experiments.paper_a") for d in datas for q in params]
-        for i, (data, got) in enumerate(zip(datas, paper_a.run_all(datas, settings))):
+        for i, (data, got) in enumerate(zip(datas, paper_a.run_all(datas, SPEC_A, LABEL_A))):
             for tracks, exact in ((frames, True), (single, False)):
                 mine = tracks[i * len(cells):(i + 1) * len(cells)]
                 expected = score(pd.concat([f.assign(row=paper_a.row_label(row), table=table)
-                                            for f, (row, table, _) in zip(mine, cells)], ignore_index=True),
+                                            for f, (row, table) in zip(mine, cells)], ignore_index=True),
                                  data.table("truth"))
                 pd.testing.assert_frame_equal(got, expected, check_exact=exact, rtol=0, atol=1e-9)
                 assert got.attrs == expected.attrs
@@ -248,8 +249,7 @@ def test_paper_c_models_and_subsets_of_one_run_equal_registry_run(tmp_path):
     tables, _ = ingest_cricket(raw, cricket)
     tables["imu_5hz"] = resample_imu(tables["imu"], 5.0, 500.0, 0.1, 8.0)
     data = RunData(tables, cricket, None, "run-1")
-    settings = paper_c.Settings.from_config(SETTINGS_C)
-    params = [paper_c.estimator_params(settings, model, subset) for subset in SETTINGS_C["table_2_subsets"]
+    params = [paper_c.cell_params(SPEC_C, "cricket/speed_40", model, subset) for subset in SPEC_C["table_2_subsets"]
               for model in paper_c.MODELS]
     single = [registry.run("ekf", data, q, where="experiments.paper_c") for q in params]
     frames = batched.run_cells("ekf", [(data, q) for q in params], where="experiments.paper_c")
@@ -257,10 +257,10 @@ def test_paper_c_models_and_subsets_of_one_run_equal_registry_run(tmp_path):
     assert all(len(s) > 50 for s in single)
     # run_all builds one frame per run from the arrays (batched.stacked): the former pd.concat
     # of every cell's run_cells frame with its model and subset assigned, then scored
-    cells = [(model, subset) for subset in SETTINGS_C["table_2_subsets"] for model in paper_c.MODELS]
+    cells = [(model, subset) for subset in SPEC_C["table_2_subsets"] for model in paper_c.MODELS]
     expected = score(pd.concat([f.assign(model=model, subset=subset) for f, (model, subset) in zip(frames, cells)],
                                ignore_index=True), data.table("truth"))
-    got = paper_c.run(data, settings, SETTINGS_C["table_2_subsets"])
+    got = paper_c.run(data, SPEC_C, "cricket/speed_40", SPEC_C["table_2_subsets"])
     pd.testing.assert_frame_equal(got, expected, check_exact=True)
     assert got.attrs == expected.attrs
 

@@ -10,7 +10,7 @@ from wsnloc import results
 from wsnloc.experiments import claims, paper_c, paper_d
 from wsnloc.metrics import op_counts
 from wsnloc.metrics.verdicts import DOES_NOT_HOLD, HOLDS, INCONCLUSIVE
-from wsnloc.report.sections import _cell, summary
+from wsnloc.report.sections import cell_of, summary
 
 RUNS = [f"run-{i:02d}" for i in range(1, 21)]
 
@@ -102,10 +102,7 @@ def test_paper_d_cost_claim_is_decided_on_operation_counts():
 
 def test_paper_c_speed_claim_compares_independent_scenarios():
     rng = np.random.default_rng(3)
-    settings = paper_c.Settings(epoch_s=0.5, table_1_subset="6", table_2_subsets=["3", "6"], table_2_scenario="c/s20",
-                                range_sigma_m=0.05, max_range_m=10, p_sigma_m=0.1, pv_accel_sigma_mps2=0.1,
-                                pva_accel_sigma_mps2=0.1, pva_bias_walk_sigma=0.01, initial_sigma_m=1,
-                                initial_speed_sigma_mps=0.1, initial_bias_sigma_mps2=0.1, static_bias_s=4)
+    layout = {"table_1_subset": "6", "table_2_subsets": ["3", "6"], "table_2_scenario": "c/s20"}
 
     def scenario(level):
         return pd.DataFrame([{"subset": subset, "model": m, "rmse": level + 0.05 * k + extra + rng.normal(0, 0.01),
@@ -114,7 +111,7 @@ def test_paper_c_speed_claim_compares_independent_scenarios():
 
     metrics = {"c/s20": scenario(0.3), "c/s40": scenario(0.4), "c/s60": scenario(0.5)}
     speeds = {"c/s20": "20 cm/s", "c/s40": "40 cm/s", "c/s60": "60 cm/s"}
-    decided = {c["claim"]: c for c in paper_c.claims(metrics, speeds, settings)}
+    decided = {c["claim"]: c for c in paper_c.claims(metrics, speeds, layout)}
     assert [decided[k]["verdict"] for k in decided] == [HOLDS, HOLDS, HOLDS]
     assert "(independent runs)" in decided["The error grows with speed (every model)"]["evidence"]
 
@@ -127,7 +124,7 @@ def test_cells_show_the_difference_only_where_the_paper_lies_outside_our_interva
                               metric="rmse_m", paper_value=0.60),
         results.row_over_runs([0.40, 0.41, 0.42, 0.43, 0.44], experiment="A", table="T", row="r", column="none", scenario="s",
                               metric="rmse_m")])
-    inside, outside, none = (_cell(res, column=c) for c in ("in", "out", "none"))
+    inside, outside, none = (cell_of(res, column=c) for c in ("in", "out", "none"))
     assert inside["inside"] and inside["delta"] is None
     assert not outside["inside"] and outside["delta"] == pytest.approx(0.42 - 0.60)
     assert none["paper"] is None and none["delta"] is None and not none["inside"]
@@ -166,8 +163,8 @@ def test_report_cell_is_the_first_matching_row():
     frame = results.frame([results.single_row(v, experiment="D", table="T", row=r, column="c", scenario="s",
                                               metric="rmse_m", paper_value=1.0)
                            for v, r in ((0.5, "a"), (0.7, "b"), (0.9, "a"))])
-    assert _cell(frame, row="a", column="c")["value"] == 0.5 and _cell(frame, row="b")["value"] == 0.7
-    assert _cell(frame, row="z")["value"] is None
+    assert cell_of(frame, row="a", column="c")["value"] == 0.5 and cell_of(frame, row="b")["value"] == 0.7
+    assert cell_of(frame, row="z")["value"] is None
 
 
 def test_report_numbers_read_the_first_matching_row_or_nan():

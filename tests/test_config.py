@@ -135,11 +135,12 @@ def test_experiment_on_an_undeclared_scenario_is_named(config):
 
 
 @pytest.mark.parametrize("edit, key, value", [
-    (lambda c: c["experiments"]["paper_b"].update(uwb_subset="UWB=11"), "experiments.paper_b.uwb_subset", "UWB=11"),
-    (lambda c: c["experiments"]["paper_a"]["rows"][3].update(zigbee="ZigBee=5"), "experiments.paper_a.rows[3].zigbee",
+    (lambda c: c["experiments"]["paper_b"]["parameters"].update(anchors="UWB=11"), "experiments.paper_b.parameters.anchors",
+     "UWB=11"),
+    (lambda c: c["experiments"]["paper_a"]["rows"][3].update(anchors="ZigBee=5"), "experiments.paper_a.rows[3].anchors",
      "ZigBee=5"),
-    (lambda c: c["experiments"]["paper_d"]["subsets"].update(narrowband="ZigBee=2"),
-     "experiments.paper_d.subsets.narrowband", "ZigBee=2"),
+    (lambda c: c["experiments"]["paper_d"]["parameters"].update(anchors="UWB=12+ZigBee=2"),
+     "experiments.paper_d.parameters.anchors", "ZigBee=2"),
     (lambda c: c["experiments"]["paper_c"]["table_2_subsets"].append("5: B1..B5"),
      "experiments.paper_c.table_2_subsets[3]", "5: B1..B5"),
 ])
@@ -163,7 +164,12 @@ def test_real_log_scenario_without_runs_is_named(config, tmp_path):
     for experiment in ("paper_a", "paper_b", "paper_d"):
         config["experiments"][experiment]["scenarios"] = ["newcom/constant"]
     config["experiments"]["paper_b"]["simulation_scenarios"] = []
+    config["ranging_validation"]["scenarios"] = ["newcom/constant"]
     config["studies"] = {}
+    with pytest.raises(ConfigError, match=r"'experiments.paper_b.overrides.newcom/b_simulation': not a dataset or "
+                                          r"dataset/scenario the paper runs on \(newcom/constant\)"):
+        validate_config(config, SCHEMA)
+    config["experiments"]["paper_b"]["overrides"] = {}
     validate_config(config, SCHEMA)
     config["datasets"]["newcom"]["scenarios"] = ["constant", "variable"]
     with pytest.raises(ConfigError, match=r"'datasets.newcom.scenarios': 'variable' has no run directories"):
@@ -239,4 +245,13 @@ def test_dataset_kind_defaults_from_source_and_must_fit_it(config):
     assert config["datasets"]["newcom"]["kind"] == "simulated"
     config["datasets"]["newcom"]["kind"] = "measured"
     with pytest.raises(ConfigError, match=r"'datasets.newcom.kind': 'measured' does not fit source 'simulate'"):
+        validate_config(config, SCHEMA)
+
+
+def test_ranging_validation_scenario_must_be_declared(config):
+    config["ranging_validation"] = {"scenarios": ["newcom/constnt"]}
+    with pytest.raises(ConfigError, match=r"'ranging_validation.scenarios': 'newcom/constnt' is not a declared"):
+        validate_config(config, SCHEMA)
+    config["ranging_validation"] = {"scenarios": ["cricket/speed_20"]}
+    with pytest.raises(ConfigError, match=r"'ranging_validation.scenarios': the campaign of 'cricket/speed_20' has no"):
         validate_config(config, SCHEMA)

@@ -55,7 +55,7 @@ def test_noise_is_white_at_5hz_with_the_stated_sigma_after_the_resampler(campaig
 
 def test_study_scales_with_noise_and_reaches_the_noise_free_floor(campaign):
     runs = rmse_against_snr(campaign, "b_simulation", [30.0, 50.0, 140.0], runs=2, seed=5,
-                            resample=RESAMPLE, static_bias_s=0.0)
+                            resample=RESAMPLE, static_start_s=0.0)
     assert runs["runs"].tolist() == [2, 2, 2]
     low_snr, mid_snr, noise_free = (np.array(v) for v in runs["run_rmse_m"])
     # Same seeds, same standard-normal draws: 20 dB less SNR is 10x the noise, and the
@@ -68,7 +68,7 @@ def test_study_scales_with_noise_and_reaches_the_noise_free_floor(campaign):
 def test_study_rejects_no_runs(campaign):
     with pytest.raises(ValueError, match="runs"):
         rmse_against_snr(campaign, "b_simulation", [60.0], runs=0, seed=5, resample=RESAMPLE,
-                         static_bias_s=0.0)
+                         static_start_s=0.0)
 
 
 @pytest.mark.parametrize("change, message", [
@@ -94,7 +94,7 @@ def test_campaign_file_names_a_bad_imu_noise_setting(tmp_path, change, message):
 def test_study_shares_each_runs_motion_across_snrs_without_changing_it(campaign):
     from wsnloc.analysis.imu_snr import dead_reckoning_rmse
     curve = rmse_against_snr(campaign, "b_simulation", [40.0, 60.0], runs=2, seed=5, resample=RESAMPLE,
-                             static_bias_s=0.0)
+                             static_start_s=0.0)
     alone = [[dead_reckoning_rmse(campaign, "b_simulation", snr, run, 5, RESAMPLE, 0.0) for run in (1, 2)]
              for snr in (40.0, 60.0)]
     assert curve["run_rmse_m"].tolist() == alone      # exactly: the motion of a run does not depend on the SNR

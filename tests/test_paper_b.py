@@ -206,21 +206,26 @@ def test_fixes_are_aligned_to_the_step_they_arrive_in():
     assert align_fixes(steps, nan_time)[1].tolist() == [2.0, 5.0] and np.isnan(align_fixes(steps, nan_time)[0]).all()
 
 
+SPEC_B = {"scenarios": ["newcom/constant"],   # experiments.paper_b as in config/config.yaml
+          "parameters": {"anchors": "UWB=10", "epoch_s": 0.5, "max_range_m": 50.0, "static_start_s": 4.0,
+                         "process_sigma_m": 0.05, "fix_sigma_m": 1.0},
+          "estimators": {"uwb": {"estimator": "minmax"}, "imu": {"estimator": "dead_reckoning"},
+                         "sskf": {"estimator": "dr_sskf"}, "kf": {"estimator": "dr_kf"}}}
+
+
 def test_paper_b_on_a_simulated_run(campaign, simulated_run):
     from wsnloc.io.newcom import ingest_run
     from wsnloc.signal.resample import resample_imu
 
     tables, _ = ingest_run(simulated_run, campaign)
     imu = resample_imu(tables["imu"], 5.0, 500.0, 0.1, 8.0)
-    settings = paper_b.Settings(epoch_s=0.5, uwb_subset="UWB=10", k_smallest=0, uwb_preliminary_filter=True,
-                                max_range_m=50.0, static_bias_s=4.0, process_sigma_m=0.05, fix_sigma_m=1.0)
     data = RunData(dict(tables, imu_5hz=imu), campaign)
-    estimates = paper_b.run(data, settings)
+    estimates = paper_b.run(data, SPEC_B, "newcom/constant")
     # the former frame: each method's registry.run (t, x, y) with its method assigned, concatenated
-    base = paper_b.estimator_params(settings)
+    base = dict(SPEC_B["parameters"], measurements="toa")
     former = [registry.run(name, data, {k: v for k, v in base.items() if k in {p.name for p in registry.get(name).params}},
                            where="experiments.paper_b")[["t", "x", "y"]].assign(method=method)
-              for method, name in paper_b.METHOD_ESTIMATOR.items()]
+              for method, name in (("uwb", "minmax"), ("imu", "dead_reckoning"), ("sskf", "dr_sskf"), ("kf", "dr_kf"))]
     pd.testing.assert_frame_equal(estimates, score(pd.concat(former, ignore_index=True), tables["truth"]),
                                   check_exact=True)
     assert inertial.floor_input(data, 4.0) is inertial.floor_input(data, 4.0)      # built once per run
@@ -236,11 +241,19 @@ def test_paper_b_on_a_simulated_run(campaign, simulated_run):
     assert all(c["verdict"] == "inconclusive" for c in claims)     # one run: no interval
 
 
-def test_simulation_scenarios_take_no_bias_estimate_by_default():
-    spec = {"static_bias_s": 4.0, "simulation_static_bias_s": 0.0, "fix_sigma_m": 1.0}
-    assert paper_b.scenario_config(spec, simulated=True)["static_bias_s"] == 0.0
-    assert paper_b.scenario_config(spec, simulated=False) == spec
-    assert paper_b.scenario_config({"static_bias_s": 4.0}, simulated=True)["static_bias_s"] == 0.0
+def test_the_simulation_scenario_takes_no_bias_estimate():
+    """config/config.yaml: paper B's simulation scenario overrides static_start_s to 0 for every
+    method that has it (its simulated accelerometer has no bias); the campaign scenarios keep 4 s."""
+    from wsnloc.config import read_yaml
+    from wsnloc.experiments import cells
+    from wsnloc.validation import validate_config
+
+    from conftest import ROOT
+
+    spec = validate_config(read_yaml(ROOT / "config" / "config.yaml"), ROOT / "config" / "schema.yaml")["experiments"]["paper_b"]
+    for method in ("imu", "sskf", "kf"):
+        assert cells.params(spec, method, spec["simulation_scenarios"][0], "paper_b")["static_start_s"] == 0.0
+        assert cells.params(spec, method, spec["scenarios"][0], "paper_b")["static_start_s"] == 4.0
 
 
 def test_bias_estimate_adds_error_on_the_bias_free_simulated_accelerometer(campaign):

@@ -17,8 +17,8 @@ from wsnloc.experiments import paper_a, paper_d
 from wsnloc.io import cricket, generic, newcom
 
 from conftest import ROOT
-from test_ekf import SETTINGS_A
-from test_paper_d import SETTINGS as SETTINGS_D
+from test_ekf import RSS_MODEL as RSS_MODEL_A, SPEC_A
+from test_paper_d import LABEL, RSS_MODEL as RSS_MODEL_D, SPEC as SPEC_D
 
 FUZZ = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
                                                                         HealthCheck.too_slow])
@@ -102,10 +102,10 @@ def test_bad_measurements_never_crash_the_estimators(campaign, simulated_run, va
     ranges.loc[ranges.index[: len(values)], "range_m"] = values
     rss_table.loc[rss_table.index[: len(rss)], "rss_dbm"] = rss
     tables = dict(tables, ranges=ranges, rss=rss_table)
-    data = RunData(tables, campaign, SETTINGS_D["rss_model"])
-    estimates = paper_d.run(data, paper_d.Settings.from_config(SETTINGS_D))
+    data = RunData(tables, campaign, RSS_MODEL_D)
+    estimates = paper_d.run(data, SPEC_D, LABEL)
     assert np.isfinite(estimates["error_m"]).mean() > 0.9
-    a = paper_a.run(RunData(tables, campaign, SETTINGS_A["rss_model"]), paper_a.Settings.from_config(SETTINGS_A))
+    a = paper_a.run(RunData(tables, campaign, RSS_MODEL_A), SPEC_A, LABEL)
     assert np.isfinite(a[["x", "y"]].to_numpy()).all()
     fixes = registry.run("minmax", data, {"anchors": "UWB=10", "max_range_m": 50.0})
     assert fixes["t"].is_monotonic_increasing
@@ -115,6 +115,6 @@ def test_unfiltered_ranges_with_nan_are_dropped(campaign, simulated_run):
     tables, _ = newcom.ingest_run(simulated_run, campaign)
     ranges = tables["ranges"].copy()
     ranges.loc[ranges.index[:5], "range_m"] = np.nan
-    settings = paper_d.Settings.from_config({**SETTINGS_D, "uwb_preliminary_filter": False})
-    raw = paper_d.run(RunData(dict(tables, ranges=ranges), campaign, SETTINGS_D["rss_model"]), settings)
+    spec = {**SPEC_D, "parameters": {**SPEC_D["parameters"], "preliminary_filter": False}}
+    raw = paper_d.run(RunData(dict(tables, ranges=ranges), campaign, RSS_MODEL_D), spec, LABEL)
     assert np.isfinite(raw["x"]).mean() > 0.9

@@ -10,32 +10,45 @@ from wsnloc import results
 from wsnloc.analysis import setup_facts
 from wsnloc.errors import ConfigError
 from wsnloc.experiments import paper_b, sensitivity
+from wsnloc.experiments.paper_b import report as paper_b_report
 from wsnloc.metrics.verdicts import DOES_NOT_HOLD, HOLDS
 from wsnloc.report import explanations
 from wsnloc.report.sections import sensitivity_table
 
-SPEC = {"fix_sigma_m": 1.0, "kalman": {"accel_sigma_mps2": 0.5},
-        "sensitivity": {"runs": 2, "factors": [0.5, 2.0], "sigmas": ["fix_sigma_m", "kalman.accel_sigma_mps2"]}}
+SPEC = {"parameters": {"fix_sigma_m": 1.0, "accel_sigma_mps2": 0.3},
+        "estimators": {"kalman": {"estimator": "kf_tracker", "accel_sigma_mps2": 0.5}, "fused": {"estimator": "dr_kf"}},
+        "sensitivity": {"runs": 2, "factors": [0.5, 2.0],
+                        "sigmas": ["fix_sigma_m", "kalman.accel_sigma_mps2", "fused.fix_sigma_m"]}}
 
 
 def test_variants_scale_one_sigma_at_a_time_and_leave_the_config_alone():
+    """A shared key is scaled in `parameters`; `cell.parameter` in that cell's entry, from its own
+    value or else the shared one it inherits."""
+    from wsnloc.experiments import cells
+
     grid = sensitivity.variants(SPEC, "experiments.paper_x")
     assert [label for label, _, _ in grid] == ["fix_sigma_m x0.5", "fix_sigma_m x2", "kalman.accel_sigma_mps2 x0.5",
-                                               "kalman.accel_sigma_mps2 x2"]
+                                               "kalman.accel_sigma_mps2 x2", "fused.fix_sigma_m x0.5",
+                                               "fused.fix_sigma_m x2"]
     scaled = {label: spec for label, _, spec in grid}
-    assert scaled["fix_sigma_m x2"]["fix_sigma_m"] == 2.0
-    assert scaled["fix_sigma_m x2"]["kalman"]["accel_sigma_mps2"] == 0.5
-    assert scaled["kalman.accel_sigma_mps2 x0.5"]["kalman"]["accel_sigma_mps2"] == 0.25
-    assert SPEC["fix_sigma_m"] == 1.0 and SPEC["kalman"]["accel_sigma_mps2"] == 0.5
+    assert scaled["fix_sigma_m x2"]["parameters"]["fix_sigma_m"] == 2.0
+    assert scaled["fix_sigma_m x2"]["estimators"]["kalman"]["accel_sigma_mps2"] == 0.5
+    assert scaled["kalman.accel_sigma_mps2 x0.5"]["estimators"]["kalman"]["accel_sigma_mps2"] == 0.25
+    assert scaled["kalman.accel_sigma_mps2 x0.5"]["parameters"]["accel_sigma_mps2"] == 0.3
+    assert scaled["fused.fix_sigma_m x0.5"]["estimators"]["fused"] == {"estimator": "dr_kf", "fix_sigma_m": 0.5}
+    assert SPEC["parameters"]["fix_sigma_m"] == 1.0 and SPEC["estimators"]["kalman"]["accel_sigma_mps2"] == 0.5
     assert sensitivity.variants({**SPEC, "sensitivity": {"runs": 0, "sigmas": ["fix_sigma_m"]}}, "x") == []
+    # the cells each sigma acts on: a shared key every cell whose estimator has it, a cell's own key that cell
+    assert cells.acted_on(SPEC, "fix_sigma_m") == ["fused"]
+    assert cells.acted_on(SPEC, "accel_sigma_mps2") == []          # kalman sets its own
+    assert cells.acted_on(SPEC, "kalman.accel_sigma_mps2") == ["kalman"]
 
 
-def test_unknown_or_refused_sigma_names_the_config_key():
-    bad = {**SPEC, "sensitivity": {**SPEC["sensitivity"], "sigmas": ["fix_sigma_m", "kalman.nope"]}}
-    with pytest.raises(ConfigError, match=r"experiments.paper_x.sensitivity.sigmas.1"):
-        sensitivity.variants(bad, "experiments.paper_x")
-    with pytest.raises(ConfigError, match=r"sensitivity.sigmas.0.*not one of"):
-        sensitivity.variants(SPEC, "experiments.paper_x", allowed=("kalman.accel_sigma_mps2",))
+def test_unknown_sigma_names_the_config_key():
+    for sigma in ("kalman.nope", "nope", "other.fix_sigma_m"):
+        bad = {**SPEC, "sensitivity": {**SPEC["sensitivity"], "sigmas": ["fix_sigma_m", sigma]}}
+        with pytest.raises(ConfigError, match=r"experiments.paper_x.sensitivity.sigmas.1"):
+            sensitivity.variants(bad, "experiments.paper_x")
 
 
 def _paper_b_metrics(runs, fusion_gain):
@@ -56,12 +69,13 @@ def test_grid_reruns_only_the_sampled_runs_and_decides_each_setting():
     def evaluate(spec, sigma, run):
         calls.append((sigma, run))
         # a large fix sigma makes the fusion worse than UWB only in this constructed case
-        gain = 0.2 if spec["fix_sigma_m"] <= 1.0 else -0.2
+        gain = 0.2 if spec["parameters"]["fix_sigma_m"] <= 1.0 else -0.2
         rerun = _paper_b_metrics(runs, gain)
-        rerun = rerun[(rerun["run"] == run) & rerun["method"].isin(paper_b.SENSITIVITY_METHODS)].drop(columns="run")
+        rerun = rerun[(rerun["run"] == run) & rerun["method"].isin(["sskf", "kf"])].drop(columns="run")
         return sensitivity.replace_cells(metrics, run, rerun, ["method"])
 
-    spec = {"fix_sigma_m": 1.0, "sensitivity": {"runs": 3, "factors": [0.5, 2.0], "sigmas": ["fix_sigma_m"]}}
+    spec = {"parameters": {"fix_sigma_m": 1.0},
+            "sensitivity": {"runs": 3, "factors": [0.5, 2.0], "sigmas": ["fix_sigma_m"]}}
     grid = sensitivity.grid_metrics(spec, "experiments.paper_b", metrics, sensitivity.each_run(evaluate))
     assert sorted(set(run for _, run in calls)) == runs[:3] and len(calls) == 6
     assert set(grid["setting"]) == {"x1", "fix_sigma_m x0.5", "fix_sigma_m x2"}
@@ -90,47 +104,43 @@ def test_explanations_cite_the_computed_numbers_and_skip_missing_ones():
     summaries = {"d/s": {"range_error_pooled": {"LOS": {"n": 60, "median": 0.05},
                                                 "NLOS": {"n": 40, "bias": 0.5, "p95": 1.1}}}}
     numbers = explanations.Numbers(results.frame(rows), summaries)
-    text = explanations.paper_b(numbers, ["d/s"], [])
+    text = paper_b_report.why(numbers, ["d/s"], [])
     assert any("0.85 m against the paper's 3.25 m: 40% of our UWB ranges are NLOS" in line for line in text)
     assert any("stands still 15% of the time" in line for line in text)
     # no NLOS links: the ranging sentence is left out, not written with "nan"
     no_nlos = explanations.Numbers(results.frame(rows), {"d/s": {"range_error_pooled": {"LOS": {"n": 10}}}})
-    assert all("nan" not in line and "NLOS" not in line for line in explanations.paper_b(no_nlos, ["d/s"], []))
+    assert all("nan" not in line and "NLOS" not in line for line in paper_b_report.why(no_nlos, ["d/s"], []))
     assert math.isnan(numbers.value("B", "RMSE", "missing", "d/s"))
 
 
 def test_paper_c_noise_curves_follow_each_models_own_sigma():
     from wsnloc.experiments import paper_c
 
-    settings = paper_c.Settings(epoch_s=0.5, table_1_subset="6", table_2_subsets=["6"], table_2_scenario="c/s",
-                                range_sigma_m=0.05, max_range_m=10, p_sigma_m=0.15, pv_accel_sigma_mps2=0.3,
-                                pva_accel_sigma_mps2=0.1, pva_bias_walk_sigma=0.01, initial_sigma_m=1,
-                                initial_speed_sigma_mps=0.1, initial_bias_sigma_mps2=0.1, static_bias_s=4)
+    spec = {"table_1_subset": "6", "table_2_subsets": ["6"], "table_2_scenario": "c/s",
+            "sensitivity": {"sigmas": ["P.p_sigma_m", "PV.accel_sigma_mps2", "PVA.accel_sigma_mps2"]}}
     rows = []
-    for setting, sigma, factor in (("x1", None, 1.0), ("pv_accel_sigma_mps2 x2", "pv_accel_sigma_mps2", 2.0),
-                                   ("p_sigma_m x2", "p_sigma_m", 2.0)):
+    for setting, sigma, factor in (("x1", None, 1.0), ("PV.accel_sigma_mps2 x2", "PV.accel_sigma_mps2", 2.0),
+                                   ("P.p_sigma_m x2", "P.p_sigma_m", 2.0)):
         for model in paper_c.MODELS:
-            own = sigma == paper_c.MODEL_SIGMA[model]
+            own = sigma is not None and sigma.startswith(f"{model}.")
             for run, noise in (("run-01", -0.01), ("run-02", 0.01)):
                 rows.append({"subset": "6", "model": model, "rmse": 0.2 * (factor if own else 1.0) + noise,
                              "run": run, "setting": setting, "sigma": sigma, "factor": factor})
-    curves = paper_c.noise_curves(pd.DataFrame(rows), settings)     # sigma None as read back from CSV
-    assert curves["PV (pv_accel_sigma_mps2)"]["x"].tolist() == [1.0, 2.0]
-    assert curves["PV (pv_accel_sigma_mps2)"]["value"].tolist() == pytest.approx([0.2, 0.4])
+    curves = paper_c.noise_curves(pd.DataFrame(rows), spec)     # sigma None as read back from CSV
+    assert curves["PV (accel_sigma_mps2)"]["x"].tolist() == [1.0, 2.0]
+    assert curves["PV (accel_sigma_mps2)"]["value"].tolist() == pytest.approx([0.2, 0.4])
     assert curves["P (p_sigma_m)"]["value"].tolist() == pytest.approx([0.2, 0.4])
-    assert "PVA (pva_accel_sigma_mps2)" not in curves       # its sigma was not scaled: one point only
+    assert "PVA (accel_sigma_mps2)" not in curves       # its sigma was not scaled: one point only
 
 
 def test_static_share_sweep_lengthens_the_rest_and_pairs_the_runs(campaign):
     from wsnloc.analysis import static_share
     from wsnloc.experiments import paper_a
 
-    spec = {"epoch_s": 0.5, "rows": [{"measurements": "toa", "uwb": "UWB=12"},
-                                     {"measurements": "hybrid", "uwb": "UWB=12", "zigbee": "ZigBee=21"}],
-            "uwb_preliminary_filter": True, "max_range_m": 50.0, "range_sigma_m": 0.3, "rss_calibration": "other_run",
-            "rss_model": {"p0_dbm": -50.0, "path_loss_exponent": 3.0, "sigma_db": 5.5, "d0_m": 1.0},
-            "accel_sigma_mps2": 0.3, "initial_sigma_m": 1.0, "initial_speed_sigma_mps": 0.3,
-            "motion_threshold_mps2": 0.05, "static_reference_s": 4.0}
+    from test_ekf import SPEC_A
+
+    spec = {**SPEC_A, "parameters": {**SPEC_A["parameters"], "rss_calibration": "other_run"},
+            "rows": [{"measurements": "toa", "anchors": "UWB=12"}, {"measurements": "hybrid", "anchors": "UWB=12+ZigBee=21"}]}
     sweep = static_share.gain_against_rest(campaign, "constant", [5.0, 30.0], 2, 11, spec)
     assert list(sweep["run"]) == ["run-01", "run-02"] * 2
     share = sweep.groupby("rest_s")["static_share"].mean()

@@ -290,8 +290,10 @@ def test_2009_hardware_class_ranges_worse_than_the_spec_class(campaign, simulate
     for name, c, r in (("spec", campaign, simulated_run), ("era", era, run)):
         t = ingest_run(r, c)[0]
         e = range_errors(t["ranges"], t["truth"], c)
+        # NLOS compared on the links both classes close (<= 10 m): the 2009 class's sensitivity
+        # drops the longer, worse NLOS links, which would lower its median by selection alone
         errors[name] = {"los": np.median(np.abs(e["error_m"][e["walls"] == 0])),
-                        "nlos": np.median(np.abs(e["error_m"][e["walls"] > 0])),
+                        "nlos": np.median(np.abs(e["error_m"][(e["walls"] > 0) & (e["true_distance_m"] <= 10)])),
                         "spread": np.std(e["error_m"][e["walls"] == 0])}
     assert errors["era"]["los"] > errors["spec"]["los"] + 0.1
     assert errors["era"]["nlos"] > errors["spec"]["nlos"]

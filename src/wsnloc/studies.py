@@ -4,6 +4,7 @@
       <study>:
         scenarios: [dataset/scenario, ...]
         subsets: [all, "UWB=9"]               # anchor subsets (default: all)
+        parameters: {max_range_m: 60}         # shared by every cell whose estimator has the parameter
         estimators:                           # cell name: parameter overrides
           tracker: {}                         #   the registry entry of the same name
           ekf_slow: {estimator: ekf, accel_sigma_mps2: 0.2}   # or the one named by `estimator`
@@ -13,8 +14,9 @@
 
 A cell is (study, dataset/scenario, estimator cell); one job runs every run and subset of
 it, so adding a scenario or an estimator re-runs only the new cells. Parameters resolve
-in this order: registry default < the study's entry < overrides[dataset] <
-overrides[dataset/scenario] (within one, a cell's own mapping after the shared keys).
+in this order: registry default < `parameters` < the cell's entry < overrides[dataset] <
+overrides[dataset/scenario] (within one, a cell's own mapping after the shared keys). The
+papers (wsnloc.experiments) declare their cells the same way.
 """
 
 from __future__ import annotations
@@ -57,16 +59,30 @@ def estimator_of(spec: dict, cell: str) -> str:
     return (spec["estimators"][cell] or {}).get("estimator", cell)
 
 
-def cell_params(spec: dict, cell: str, dataset: str, scenario: str, where: str) -> dict:
-    """The resolved parameters of one cell on one dataset/scenario (see the module docstring)."""
+def cell_params(spec: dict, cell: str, dataset: str, scenario: str, where: str, extra: dict | None = None) -> dict:
+    """The resolved parameters of one cell on one dataset/scenario (see the module docstring);
+    `extra`: the parameters a paper's table layout sets last (its row's measurements, anchors)."""
     estimator = registry.get(estimator_of(spec, cell), f"{where}.estimators.{cell}.estimator")
     names = {p.name for p in estimator.params}
-    merged = {k: v for k, v in (spec["estimators"][cell] or {}).items() if k != "estimator"}
+    merged = {k: v for k, v in (spec.get("parameters") or {}).items() if k in names}
+    merged.update({k: v for k, v in (spec["estimators"][cell] or {}).items() if k != "estimator"})
     for key in (dataset, f"{dataset}/{scenario}"):
         layer = (spec.get("overrides") or {}).get(key) or {}
         merged.update({k: v for k, v in layer.items() if k in names and k not in spec["estimators"]})
         merged.update(layer.get(cell) or {})
+    merged.update(extra or {})
     return estimator.resolve(merged, f"{where}.estimators.{cell}")
+
+
+def check_shared(spec: dict, where: str) -> None:
+    """Every key of `parameters` is a parameter of at least one cell's estimator (a misspelt
+    shared key would otherwise be ignored)."""
+    known = {p.name for c in spec["estimators"]
+             for p in registry.get(estimator_of(spec, c), f"{where}.estimators.{c}.estimator").params}
+    for name in spec.get("parameters") or {}:
+        if name not in known:
+            raise ConfigError(f"config key '{where}.parameters.{name}': not a parameter of any of its estimators"
+                              f"{did_you_mean(name, known)}")
 
 
 def validate_studies(config: dict) -> None:
@@ -75,6 +91,7 @@ def validate_studies(config: dict) -> None:
     campaigns: dict[str, Campaign] = {}
     for study, spec in (config.get("studies") or {}).items():
         where = f"studies.{study}"
+        check_shared(spec, where)
         for label in spec["scenarios"]:
             if label not in declared:
                 raise ConfigError(f"config key '{where}.scenarios': {label!r} is not a declared dataset/scenario"

@@ -22,11 +22,11 @@ def dataset_kind(spec: dict) -> str:
     return spec.get("kind") or DEFAULT_KIND[spec["source"]]
 
 
-SUBSET_KEYS = {
-    "paper_a": ("rows[].uwb", "rows[].zigbee"),
-    "paper_b": ("uwb_subset",),
+SUBSET_KEYS = {   # where each paper names anchor subsets (joined by '+')
+    "paper_a": ("rows[].anchors",),
+    "paper_b": ("parameters.anchors",),
     "paper_c": ("table_1_subset", "table_2_subsets[]"),
-    "paper_d": ("subsets.uwb", "subsets.narrowband"),
+    "paper_d": ("parameters.anchors",),
 }
 
 
@@ -83,7 +83,10 @@ def _check_datasets(config: dict) -> dict:
 
 
 def _check_experiments(config: dict, campaigns: dict) -> None:
-    """Experiments run on declared scenarios, and name subsets their campaigns define."""
+    """Experiments run on declared scenarios, declare their cells as registry estimators
+    (experiments.cells.check), and name subsets their campaigns define."""
+    from wsnloc.experiments import cells
+
     declared = {f"{d}/{s}" for d, spec in config["datasets"].items() for s in spec["scenarios"]}
     for experiment, spec in config.get("experiments", {}).items():
         used = []
@@ -99,13 +102,14 @@ def _check_experiments(config: dict, campaigns: dict) -> None:
                               f"{spec['table_2_scenario']!r} is not one of its scenarios "
                               f"({', '.join(spec['scenarios'])})")
         for path in SUBSET_KEYS.get(experiment, ()):
-            for key, subset in _values_at(spec, path, f"experiments.{experiment}"):
-                for dataset in dict.fromkeys(used):
+            for key, expression in _values_at(spec, path, f"experiments.{experiment}"):
+                for subset, dataset in ((s, d) for s in expression.split("+") for d in dict.fromkeys(used)):
                     defined = campaigns[dataset].spec.get("subsets", {})
                     if subset not in defined:
                         raise ConfigError(f"config key '{key}': {subset!r} is not an anchor subset of "
                                           f"{config['datasets'][dataset]['campaign']} (dataset {dataset}; "
                                           f"defined there: {', '.join(defined) or 'none'})")
+        cells.check(spec, experiment)
 
 
 def validate_config(config: dict, schema_path: str | Path) -> dict:
@@ -116,5 +120,20 @@ def validate_config(config: dict, schema_path: str | Path) -> dict:
     validate(config, read_yaml(schema_path), source="config")
     campaigns = _check_datasets(config)
     _check_experiments(config, campaigns)
+    _check_ranging_validation(config, campaigns)
     validate_studies(config)
     return config
+
+
+def _check_ranging_validation(config: dict, campaigns: dict) -> None:
+    """The ranging validation shows declared scenarios; the first one's campaign has the UWB
+    receiver (radio.uwb) that reads the channel models alone."""
+    declared = {f"{d}/{s}" for d, spec in config["datasets"].items() for s in spec["scenarios"]}
+    labels = (config.get("ranging_validation") or {}).get("scenarios", [])
+    for label in labels:
+        if label not in declared:
+            raise ConfigError(f"config key 'ranging_validation.scenarios': {label!r} is not a declared "
+                              f"dataset/scenario{did_you_mean(label, declared)} (declared: {', '.join(sorted(declared))})")
+    if labels and "uwb" not in campaigns[labels[0].split("/")[0]].spec.get("radio", {}):
+        raise ConfigError(f"config key 'ranging_validation.scenarios': the campaign of {labels[0]!r} has no radio.uwb "
+                          f"receiver to read the IEEE 802.15.4a channel models")

@@ -113,7 +113,22 @@ def ingest_task(dataset, scenario, shard, keep_dir):
 
 def experiment_pairs(spec, key="scenarios"):
     """(dataset, scenario) pairs an experiment runs on; none when it is not configured."""
-    return [tuple(label.split("/", 1)) for label in spec[key]] if spec else []
+    return [tuple(label.split("/", 1)) for label in spec.get(key, [])] if spec else []
+
+
+def paper_pairs(paper):
+    """(dataset, scenario) pairs of a paper (config experiments.<paper>): its scenarios, then its
+    simulation scenarios (paper B) not among them; none when it is not configured."""
+    spec = config["experiments"].get(paper)
+    return list(dict.fromkeys(experiment_pairs(spec) + experiment_pairs(spec, "simulation_scenarios")))
+
+
+def paper_outputs(paper):
+    """The paper job's outputs the report reads (results.csv, claims.json, cost.json, figures: those
+    under data/processed/<paper>/, in the order its rule declares them); none when not configured."""
+    if not paper_pairs(paper):
+        return []
+    return [path for path in getattr(rules, paper).output if path.startswith(f"data/processed/{paper}/")]
 
 
 def scenario_outputs(pattern):

@@ -2,8 +2,7 @@
 
 
 PAPER_B = config["experiments"].get("paper_b")
-# A scenario listed both as measured and as simulated is run once (as simulated).
-PAPER_B_PAIRS = list(dict.fromkeys(experiment_pairs(PAPER_B) + experiment_pairs(PAPER_B, "simulation_scenarios")))
+PAPER_B_PAIRS = paper_pairs("paper_b")   # a scenario listed both as measured and as simulated is run once
 
 
 # Paper B's scenarios are short (a few seconds each, about half of it job start-up): one job
@@ -25,13 +24,13 @@ rule paper_b:
     output:
         **PAPER_B_FILES,
         results="data/processed/paper_b/results.csv",
-        snr=report("data/processed/paper_b/figures/dr_rmse_vs_snr.png", category="Paper B", caption="../report/figure.rst"),
         claims="data/processed/paper_b/claims.json",
         tracks=report("data/processed/paper_b/figures/trajectories.png", category="Paper B", caption="../report/figure.rst"),
         errors=report("data/processed/paper_b/figures/error_over_time.png", category="Paper B", caption="../report/figure.rst"),
         cdf=report("data/processed/paper_b/figures/error_cdf.png", category="Paper B", caption="../report/figure.rst"),
+        snr=report("data/processed/paper_b/figures/dr_rmse_vs_snr.png", category="Paper B", caption="../report/figure.rst"),
     params:
-        settings=PAPER_B,
+        spec=PAPER_B,
         simulated=[f"{d}/{s}" for d, s in experiment_pairs(PAPER_B, "simulation_scenarios")],
         sources=scenario_sources(PAPER_B_PAIRS),
         snr_curve=PAPER_B.get("snr_curve", {"runs": 0}) if PAPER_B else {"runs": 0},

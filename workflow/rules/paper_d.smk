@@ -2,7 +2,7 @@
 
 
 PAPER_D = config["experiments"].get("paper_d")
-PAPER_D_PAIRS = experiment_pairs(PAPER_D)
+PAPER_D_PAIRS = paper_pairs("paper_d")
 
 
 # One job runs every scenario over all its runs, then writes the paper's tables, claims, cost
@@ -26,7 +26,7 @@ rule paper_d:
         cdf=report("data/processed/paper_d/figures/error_cdf.png", category="Paper D", caption="../report/figure.rst"),
         tracks=report("data/processed/paper_d/figures/trajectories.png", category="Paper D", caption="../report/figure.rst"),
     params:
-        settings=PAPER_D,
+        spec=PAPER_D,
         sources=scenario_sources(PAPER_D_PAIRS),
         seed=config["seed"],
     priority: PRIORITY["paper"]

@@ -1,8 +1,8 @@
 # Papers A and C: one job per paper (each job pays its start-up once).
 PAPER_A = config["experiments"].get("paper_a")
 PAPER_C = config["experiments"].get("paper_c")
-PAPER_A_PAIRS = experiment_pairs(PAPER_A)
-PAPER_C_PAIRS = experiment_pairs(PAPER_C)
+PAPER_A_PAIRS = paper_pairs("paper_a")
+PAPER_C_PAIRS = paper_pairs("paper_c")
 
 
 # Paper A: one job runs every scenario over all its runs, then writes the paper's tables,
@@ -28,7 +28,7 @@ rule paper_a:
         bounds=report("data/processed/paper_a/figures/pcrb_vs_rmse.png", category="Paper A", caption="../report/figure.rst"),
         consistency=report("data/processed/paper_a/figures/consistency.png", category="Paper A", caption="../report/figure.rst"),
     params:
-        settings=PAPER_A,
+        spec=PAPER_A,
         sources=scenario_sources(PAPER_A_PAIRS),
         seed=config["seed"],
     priority: PRIORITY["paper"]
@@ -65,7 +65,7 @@ rule paper_c:
         bounds=report("data/processed/paper_c/figures/pcrb_vs_rmse.png", category="Paper C", caption="../report/figure.rst"),
         consistency=report("data/processed/paper_c/figures/consistency.png", category="Paper C", caption="../report/figure.rst"),
     params:
-        settings=PAPER_C,
+        spec=PAPER_C,
         sources=scenario_sources(PAPER_C_PAIRS),
     priority: PRIORITY["paper"]
     log:

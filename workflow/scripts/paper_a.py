@@ -7,6 +7,7 @@ sm = snakemake  # noqa: F821  (given by Snakemake: the rule's input, output, par
 log = start_job(sm)  # from here on, errors and their tracebacks go to the rule's log
 
 import json
+from functools import partial
 from pathlib import Path
 
 import pandas as pd
@@ -18,27 +19,27 @@ from wsnloc.analysis.paper_bounds import PAPER_A_KEYS, paper_a_main, paper_a_par
 from wsnloc.campaign import Campaign
 from wsnloc.config import read_yaml
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments import calibration, claims as claims_of, paper_a, sensitivity
+from wsnloc.experiments import calibration, cells, claims as claims_of, paper_a, sensitivity
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import bound_figures, figures
 from wsnloc.workflow import each_scenario, read_scenario_files
 
-settings = paper_a.Settings.from_config(sm.params.settings)
+spec = sm.params.spec
 
 
 def run_scenario(label: str, campaign: Campaign, out: dict) -> str:
     """Every run of one scenario (RSS models calibrated on another run): estimates, per-run
     metrics, consistency and sensitivity grid written to out['estimates'], out['metrics'],
     out['quality'], out['sensitivity']. Returns the scenario's motion profile (campaign)."""
-    settings.check_against(campaign)
     runs = load_runs(sm.params.sources["tables_of"][label], paper_a.INPUT_TABLES)
     zigbee = list(campaign.anchors_of("zigbee")["anchor_id"])
-    models = calibration.rss_models_for_runs(runs, campaign, zigbee, settings.rss_calibration, settings.rss_model)
+    models = calibration.rss_models_for_runs(runs, campaign, zigbee,
+                                             paper_a.cell_params(spec, label, paper_a.TABLES[0], spec["rows"][0]))
     data = {name: RunData(run_tables, campaign, models[name], name) for name, run_tables in runs.items()}
-    estimates = [est.assign(run=name) for name, est in zip(runs, paper_a.run_all(list(data.values()), settings))]
+    estimates = [est.assign(run=name) for name, est in zip(runs, paper_a.run_all(list(data.values()), spec, label))]
     bounded = grouped_quality([(data[name], est) for name, est in zip(runs, estimates)], PAPER_A_KEYS,
-                              paper_a_params(settings))
+                              partial(paper_a_params(spec), label))
     metrics, qualities = [], []
     for (name, run_tables), est, (quality, efficiency) in zip(runs.items(), estimates, bounded):
         qualities.append(quality.assign(run=name))
@@ -50,13 +51,13 @@ def run_scenario(label: str, campaign: Campaign, out: dict) -> str:
     metrics.to_csv(out["metrics"], index=False, float_format="%.6g")
     pd.concat(qualities, ignore_index=True).to_parquet(out["quality"], index=False, compression="zstd")
 
-    def variant_metrics(spec: dict, _, names: list[str]) -> pd.DataFrame:
+    def variant_metrics(variant: dict, _, names: list[str]) -> pd.DataFrame:
         """Every row of the sampled runs under a scaled a-priori setting, stepped together."""
-        estimates = paper_a.run_all([data[name] for name in names], paper_a.Settings.from_config(spec))
+        estimates = paper_a.run_all([data[name] for name in names], variant, label)
         return pd.concat([paper_a.run_metrics(est, runs[name]["truth"]).assign(run=name)
                           for name, est in zip(names, estimates)], ignore_index=True)
 
-    grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_a", metrics, variant_metrics)
+    grid = sensitivity.grid_metrics(spec, cells.where(paper_a.PAPER), metrics, variant_metrics)
     grid.to_csv(out["sensitivity"], index=False, float_format="%.6g")
     log.info("%s: %d runs done", label, len(runs))
     return campaign.section("scenarios", label.split("/", 1)[1])["motion"]
@@ -71,21 +72,21 @@ def summarize(motions: dict[str, str]) -> None:
     files = read_scenario_files(sm.output, labels)
     per_run, estimates = files["metrics"], files["estimates"]
     rows = [row for label in labels
-            for row in paper_a.results_rows(per_run[label], label, motions[label], settings, paper)]
-    decided = paper_a.claims(per_run, motions, settings)
+            for row in paper_a.results_rows(per_run[label], label, motions[label], spec, paper)]
+    decided = paper_a.claims(per_run, motions, spec)
     rows += sensitivity.results_rows(paper_a.EXPERIMENT, files["sensitivity"],
-                                     lambda m: paper_a.claims(m, motions, settings))
-    rows += paper_a.setup_rows(estimates, settings)
+                                     lambda m: paper_a.claims(m, motions, spec))
+    rows += paper_a.setup_rows(estimates, spec)
     bound_rows, bound_panels, consistency_panels = paper_bound_outputs("A", files["quality"], PAPER_A_KEYS,
-                                                                       paper_a_params(settings), paper_a_main(settings))
+                                                                       paper_a_params(spec), paper_a_main(spec))
     rows += bound_rows
-    sweep_spec = sm.params.settings.get("static_sweep") or {"runs": 0}
+    sweep_spec = spec.get("static_sweep") or {"runs": 0}
     sweep = None
     if sweep_spec["runs"]:
         dataset, scenario = sweep_spec["scenario"].split("/", 1)
         sweep = static_share.gain_against_rest(Campaign.load(sm.input.sweep_campaign[0]), scenario,
                                                sweep_spec["rests_s"], sweep_spec["runs"], sm.params.seed,
-                                               sm.params.settings, dataset)
+                                               spec, dataset)
         rows += paper_a.static_sweep_rows(sweep, sweep_spec["scenario"])
     claims_of.write_outputs(paper_a.EXPERIMENT, rows, decided, sm.output.results, sm.output.claims)
     res = results.read(sm.output.results)
@@ -100,11 +101,11 @@ def summarize(motions: dict[str, str]) -> None:
              paper_a.static_sweep_curve(sweep)},
             "static share of the epochs", "Table II - Table I RMSE [m]",
             "Paper A: motion detection gain against the static share",
-            {f"paper, {motion}": gain for motion, gain in paper_a.paper_gains(paper, settings).items()}))
+            {f"paper, {motion}": gain for motion, gain in paper_a.paper_gains(paper, spec).items()}))
     else:
         Path(sm.output.static).write_bytes(
             figures.placeholder("no static-share sweep (experiments.paper_a.static_sweep.runs: 0)"))
-    Path(sm.output.anchors).write_bytes(figures.rmse_vs_anchors(paper_a.anchor_curves(res, settings),
+    Path(sm.output.anchors).write_bytes(figures.rmse_vs_anchors(paper_a.anchor_curves(res, spec),
                                                                  "Paper A: RMSE against the number of anchors"))
 
 

@@ -14,37 +14,35 @@ from wsnloc.analysis import imu_snr, nlos_severity
 from wsnloc.campaign import Campaign
 from wsnloc.config import read_yaml
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments import claims as claims_of, paper_b, sensitivity
+from wsnloc.experiments import cells, claims as claims_of, paper_b, sensitivity
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import figures
 from wsnloc.workflow import each_scenario, read_scenario_files
 
+spec = sm.params.spec
 
 
 def run_scenario(label: str, campaign: Campaign, out: dict) -> None:
     """Every run of one scenario: estimates, per-run metrics and sensitivity grid written to
     out['estimates'], out['metrics'], out['sensitivity']."""
-    spec = paper_b.scenario_config(sm.params.settings, label in sm.params.simulated)
-    settings = paper_b.Settings.from_config(spec)
-    settings.check_against(campaign)
     estimates, metrics, data = [], [], {}
     runs = load_runs(sm.params.sources["tables_of"][label], paper_b.INPUT_TABLES, sm.params.sources["imu_of"][label])
     for name, run_tables in runs.items():
         data[name] = RunData(run_tables, campaign, None, name)
-        est = paper_b.run(data[name], settings).assign(run=name)
+        est = paper_b.run(data[name], spec, label).assign(run=name)
         estimates.append(est)
         metrics.append(paper_b.run_metrics(est, run_tables["truth"]).assign(run=name))
     tables.write("estimates_paper_b", pd.concat(estimates, ignore_index=True), out["estimates"])
     metrics = pd.concat(metrics, ignore_index=True)
     metrics.to_csv(out["metrics"], index=False, float_format="%.6g")
 
-    def fusion_variant(spec: dict, sigma: str, run: str) -> pd.DataFrame:
-        """The a-priori sigmas act on the fusions only: re-run those, keep the run's other methods."""
-        fused = paper_b.run(data[run], paper_b.Settings.from_config(spec), paper_b.SENSITIVITY_METHODS)
+    def fusion_variant(variant: dict, sigma: str, run: str) -> pd.DataFrame:
+        """Re-run the methods the scaled sigma acts on (cells.acted_on: the fusions), keep the run's others."""
+        fused = paper_b.run(data[run], variant, label, [m for m in paper_b.METHODS if m in cells.acted_on(variant, sigma)])
         return sensitivity.replace_cells(metrics, run, paper_b.run_metrics(fused, runs[run]["truth"]), ["method"])
 
-    grid = sensitivity.grid_metrics(spec, "experiments.paper_b", metrics, sensitivity.each_run(fusion_variant))
+    grid = sensitivity.grid_metrics(spec, cells.where(paper_b.PAPER), metrics, sensitivity.each_run(fusion_variant))
     grid.to_csv(out["sensitivity"], index=False, float_format="%.6g")
     log.info("%s: %d runs done", label, len(runs))
 
@@ -65,14 +63,13 @@ def summarize() -> None:
         curve = imu_snr.rmse_against_snr(Campaign.load(sm.input.snr_campaign[0]), scenario,
                                           sm.params.snr_curve["snrs_db"], sm.params.snr_curve["runs"], sm.params.seed,
                                           sm.params.resample,
-                                          paper_b.scenario_config(sm.params.settings, True)["static_bias_s"], dataset)
+                                          cells.params(spec, "imu", sm.params.snr_scenario, paper_b.PAPER)["static_start_s"],
+                                          dataset)
         rows += paper_b.snr_rows(curve, sm.params.snr_scenario, paper)
-    nlos = sm.params.settings.get("nlos_sweep") or {"runs": 0}   # claims against NLOS ranging severity (opt-in)
-    nlos_settings = paper_b.Settings.from_config(
-        paper_b.scenario_config(sm.params.settings, nlos.get("scenario") in simulated))
+    nlos = spec.get("nlos_sweep") or {"runs": 0}   # claims against NLOS ranging severity (opt-in)
     rows += nlos_severity.claim_rows(
         paper_b.EXPERIMENT, nlos, (sm.input.nlos_campaign or [""])[0], sm.params.seed,
-        lambda campaign, tables: paper_b.evaluate_runs(tables, campaign, nlos_settings, sm.params.resample),
+        lambda campaign, tables: paper_b.evaluate_runs(tables, campaign, spec, nlos.get("scenario"), sm.params.resample),
         paper_b.claims, sm.input.nlos_tables)
     rows += sensitivity.results_rows(paper_b.EXPERIMENT, grids, paper_b.claims)
     rows += paper_b.setup_rows(estimates)

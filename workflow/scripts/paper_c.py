@@ -6,6 +6,7 @@ from wsnloc.workflow import start_job
 sm = snakemake  # noqa: F821  (given by Snakemake: the rule's input, output, params, wildcards, log)
 log = start_job(sm)  # from here on, errors and their tracebacks go to the rule's log
 
+from functools import partial
 from pathlib import Path
 
 import pandas as pd
@@ -16,27 +17,26 @@ from wsnloc.analysis.paper_bounds import PAPER_C_KEYS, paper_bound_outputs, pape
 from wsnloc.campaign import Campaign
 from wsnloc.config import read_yaml
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments import claims as claims_of, paper_c, sensitivity
+from wsnloc.experiments import cells, claims as claims_of, paper_c, sensitivity
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import bound_figures, figures
 from wsnloc.workflow import each_scenario, read_scenario_files
 
-settings = paper_c.Settings.from_config(sm.params.settings)
+spec = sm.params.spec
 
 
 def run_scenario(label: str, campaign: Campaign, out: dict) -> str:
     """Every run of one scenario: estimates, per-run metrics, consistency and sensitivity grid
     written to out['estimates'], out['metrics'], out['quality'], out['sensitivity']. Returns
     the scenario's speed label (paper_c.speed_label)."""
-    settings.check_against(campaign)
-    subsets = paper_c.subsets_of(settings, label)
+    subsets = paper_c.subsets_of(spec, label)
     runs = load_runs(sm.params.sources["tables_of"][label], paper_c.INPUT_TABLES, sm.params.sources["imu_of"][label])
     data = {name: RunData(run_tables, campaign, None, name) for name, run_tables in runs.items()}
-    estimates = [est.assign(run=name) for name, est in zip(runs, paper_c.run_all(list(data.values()), settings,
+    estimates = [est.assign(run=name) for name, est in zip(runs, paper_c.run_all(list(data.values()), spec, label,
                                                                                   subsets))]
     bounded = grouped_quality([(data[name], est) for name, est in zip(runs, estimates)], PAPER_C_KEYS,
-                              paper_c_params(settings))
+                              partial(paper_c_params(spec), label))
     metrics, qualities = [], []
     for (name, run_tables), est, (quality, efficiency) in zip(runs.items(), estimates, bounded):
         qualities.append(quality.assign(run=name))
@@ -47,17 +47,16 @@ def run_scenario(label: str, campaign: Campaign, out: dict) -> str:
     metrics.to_csv(out["metrics"], index=False, float_format="%.6g")
     pd.concat(qualities, ignore_index=True).to_parquet(out["quality"], index=False, compression="zstd")
 
-    def model_variant(spec: dict, sigma: str, names: list[str]) -> pd.DataFrame:
-        """Re-run only the motion models the scaled sigma acts on (paper_c.SIGMA_MODELS), on all
+    def model_variant(variant: dict, sigma: str, names: list[str]) -> pd.DataFrame:
+        """Re-run only the motion models the scaled sigma acts on (cells.acted_on), on all
         sampled runs together; each run keeps its other cells."""
-        models = paper_c.SIGMA_MODELS[sigma]
-        reruns = paper_c.run_all([data[name] for name in names], paper_c.Settings.from_config(spec), subsets, models)
+        models = [m for m in paper_c.MODELS if m in cells.acted_on(variant, sigma)]
+        reruns = paper_c.run_all([data[name] for name in names], variant, label, subsets, models)
         return pd.concat([sensitivity.replace_cells(metrics, name, paper_c.run_metrics(rerun, runs[name]["truth"]),
                                                     ["subset", "model"]).assign(run=name)
                           for name, rerun in zip(names, reruns)], ignore_index=True)
 
-    grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_c", metrics, model_variant,
-                                    tuple(paper_c.SIGMA_MODELS))
+    grid = sensitivity.grid_metrics(spec, cells.where(paper_c.PAPER), metrics, model_variant)
     grid.to_csv(out["sensitivity"], index=False, float_format="%.6g")
     log.info("%s: %d runs done", label, len(runs))
     return paper_c.speed_label(campaign, label.split("/", 1)[1])
@@ -71,12 +70,12 @@ def summarize(speeds: dict[str, str]) -> None:
     files = read_scenario_files(sm.output, labels)
     per_run, grids, estimates = files["metrics"], files["sensitivity"], files["estimates"]
     rows = [row for label in labels
-            for row in paper_c.results_rows(per_run[label], label, speeds[label], settings, paper)]
-    decided = paper_c.claims(per_run, speeds, settings)
-    rows += sensitivity.results_rows(paper_c.EXPERIMENT, grids, lambda m: paper_c.claims(m, speeds, settings))
-    rows += paper_c.setup_rows(estimates, settings)
+            for row in paper_c.results_rows(per_run[label], label, speeds[label], spec, paper)]
+    decided = paper_c.claims(per_run, speeds, spec)
+    rows += sensitivity.results_rows(paper_c.EXPERIMENT, grids, lambda m: paper_c.claims(m, speeds, spec))
+    rows += paper_c.setup_rows(estimates, spec)
     bound_rows, bound_panels, consistency_panels = paper_bound_outputs("C", files["quality"], PAPER_C_KEYS,
-                                                                       paper_c_params(settings), paper_c_main(settings))
+                                                                       paper_c_params(spec), paper_c_main(spec))
     rows += bound_rows
     claims_of.write_outputs(paper_c.EXPERIMENT, rows, decided, sm.output.results, sm.output.claims)
     res = results.read(sm.output.results)
@@ -84,17 +83,17 @@ def summarize(speeds: dict[str, str]) -> None:
     Path(sm.output.bounds).write_bytes(pcrb_png)
     Path(sm.output.consistency).write_bytes(anees_png)
     Path(sm.output.histogram).write_bytes(figures.error_histograms(
-        paper_c.histogram_panels(estimates, settings), "Paper C: position error per model, all runs (their Fig. 4b)"))
-    Path(sm.output.cdf).write_bytes(figures.error_cdf(paper_c.cdf_panels(estimates, settings), xmax=1.5))
-    Path(sm.output.tracks).write_bytes(figures.trajectories(paper_c.trajectory_panels(estimates, settings)))
-    curves = paper_c.noise_curves(grids.get(settings.table_2_scenario, pd.DataFrame()), settings) \
-        if settings.table_2_scenario in grids and not grids[settings.table_2_scenario].empty else {}
+        paper_c.histogram_panels(estimates, spec), "Paper C: position error per model, all runs (their Fig. 4b)"))
+    Path(sm.output.cdf).write_bytes(figures.error_cdf(paper_c.cdf_panels(estimates, spec), xmax=1.5))
+    Path(sm.output.tracks).write_bytes(figures.trajectories(paper_c.trajectory_panels(estimates, spec)))
+    curves = paper_c.noise_curves(grids.get(spec["table_2_scenario"], pd.DataFrame()), spec) \
+        if spec["table_2_scenario"] in grids and not grids[spec["table_2_scenario"]].empty else {}
     Path(sm.output.noise).write_bytes(figures.curve_with_interval(
         curves, "factor on the model's a-priori noise sigma", "Table I RMSE [m]",
-        f"Paper C: RMSE against the a-priori noise, {settings.table_2_scenario} (first runs; PVA: assumed IMU)",
+        f"Paper C: RMSE against the a-priori noise, {spec['table_2_scenario']} (first runs; PVA: assumed IMU)",
         logx=True)
         if curves else figures.placeholder("no sensitivity grid (experiments.paper_c.sensitivity.runs: 0)"))
-    Path(sm.output.anchors).write_bytes(figures.rmse_vs_anchors(paper_c.anchor_curves(res, settings),
+    Path(sm.output.anchors).write_bytes(figures.rmse_vs_anchors(paper_c.anchor_curves(res, spec),
                                                                  "Paper C: RMSE against the number of beacons"))
 
 

@@ -15,23 +15,22 @@ from wsnloc.analysis import nlos_severity
 from wsnloc.campaign import Campaign
 from wsnloc.config import read_yaml
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments import claims as claims_of, paper_d, sensitivity
+from wsnloc.experiments import cells, claims as claims_of, paper_d, sensitivity
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import figures
 from wsnloc.workflow import each_scenario, read_scenario_files
 
-settings = paper_d.Settings.from_config(sm.params.settings)
+spec = sm.params.spec
 
 
 def run_scenario(label: str, campaign: Campaign, out: dict) -> None:
     """Every run of one scenario (RSS models calibrated on another run): estimates, per-run
     metrics and sensitivity grid written to out['estimates'], out['metrics'], out['sensitivity']."""
-    settings.check_against(campaign)
     runs = load_runs(sm.params.sources["tables_of"][label], paper_d.INPUT_TABLES)
-    models = paper_d.rss_models_for_runs(runs, campaign, settings)
+    models = paper_d.rss_models_for_runs(runs, campaign, spec, label)
     data = {name: RunData(run_tables, campaign, models[name], name) for name, run_tables in runs.items()}
-    estimates = [est.assign(run=name) for name, est in zip(runs, paper_d.run_all(list(data.values()), settings))]
+    estimates = [est.assign(run=name) for name, est in zip(runs, paper_d.run_all(list(data.values()), spec, label))]
     metrics = []
     for (name, run_tables), est in zip(runs.items(), estimates):
         metrics.append(paper_d.run_metrics(est, run_tables["truth"])
@@ -41,16 +40,16 @@ def run_scenario(label: str, campaign: Campaign, out: dict) -> None:
     metrics = pd.concat(metrics, ignore_index=True)
     metrics.to_csv(out["metrics"], index=False, float_format="%.6g")
 
-    def kalman_variant(spec: dict, sigma: str, names: list[str]) -> pd.DataFrame:
-        """Paper D's a-priori sigmas (paper_d.SENSITIVITY_SIGMAS) act on the KF cells only:
-        re-run those (all sampled runs together), keep each run's other cells."""
-        reruns = paper_d.run_all([data[name] for name in names], paper_d.Settings.from_config(spec), stages=("kalman",))
+    def tracker_variant(variant: dict, sigma: str, names: list[str]) -> pd.DataFrame:
+        """Re-run the tracker cells the scaled sigma acts on (cells.acted_on; paper D's a-priori
+        sigmas are the KF's), all sampled runs together; keep each run's other cells."""
+        stages = [stage for stage in paper_d.TRACKERS if stage in cells.acted_on(variant, sigma)]
+        reruns = paper_d.run_all([data[name] for name in names], variant, label, stages)
         return pd.concat([sensitivity.replace_cells(metrics, name, paper_d.run_metrics(rerun, runs[name]["truth"]),
                                                     ["localizer", "technique", "stage"]).assign(run=name)
                           for name, rerun in zip(names, reruns)], ignore_index=True)
 
-    grid = sensitivity.grid_metrics(sm.params.settings, "experiments.paper_d", metrics, kalman_variant,
-                                    paper_d.SENSITIVITY_SIGMAS)
+    grid = sensitivity.grid_metrics(spec, cells.where(paper_d.PAPER), metrics, tracker_variant)
     grid.to_csv(out["sensitivity"], index=False, float_format="%.6g")
     log.info("%s: %d runs done", label, len(runs))
 
@@ -65,13 +64,14 @@ def summarize() -> None:
     per_run, grids, estimates = files["metrics"], files["sensitivity"], files["estimates"]
     rows = [row for label in labels for row in paper_d.results_rows(per_run[label], label)]
     paper_cost_ms = read_yaml(sm.input.papers)["D"]["cost_ms_per_step"]
-    counts = paper_d.operation_counts(settings)
+    counts = paper_d.operation_counts(spec, labels[0])
     decided = paper_d.claims(per_run) + [paper_d.cost_claim(counts, paper_cost_ms)]
-    cost = paper_d.measure_cost(settings)
+    cost = paper_d.measure_cost(spec, labels[0])
     rows += paper_d.cost_rows(cost, paper_cost_ms) + paper_d.operation_rows(counts, paper_cost_ms)
     rows += nlos_severity.claim_rows(   # claims against NLOS ranging severity (opt-in)
-        paper_d.EXPERIMENT, sm.params.settings.get("nlos_sweep"), (sm.input.nlos_campaign or [""])[0], sm.params.seed,
-        lambda campaign, tables: paper_d.evaluate_runs(tables, campaign, settings), paper_d.claims,
+        paper_d.EXPERIMENT, spec.get("nlos_sweep"), (sm.input.nlos_campaign or [""])[0], sm.params.seed,
+        lambda campaign, tables: paper_d.evaluate_runs(tables, campaign, spec, spec["nlos_sweep"]["scenario"]),
+        paper_d.claims,
         sm.input.nlos_tables)
     rows += sensitivity.results_rows(paper_d.EXPERIMENT, grids, paper_d.claims)
     rows += paper_d.setup_rows(estimates)

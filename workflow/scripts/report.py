@@ -6,6 +6,7 @@ from wsnloc.workflow import start_job
 sm = snakemake  # noqa: F821  (given by Snakemake: the rule's input, output, params, wildcards, log)
 log = start_job(sm)  # from here on, errors and their tracebacks go to the rule's log
 
+import importlib
 import json
 import shutil
 from pathlib import Path
@@ -16,15 +17,15 @@ from wsnloc import results
 from wsnloc.config import read_yaml
 from wsnloc.report import explanations
 from wsnloc.report.render import PAGES_DIR, FigureFiles, build_context, render_pages
-from wsnloc.report.sections import (paper_a_section, paper_b_section, paper_c_section, paper_d_section,
-                                    sensitivity_table, static_bounds_section, study_section, summary)
+from wsnloc.report.sections import ranging_section, sensitivity_table, static_bounds_section, study_section, summary
 
 config = sm.params.config
 
 summaries = [json.loads(Path(p).read_text()) for p in sm.input.summaries]
-paper_outputs = list(sm.input.studies) + list(sm.input.paper_a) + list(sm.input.paper_b) + list(sm.input.paper_c) + list(sm.input.paper_d)
-result_files = list(sm.input.results) + [p for p in paper_outputs if p.endswith("results.csv")] \
-    + [p for p in sm.input.bounds if p.endswith(".csv")]   # static bounds and subset Monte Carlo rows
+result_files = list(sm.input.results) + [p for p in list(sm.input.studies) + list(sm.input.paper_files)
+                                         if p.endswith("results.csv")] \
+    + [p for p in sm.input.bounds if p.endswith(".csv")] \
+    + [p for p in sm.input.ranging if p.endswith(".csv")]   # static bounds, subset Monte Carlo, ranging validation rows
 all_results = pd.concat([results.read(p) for p in result_files], ignore_index=True)
 results.write(all_results, sm.output.results)
 
@@ -44,6 +45,11 @@ context = build_context(config, summaries, final_results, scenario_figures, floo
 for ds in context["datasets"]:   # static bounds of the dataset (rule geometry), when configured
     maps = [Path(p) for p in sm.input.bounds if p.endswith(".png") and Path(p).parts[2] == ds["name"]]
     ds["bounds"] = static_bounds_section(final_results, ds["name"], figure(maps[0].read_bytes())) if maps else None
+if sm.input.ranging:    # the ranging validation (rule ranging_validation): table, figure, what was skipped
+    ranging = {Path(p).name: Path(p) for p in sm.input.ranging}
+    note = json.loads(ranging["note.json"].read_text())
+    context["ranging"] = ranging_section(final_results, note["scenarios"],
+                                         figure(ranging["ranging_validation.png"].read_bytes()), note["notes"])
 papers = read_yaml(sm.input.papers)
 for study, spec in sm.params.studies.items():
     pngs = [Path(p) for p in sm.input.studies if p.endswith(".png") and Path(p).parts[3] == study]
@@ -51,28 +57,16 @@ for study, spec in sm.params.studies.items():
                                                                          for path in pngs},
                                             config["report"]["cell_stats"]))
 
-SECTIONS = {   # paper: (section builder, figure names, labels)
-    "A": (paper_a_section, ("error_cdf", "trajectories", "rmse_vs_anchors", "gain_vs_static_share", "pcrb_vs_rmse",
-                            "consistency"), sm.params.paper_a_labels),
-    "B": (paper_b_section, ("trajectories", "error_over_time", "error_cdf", "dr_rmse_vs_snr"),
-          sm.params.paper_b_labels),
-    "C": (paper_c_section, ("error_histogram", "error_cdf", "trajectories", "rmse_vs_anchors", "rmse_vs_noise",
-                            "pcrb_vs_rmse", "consistency"), sm.params.paper_c_labels),
-    "D": (paper_d_section, ("error_cdf", "trajectories"), sm.params.paper_d_labels),
-}
 numbers = explanations.Numbers(final_results, {summary["label"]: summary for summary in summaries})
-
-for paper, (builder, figure_names, labels) in SECTIONS.items():
-    files = getattr(sm.input, f"paper_{paper.lower()}")
-    if not files:
-        continue
-    outputs = {Path(p).name: Path(p) for p in files}
+for paper, labels in sm.params.papers.items():   # each paper's section: wsnloc.experiments.<paper>.report
+    spec = config["experiments"][paper]
+    outputs = {Path(p).name: Path(p) for p in sm.input.paper_files if Path(p).parts[2] == paper}
     claims = json.loads(outputs["claims.json"].read_text())
-    figures_uri = {name: figure(outputs[f"{name}.png"].read_bytes()) for name in figure_names}
-    section = builder(final_results, claims, figures_uri, papers[paper], list(labels),
-                      config["experiments"][f"paper_{paper.lower()}"])
-    section["sensitivity"] = sensitivity_table(final_results, paper, section["claims"])
-    section["why"] = explanations.for_paper(paper, numbers, config, list(labels))
+    figures_uri = {path.stem: figure(path.read_bytes()) for path in outputs.values() if path.suffix == ".png"}
+    module = importlib.import_module(f"wsnloc.experiments.{paper}")
+    section = importlib.import_module(f"wsnloc.experiments.{paper}.report").section(
+        final_results, claims, figures_uri, papers[module.EXPERIMENT], list(labels), spec, numbers, config)
+    section["sensitivity"] = sensitivity_table(final_results, module.EXPERIMENT, section["claims"])
     context["papers"].append(section)
 context["summary"] = summary(context["papers"])
 pages = render_pages(Path(sm.input.templates[0]).parent, context)

@@ -44,7 +44,7 @@ def run_trajectory(campaign: Campaign, scenario: str, run: int, seed: int,
 
 
 def dead_reckoning_rmse(campaign: Campaign, scenario: str, snr_db: float, run: int, seed: int,
-                        resample: dict, static_bias_s: float, dataset: str = "newcom",
+                        resample: dict, static_start_s: float, dataset: str = "newcom",
                         traj: motion.Trajectory | None = None) -> float:
     """RMSE (m) of 5 Hz dead reckoning over one simulated run at accelerometer SNR `snr_db`.
 
@@ -60,14 +60,14 @@ def dead_reckoning_rmse(campaign: Campaign, scenario: str, snr_db: float, run: i
     imu = resample_imu(parse_imu(raw_from_bytes("imu.log", text.encode("ascii"), quarantine), noisy, quarantine),
                        **resample)
     x0, y0, heading0 = noisy.path.start_pose()
-    track = dead_reckon(imu, x0, y0, heading0, static_bias(imu, static_bias_s))
+    track = dead_reckon(imu, x0, y0, heading0, static_bias(imu, static_start_s))
     truth = noisy.path.evaluate(traj.at(track["t"].to_numpy())["s"])
     errors = np.hypot(track["x"].to_numpy() - truth["x"], track["y"].to_numpy() - truth["y"])
     return error_summary(errors)["rmse"]
 
 
 def rmse_against_snr(campaign: Campaign, scenario: str, snrs_db, runs: int, seed: int,
-                     resample: dict, static_bias_s: float, dataset: str = "newcom") -> pd.DataFrame:
+                     resample: dict, static_start_s: float, dataset: str = "newcom") -> pd.DataFrame:
     """Dead-reckoning RMSE per SNR: columns snr_db, rmse_m (mean over runs), ci95_low,
     ci95_high (95% Student-t interval of the mean), runs, and run_rmse_m (the per-run values,
     runs 1..`runs`, for paired comparisons). Each run's motion is simulated once for all SNRs."""
@@ -76,7 +76,7 @@ def rmse_against_snr(campaign: Campaign, scenario: str, snrs_db, runs: int, seed
     motions = {run: run_trajectory(campaign, scenario, run, seed, dataset) for run in range(1, runs + 1)}
     rows = []
     for snr_db in snrs_db:
-        values = [dead_reckoning_rmse(campaign, scenario, snr_db, run, seed, resample, static_bias_s, dataset, traj)
+        values = [dead_reckoning_rmse(campaign, scenario, snr_db, run, seed, resample, static_start_s, dataset, traj)
                   for run, traj in motions.items()]
         mean, low, high = mean_ci95(values)
         rows.append({"snr_db": float(snr_db), "rmse_m": mean, "ci95_low": low, "ci95_high": high,

@@ -234,7 +234,7 @@ def monte_carlo_rows(campaign: Campaign, runs: dict[str, dict], label: str, data
 def configured_subsets(config: dict, dataset: str) -> list[str]:
     """The subset expressions the configuration runs on a dataset (papers A and C, studies), in
     first-use order; 'all' when nothing names one."""
-    from wsnloc.experiments import paper_a, paper_c
+    from wsnloc.experiments import paper_c
 
     def on(spec) -> list[str]:
         return [label for label in (spec or {}).get("scenarios", []) if label.split("/", 1)[0] == dataset]
@@ -242,11 +242,10 @@ def configured_subsets(config: dict, dataset: str) -> list[str]:
     out = []
     spec_a = config["experiments"].get("paper_a")
     if on(spec_a):
-        settings = paper_a.Settings.from_config(spec_a)
-        out += [paper_a.estimator_params(settings, row, False)["anchors"] for row in settings.rows]
+        out += [row["anchors"] for row in spec_a["rows"]]
     spec_c = config["experiments"].get("paper_c")
     for label in on(spec_c):
-        out += paper_c.subsets_of(paper_c.Settings.from_config(spec_c), label)
+        out += paper_c.subsets_of(spec_c, label)
     for spec in (config.get("studies") or {}).values():
         if on(spec):
             out += spec.get("subsets") or [ALL_ANCHORS]

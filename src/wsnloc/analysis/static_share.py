@@ -30,15 +30,17 @@ def gain_against_rest(campaign: Campaign, scenario: str, rests_s, runs: int, see
     hybrid = next((row for row in spec["rows"] if row["measurements"] == "hybrid"), None)
     if hybrid is None:
         raise ValueError("experiments.paper_a.rows: the static-share sweep needs a hybrid row")
-    settings = paper_a.Settings.from_config({**spec, "rows": [hybrid]})
+    spec = {**spec, "rows": [hybrid]}
+    label = f"{dataset}/{scenario}"
+    p = paper_a.cell_params(spec, label, paper_a.TABLES[0], hybrid)
     out = []
     for rest_s in rests_s:
         rested = with_value(campaign, ("scenarios", scenario, "static_end_s"), float(rest_s))
         tables = simulate_tables(rested, scenario, runs, seed, dataset)
         zigbee = list(rested.anchors_of("zigbee")["anchor_id"])
-        models = calibration.rss_models_for_runs(tables, rested, zigbee, settings.rss_calibration, settings.rss_model)
+        models = calibration.rss_models_for_runs(tables, rested, zigbee, p)
         for name, run_tables in tables.items():
-            est = paper_a.run(RunData(run_tables, rested, models[name], name), settings).assign(run=name)
+            est = paper_a.run(RunData(run_tables, rested, models[name], name), spec, label).assign(run=name)
             rmse = cell_metrics(est, ["table"], run_tables["truth"]).set_index("table")["rmse"]
             share = static_share(est[est["table"] == "Table I"]).iloc[0]
             out.append({"rest_s": float(rest_s), "run": name, "static_share": share,

@@ -30,6 +30,8 @@ from wsnloc.estimators.measurements import KINDS
 OUTPUT_COLUMNS = core.COLUMNS
 
 # ---- parameter groups ------------------------------------------------------------------
+STATIC_START = Param("static_start_s", 4.0, "s", "the mobile rests during the first S s: gravity reference and "
+                     "IMU bias measured then (0: none)", minimum=0.0)
 COMMON = (
     Param("anchors", "all", "", "anchor subset: 'all', or campaign subset names joined by '+' "
           "(e.g. 'UWB=9+ZigBee=17')", str),
@@ -94,8 +96,7 @@ FILTER = (
           bool),
     Param("motion_threshold_mps2", 0.05, "m/s^2", "motion detection: mean | |f| - g | below this is static",
           minimum=0.0),
-    Param("static_start_s", 4.0, "s", "the mobile rests during the first S s (gravity reference, IMU bias)",
-          minimum=0.0),
+    STATIC_START,
     Param("range_calibration", "none", "", "correct the ranges before filtering: other_run = scale and per-anchor "
           "offsets fitted on a donor run with truth of the same dataset (configured values without one), "
           "configured = the campaign file's range_calibration, none = as measured", str, range_calibration.SOURCES),
@@ -137,7 +138,7 @@ SLIDING_WINDOW = (
           "multilateration on a window", minimum=0.0),
 )
 INERTIAL = (
-    Param("static_start_s", 4.0, "s", "the mobile rests during the first S s: IMU bias measured then", minimum=0.0),
+    STATIC_START,
     Param("process_sigma_m", 0.05, "m", "dead-reckoning displacement error per 5 Hz step", minimum=1e-6),
     Param("fix_sigma_m", 1.0, "m", "fix error (R = sigma^2 I)", minimum=1e-6),
 )

@@ -22,13 +22,17 @@ def calibrate(rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign, d0_m: 
     return {"p0_dbm": fit["P0_dBm"], "path_loss_exponent": fit["n"], "sigma_db": fit["sigma_dB"], "d0_m": d0_m}
 
 
-def rss_models_for_runs(run_tables: dict[str, dict], campaign: Campaign, members: list[str], method: str,
-                        configured: dict) -> dict[str, dict]:
-    """The RSS model each run is evaluated with.
+RSS_MODEL = ("p0_dbm", "path_loss_exponent", "sigma_db", "d0_m")   # the registry's RSS model parameters
 
-    `other_run`: fitted on the next run (cyclically) with its truth; `configured`: the
-    configured model. With a single run `other_run` falls back to the configured model.
+
+def rss_models_for_runs(run_tables: dict[str, dict], campaign: Campaign, members: list[str],
+                        p: dict) -> dict[str, dict]:
+    """The RSS model each run is evaluated with, by a cell's registry parameters p.
+
+    rss_calibration `other_run`: fitted on the next run (cyclically) with its truth;
+    `configured`: p's model (RSS_MODEL). With a single run `other_run` falls back to p's model.
     """
+    method, configured = p["rss_calibration"], {k: p[k] for k in RSS_MODEL}
     names = list(run_tables)
     if method == "configured" or len(names) < 2:
         return {name: dict(configured, source="configured") for name in names}

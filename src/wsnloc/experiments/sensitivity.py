@@ -1,8 +1,9 @@
 """Sensitivity of a paper's claim verdicts to its a-priori filter settings.
 
-Config `experiments.paper_x.sensitivity`: `sigmas` (config keys of the paper's a-priori
-noise sigmas, dotted for nested keys, e.g. "kalman.accel_sigma_mps2"), `factors` (e.g.
-[0.5, 2]) and `runs` (the first `runs` Monte Carlo runs of each scenario; 0 turns it off).
+Config `experiments.paper_x.sensitivity`: `sigmas` (the paper's a-priori noise sigmas: a
+key of its `parameters`, e.g. "range_sigma_m", or `cell.parameter`, e.g.
+"kalman.accel_sigma_mps2"), `factors` (e.g. [0.5, 2]) and `runs` (the first `runs` Monte
+Carlo runs of each scenario; 0 turns it off).
 One sigma is scaled at a time: setting "range_sigma_m x0.5" is the paper's configuration
 with range_sigma_m halved. The paper's job re-runs its estimators on those runs of each
 scenario for every setting (the runs already loaded for the main tables); the baseline "x1"
@@ -31,32 +32,37 @@ def setting_label(sigma: str, factor: float) -> str:
     return f"{sigma} x{factor:g}"
 
 
-def variants(spec: dict, where: str, allowed=None) -> list[tuple[str, str, dict]]:
-    """(setting label, sigma, the paper's config with that sigma scaled) for every sigma and factor.
+def _value(spec: dict, sigma: str):
+    """The configured value of a sigma: `cell.parameter` from the cell's entry, else the paper's
+    shared `parameters` (which the cell inherits); a shared key from `parameters`. None when unset."""
+    cell, _, name = sigma.rpartition(".")
+    own = (spec.get("estimators") or {}).get(cell) or {} if cell else {}
+    return own.get(name, (spec.get("parameters") or {}).get(name))
 
-    `where` is the paper's config key (e.g. "experiments.paper_a"), for error messages;
-    `allowed`, when given, the sigmas the caller's evaluation handles.
+
+def variants(spec: dict, where: str) -> list[tuple[str, str, dict]]:
+    """(setting label, sigma, the paper's config with that sigma scaled) for every sigma and factor:
+    a shared key scaled in `parameters`, `cell.parameter` set in that cell's entry.
+
+    `where` is the paper's config key (e.g. "experiments.paper_a"), for error messages.
     """
     grid = spec.get("sensitivity") or {}
     if not grid.get("runs"):
         return []
     out = []
     for i, sigma in enumerate(grid.get("sigmas", [])):
-        if allowed is not None and sigma not in allowed:
-            raise ConfigError(f"config key '{where}.sensitivity.sigmas.{i}': {sigma!r} is not one of {list(allowed)}")
-        *parents, leaf = sigma.split(".")
-        node = spec
-        for key in parents:
-            node = node.get(key) if isinstance(node, dict) else None
-        value = node.get(leaf) if isinstance(node, dict) else None
-        if not isinstance(value, (int, float)) or isinstance(value, bool):
-            raise ConfigError(f"config key '{where}.sensitivity.sigmas.{i}': {sigma!r} is not a numeric key of {where}")
+        value = _value(spec, sigma)
+        cell, _, name = sigma.rpartition(".")
+        if not isinstance(value, (int, float)) or isinstance(value, bool) or (cell and cell not in spec["estimators"]):
+            raise ConfigError(f"config key '{where}.sensitivity.sigmas.{i}': {sigma!r} is neither a number in "
+                              f"{where}.parameters nor 'cell.parameter' of a cell with that number set (in its "
+                              f"entry or in parameters)")
         for factor in grid["factors"]:
             scaled = copy.deepcopy(spec)
-            target = scaled
-            for key in parents:
-                target = target[key]
-            target[leaf] = value * factor
+            target = scaled.setdefault("estimators", {})[cell] if cell else scaled.setdefault("parameters", {})
+            if cell and target is None:
+                target = scaled["estimators"][cell] = {}
+            target[name] = value * factor
             out.append((setting_label(sigma, factor), sigma, scaled))
     return out
 
@@ -68,16 +74,16 @@ def sample_runs(spec: dict, run_names) -> list[str]:
 
 
 def grid_metrics(spec: dict, where: str, metrics: pd.DataFrame,
-                 evaluate: Callable[[dict, str, list[str]], pd.DataFrame], allowed=None) -> pd.DataFrame:
+                 evaluate: Callable[[dict, str, list[str]], pd.DataFrame]) -> pd.DataFrame:
     """Per-run metrics of every setting on the sampled runs, with columns `setting`, `sigma`
     (the scaled key, "" for the baseline) and `factor` (1 for the baseline).
 
     metrics: the main per-run metrics (baseline); evaluate(variant_spec, sigma, runs) -> those
     runs' metrics (column `run`) under the variant (the caller's estimators on the already
     loaded runs, all runs at once where it batches them, else `each_run`; `sigma` lets it
-    re-run only the cells the scaled sigma acts on, see `replace_cells`).
+    re-run only the cells the scaled sigma acts on: experiments.cells.acted_on, `replace_cells`).
     """
-    grid = variants(spec, where, allowed)
+    grid = variants(spec, where)
     runs = sample_runs(spec, metrics["run"].unique())
     frames = [metrics[metrics["run"].isin(runs)].assign(setting=BASELINE, sigma="", factor=1.0)]
     factors = [f for _ in (spec.get("sensitivity") or {}).get("sigmas", []) for f in spec["sensitivity"]["factors"]]

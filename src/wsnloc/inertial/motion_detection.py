@@ -14,9 +14,9 @@ import numpy as np
 import pandas as pd
 
 
-def gravity_reference(imu: pd.DataFrame, static_s: float) -> float:
+def gravity_reference(imu: pd.DataFrame, static_start_s: float) -> float:
     norm = np.sqrt(imu["ax"] ** 2 + imu["ay"] ** 2 + imu["az"] ** 2)
-    still = imu["t"] <= imu["t"].iloc[0] + static_s
+    still = imu["t"] <= imu["t"].iloc[0] + static_start_s
     return float(norm[still].mean())
 
 
@@ -33,9 +33,9 @@ def activity(imu: pd.DataFrame, epoch_times: np.ndarray, period: float, g_ref: f
 
 
 def static_epochs(imu: pd.DataFrame, epoch_times: np.ndarray, period: float, threshold: float,
-                  static_s: float) -> np.ndarray:
+                  static_start_s: float) -> np.ndarray:
     """Boolean per epoch: True where the mobile is declared static (no IMU data: not static)."""
     if len(imu) == 0:
         return np.zeros(len(epoch_times), dtype=bool)
-    level = activity(imu, epoch_times, period, gravity_reference(imu, static_s))
+    level = activity(imu, epoch_times, period, gravity_reference(imu, static_start_s))
     return np.nan_to_num(level, nan=np.inf) < threshold

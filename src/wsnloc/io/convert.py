@@ -93,12 +93,12 @@ def _numbers(source: _Source, rows, columns: list[str], non_negative: tuple[str,
     values.update({c: pd.to_numeric(rows.frame[c].str.strip(), errors="coerce").to_numpy(float) for c in passed_on
                    if c in rows.frame.columns})
     ok = np.ones(len(rows.frame), dtype=bool)
-    texts = rows.frame.astype(str).agg(",".join, axis=1).to_numpy() if len(rows.frame) else []
     for c in columns:
         bad = ~np.isfinite(values[c]) | ((values[c] < 0) if c in non_negative else False)
-        for i in np.flatnonzero(bad & ok):
+        for i in np.flatnonzero(bad & ok):     # the line's text is rebuilt for the (few) refused rows only
             kind = "negative" if np.isfinite(values[c][i]) else "not a finite number"
-            source.refuse(rows.lines[i], texts[i], f"{c} {rows.frame[c].iloc[i]!r} is {kind}")
+            text = ",".join(rows.frame.iloc[i].astype(str))
+            source.refuse(rows.lines[i], text, f"{c} {rows.frame[c].iloc[i]!r} is {kind}")
         ok &= ~bad
     return pd.DataFrame({c: v[ok] for c, v in values.items()})
 

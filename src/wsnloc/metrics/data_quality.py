@@ -18,11 +18,12 @@ import pandas as pd
 from wsnloc import results
 from wsnloc.campaign import Campaign
 from wsnloc.io import tables
+from wsnloc.metrics import ranging_validation
 from wsnloc.metrics.ranging import anchor_slots, fit_path_loss, fit_range_bias, range_errors, rss_with_distance
+from wsnloc.metrics.ranging_validation import DISTANCE_BINS_M
 from wsnloc.metrics.stats import error_summary
 
 EXPERIMENT = "data"
-DISTANCE_BINS_M = (0.0, 2.0, 5.0, 10.0, 20.0, 40.0, 80.0, float("inf"))
 
 
 def reason_category(reason: str) -> str:
@@ -124,6 +125,8 @@ def summarize(runs: dict[str, dict[str, pd.DataFrame]], imu_5hz: dict[str, pd.Da
                                               column=key, metric=key, **common))
     rows.append(results.row_over_runs(per_run["quarantined"], table="Inventory", row="all files",
                                       column="quarantined lines per run", metric="lines", **common))
+    if len(errors):
+        rows += ranging_validation.rows(ranging_validation.link_of_walls(errors), EXPERIMENT, label)
 
     per_anchor = _per_anchor_counts(runs)
     q = quarantine.assign(category=quarantine["reason"].map(reason_category))

@@ -499,3 +499,30 @@ def estimator_bars(panels: dict[str, dict[str, dict[str, tuple[float, float, flo
         ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16 - 0.35 / len(labels)),
                   ncols=len(names), frameon=False)        # below the axes: never over a bar
     return fitted_png(fig)
+
+
+@gc_paused
+def ranging_validation(curves: dict[str, dict[str, pd.DataFrame]]) -> bytes:
+    """Two panels, median signed range error and p95 |error| (m) against the true distance (m,
+    log axis, each point at its bin's geometric centre): one line per source label, each frame
+    with columns x, value, ci95_low, ci95_high (error bars where an interval exists). curves:
+    {panel title: {label: frame}}; NLOS labels dashed."""
+    fig, axes = plt.subplots(1, len(curves), figsize=(9.0, 3.8), squeeze=False)
+    handles = {}
+    for ax, (title, lines) in zip(axes[0], curves.items()):
+        for k, (label, frame) in enumerate(lines.items()):
+            low, high = frame["ci95_low"].to_numpy(float), frame["ci95_high"].to_numpy(float)
+            value = frame["value"].to_numpy(float)
+            yerr = np.vstack([value - low, high - value]) if np.isfinite(low).any() else None
+            handle = ax.errorbar(frame["x"], value, yerr=yerr, marker="os^vD<>"[k % 7], ms=4, capsize=2, lw=1.2,
+                                 ls="--" if "NLOS" in label else "-", color=f"C{k}", label=label)
+            handles.setdefault(label, handle)
+        ax.set_xscale("log")
+        ax.set_xlabel("true distance [m]")
+        ax.set_ylabel(f"{title} [m]")
+        ax.set_title(title, fontsize=10)
+        ax.grid(alpha=0.3)
+    fig.legend(list(handles.values()), list(handles), loc="lower center", ncol=3, fontsize=7,
+               bbox_to_anchor=(0.5, -0.02), frameon=False)
+    fig.tight_layout(rect=(0, 0.16, 1, 1))
+    return to_png(fig)

@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from wsnloc import experiments
 from wsnloc.config import config_hash
 from wsnloc.validation import dataset_kind
 
@@ -130,7 +131,8 @@ PAGES_DIR = "pages"      # the pages beside the summary (reports/index.html), an
 
 def _environment(template_dir: str | Path) -> jinja2.Environment:
     env = jinja2.Environment(
-        loader=jinja2.FileSystemLoader(str(template_dir)),
+        # the shared templates, then each paper's own partial (wsnloc/experiments/paper_x/section.html.j2)
+        loader=jinja2.FileSystemLoader([str(template_dir), str(Path(experiments.__file__).parent)]),
         autoescape=jinja2.select_autoescape(default=True, default_for_string=True),
         undefined=jinja2.StrictUndefined,
         trim_blocks=True,
@@ -238,6 +240,7 @@ def build_context(config: dict, summaries: list[dict], results: pd.DataFrame, fi
         "experiments": sorted(results["experiment"].dropna().unique()),
         "summary": [],                   # per paper, filled in once the paper sections are built (sections.summary)
         "papers": [], "studies": [],     # filled in by the report job (sections)
+        "ranging": None,                 # the ranging validation section, when configured (sections.ranging_section)
         "provenance": {
             "config_hash": config_hash(config),
             "config_yaml": yaml.safe_dump(config, sort_keys=False),

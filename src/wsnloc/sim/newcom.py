@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 from wsnloc.campaign import Campaign
+from wsnloc.sim import link_budget
 from wsnloc.sim import rss as rss_model
 from wsnloc.sim import trajectory as motion
 from wsnloc.sim import uwb_channel
@@ -48,15 +49,20 @@ def twr_clock_bias_m(spec: dict, rng: np.random.Generator, n_anchors: int, c: fl
     return c * spec.get("twr_reply_time_us", 0.0) * 1e-6 * (offsets[0] - offsets[1:]) / 2
 
 
-def _uwb_lines(campaign: Campaign, spec: dict, traj, rng_time, rng_channel, rng_fault, rng_clock, detector: str,
-               clock_ms: int) -> list[str]:
-    """`uwb.log`: one two-way time of flight per linked (round, anchor), in time order.
+def _uwb_lines(campaign: Campaign, spec: dict, traj, rng_time, rng_channel, rng_fault, rng_clock, rng_shadow,
+               detector: str, clock_ms: int) -> list[str]:
+    """`uwb.log`: one two-way time of flight per (round, anchor) whose link closes, in time order.
 
-    tw_toa_ps = round(2 (d + n_walls * excess_path_per_wall + c * (delay_detected + noise) + bias_anchor) / c
-    * 1e12), bias_anchor the anchor's two-way-ranging clock-offset bias (twr_clock_bias_m);
-    the detected excess delays of all links of one channel model (CM3 LOS, CM4 NLOS) are
-    drawn together (uwb_channel.detected_delays_ns); a `fault_rate` share of the links
-    carries a non-zero status and a random value instead.
+    Link budget (sim.link_budget): P_rx from the CM3 (no wall) / CM4 (walls) path loss and a
+    shadowing field correlated along the path (one per anchor, Gudmundson, decorrelation
+    `shadowing_decorrelation_m`, drawn from `rng_shadow`); the link exists when P_rx reaches
+    `sensitivity_dbm`. Its channel realisation carries P_rx, the direct path loses
+    `direct_path_wall_loss_db` per wall, and the detector reads it against the noise-referenced
+    threshold (uwb_channel.detected_delays_ns); a link whose taps all stay below it gives no
+    range. tw_toa_ps = round(2 (d + n_walls * excess_path_per_wall + c * (delay_detected + noise)
+    + bias_anchor) / c * 1e12), bias_anchor the anchor's two-way-ranging clock-offset bias
+    (twr_clock_bias_m); a `fault_rate` share of the links carries a non-zero status and a random
+    value instead.
     """
     c = campaign.spec["speed_of_light_mps"]
     anchors = campaign.anchors_of("uwb")
@@ -64,12 +70,18 @@ def _uwb_lines(campaign: Campaign, spec: dict, traj, rng_time, rng_channel, rng_
     rounds = np.arange(period, traj.duration * 1000 - len(anchors) * spec["anchor_spacing_ms"], period)
     round_ms = rounds + rng_time.uniform(-jitter, jitter, len(rounds))
     times_ms = np.round(round_ms[:, None] + np.arange(len(anchors))[None, :] * spec["anchor_spacing_ms"])
-    pos = _positions(campaign, traj, times_ms.ravel() / 1000.0)["xy"].reshape(len(rounds), len(anchors), 2)
+    state = _positions(campaign, traj, times_ms.ravel() / 1000.0)
+    pos = state["xy"].reshape(len(rounds), len(anchors), 2)
     walls = np.column_stack([campaign.walls_between(pos[:, j], a) for j, a in
                              enumerate(anchors[["x", "y"]].to_numpy(float))])
     dist = np.hypot(pos[..., 0] - anchors["x"].to_numpy()[None, :], pos[..., 1] - anchors["y"].to_numpy()[None, :])
-    linked = ((walls == 0) & (dist <= spec["los_max_range_m"])) | \
-        ((walls > 0) & (walls <= spec["nlos_max_walls"]) & (dist <= spec["nlos_max_range_m"]))
+    # the shadowing field at the round's path position (the anchors of a round are ranged within
+    # len(anchors) * anchor_spacing_ms, a few cm of travel, far below the decorrelation distance)
+    arc = state["s"].reshape(len(rounds), len(anchors))[:, 0]
+    shadow = rss_model.correlated_shadowing(arc, len(anchors), 1.0, spec["shadowing_decorrelation_m"],
+                                            rng_shadow)
+    power_dbm = link_budget.received_power_dbm(spec, dist, walls > 0, shadow)
+    linked = power_dbm >= spec["sensitivity_dbm"]
     k, j = np.nonzero(linked)                        # row-major: time order within the run
     t_ms = times_ms[k, j].astype(np.int64) + clock_ms
     n_walls, d = walls[k, j], dist[k, j]
@@ -80,19 +92,25 @@ def _uwb_lines(campaign: Campaign, spec: dict, traj, rng_time, rng_channel, rng_
     value = np.zeros(len(k), dtype=np.int64)
     value[faulty] = rng_fault.integers(0, 200_000, faulty.sum())
 
+    received_mw = 10 ** (power_dbm[k, j] / 10)
+    direct_gain = 10 ** (-n_walls * spec["direct_path_wall_loss_db"] / 10)
+    noise_threshold_mw = 10 ** (link_budget.first_path_threshold_dbm(spec) / 10)
     delay_ns = np.zeros(len(k))
     for name, of_model in (("CM3", ~faulty & (n_walls == 0)), ("CM4", ~faulty & (n_walls > 0))):
         delay_ns[of_model] = uwb_channel.detected_delays_ns(
             spec["channel_models"][name], rng_channel, int(of_model.sum()), spec["cir_tap_ns"], detector,
-            spec["leading_edge_threshold_db"])
+            spec["leading_edge_threshold_db"], received_mw[of_model], direct_gain[of_model], noise_threshold_mw)
     delay_ns += rng_channel.normal(0.0, spec["timing_noise_ns"], len(k))
     range_m = d + n_walls * spec["excess_path_per_wall_m"] + c * delay_ns * 1e-9 \
         + twr_clock_bias_m(spec, rng_clock, len(anchors), c)[j]
-    value[~faulty] = np.round(2.0 * range_m[~faulty] / c * 1e12).astype(np.int64)
+    measured = ~faulty & np.isfinite(range_m)
+    value[measured] = np.round(2.0 * range_m[measured] / c * 1e12).astype(np.int64)
+    keep = faulty | measured                         # no leading edge above the threshold: no ranging
 
-    ids = anchors["anchor_id"].to_numpy()[j]
+    ids = anchors["anchor_id"].to_numpy()[j[keep]]
     return ["# newcom-uwb v1", "# t_ms anchor tw_toa_ps status"] + [
-        f"{t} {a} {v} {s}" for t, a, v, s in zip(t_ms.tolist(), ids.tolist(), value.tolist(), status.tolist())]
+        f"{t} {a} {v} {s}" for t, a, v, s in zip(t_ms[keep].tolist(), ids.tolist(), value[keep].tolist(),
+                                                  status[keep].tolist())]
 
 
 def _zigbee_lines(campaign: Campaign, traj, rng, clock_ms: int) -> list[str]:
@@ -167,7 +185,7 @@ def simulate_run(campaign: Campaign, scenario: str, seeds: np.random.SeedSequenc
         "uwb.log": lines_text(_uwb_lines(campaign, uwb_settings(campaign, overrides), traj,
                                          model_rng(seeds, "uwb-timing"), model_rng(seeds, "uwb-channel"),
                                          model_rng(seeds, "uwb-faults"), model_rng(seeds, "uwb-clock"),
-                                         detector, clock_ms)),
+                                         model_rng(seeds, "uwb-shadowing"), detector, clock_ms)),
         "zigbee.log": lines_text(_zigbee_lines(campaign, traj, model_rng(seeds, "zigbee"), clock_ms)),
         "imu.log": imu_text(campaign, traj, model_rng(seeds, "imu"), imu_noise, clock_ms),
         "truth.log": truth_text(campaign, traj, clock_ms, "rail_m"),

@@ -14,10 +14,18 @@ CM3 office LOS and CM4 office NLOS in the campaign file):
 - Small-scale fading: Nakagami-m, |a|^2 ~ Gamma(m, E|a|^2 / m) with m log-normal
   (mean m0, std sigma_m0, natural-log domain as in the reference code), m >= 1/2; in LOS
   the first ray of each cluster has the deterministic m of `first_ray_m`.
+With a link budget (sim.link_budget), each realisation is scaled to the link's received power
+(its ray energies sum to P_rx) and the rays of its first cluster, the energy travelling along
+the direct path, lose `direct_path_wall_loss_db` per wall crossed; the later clusters are
+reflections that reach the receiver around the walls (through doors and the corridor).
 The rays are summed with random phases into receiver taps of `cir_tap_ns` (the
 accumulator of a DW1000-class receiver), and a detector picks a tap:
-- `first_path`: the first tap whose power is within `leading_edge_threshold_db` of the peak;
+- `first_path`: the first tap whose power is within `leading_edge_threshold_db` of the peak
+  and, with a link budget, at or above the noise-referenced threshold: when the direct path
+  is below it, the leading edge is a later multipath component (a positive range error that
+  grows as the direct path weakens with distance and walls);
 - `strongest_path`: the peak tap.
+No tap at or above the noise-referenced threshold: no detection (NaN).
 Every function works on a batch of independent links at once (arrays over a link axis),
 so that a run's ~10^3 channel realisations cost a few array operations, not a Python loop.
 """
@@ -92,10 +100,14 @@ def _mean_ray_power(model: dict, omega: np.ndarray, decay: np.ndarray, first_clu
     return decayed
 
 
-def impulse_responses(model: dict, rng: np.random.Generator, n_links: int
-                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def impulse_responses(model: dict, rng: np.random.Generator, n_links: int, received_mw: np.ndarray | None = None,
+                      direct_gain: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """`n_links` independent channel realisations, as flat arrays over all their rays:
-    (link index, delay in ns relative to the link's first arrival, complex amplitude)."""
+    (link index, delay in ns relative to the link's first arrival, complex amplitude).
+
+    received_mw (per link): the amplitudes are scaled so that each link's ray powers sum to it;
+    direct_gain (per link, power ratio <= 1): then applied to the rays of the first cluster
+    (the direct path through the walls). Neither changes the random draws."""
     n_clusters = np.maximum(1, rng.poisson(model["mean_clusters"], n_links))
     width = int(n_clusters.max())
     gaps = rng.exponential(1.0 / model["cluster_rate_per_ns"], (n_links, width - 1))
@@ -128,7 +140,14 @@ def impulse_responses(model: dict, rng: np.random.Generator, n_links: int
     np.multiply(magnitude, trig, out=amplitudes.real)
     np.multiply(magnitude, np.sin(phase, out=trig), out=amplitudes.imag)
     delays = np.add(np.repeat(cluster_t[link, cluster], counts), tau, out=tau)
-    return np.repeat(link, counts), delays, amplitudes
+    ray_link = np.repeat(link, counts)
+    if received_mw is not None:
+        energy = np.bincount(ray_link, weights=magnitude**2, minlength=n_links)
+        amplitudes *= np.sqrt(np.asarray(received_mw, dtype=float) / energy)[ray_link]
+    if direct_gain is not None:
+        direct = np.repeat(first_cluster, counts)
+        amplitudes[direct] *= np.sqrt(np.asarray(direct_gain, dtype=float))[ray_link[direct]]
+    return ray_link, delays, amplitudes
 
 
 def tap_powers(link: np.ndarray, delays: np.ndarray, amplitudes: np.ndarray, tap_ns: float,
@@ -142,27 +161,43 @@ def tap_powers(link: np.ndarray, delays: np.ndarray, amplitudes: np.ndarray, tap
     return (real**2 + imag**2).reshape(n_links, n_taps)
 
 
-def detect_delay_ns(powers: np.ndarray, tap_ns: float, detector: str, threshold_db: float) -> np.ndarray:
+def detect_delay_ns(powers: np.ndarray, tap_ns: float, detector: str, threshold_db: float,
+                    noise_threshold: float | None = None) -> np.ndarray:
     """Delay (ns) of the tap a detector picks in each row of `powers` (links, taps): leading
-    edge (first_path: first tap with power >= peak * 10^(-threshold_db / 10)) or peak
-    (strongest_path)."""
+    edge (first_path: first tap with power >= max(peak * 10^(-threshold_db / 10),
+    noise_threshold)) or peak (strongest_path); NaN in a row whose peak is below
+    `noise_threshold` (same unit as powers; None: no noise reference)."""
     check_detector(detector)
     powers = np.atleast_2d(powers)
     peak = np.argmax(powers, axis=1)
+    peak_power = powers[np.arange(len(powers)), peak]
     if detector == "strongest_path":
-        return peak * tap_ns
-    floor = powers[np.arange(len(powers)), peak] * 10 ** (-threshold_db / 10)
-    return np.argmax(powers >= floor[:, None], axis=1) * tap_ns
+        delay = peak * tap_ns
+    else:
+        floor = peak_power * 10 ** (-threshold_db / 10)
+        if noise_threshold is not None:
+            floor = np.maximum(floor, noise_threshold)
+        delay = np.argmax(powers >= floor[:, None], axis=1) * tap_ns
+    if noise_threshold is None:
+        return delay
+    return np.where(peak_power >= noise_threshold, delay, np.nan)
 
 
 def detected_delays_ns(model: dict, rng: np.random.Generator, n_links: int, tap_ns: float, detector: str,
-                       threshold_db: float) -> np.ndarray:
+                       threshold_db: float, received_mw: np.ndarray | None = None,
+                       direct_gain: np.ndarray | None = None, noise_threshold_mw: float | None = None) -> np.ndarray:
     """Excess delay (ns) the detector reports on `n_links` independent links of one channel
-    model, in batches of LINKS_PER_BATCH links."""
+    model, in batches of LINKS_PER_BATCH links; NaN where nothing reaches the noise-referenced
+    threshold. received_mw, direct_gain (per link) and noise_threshold_mw (the tap power a
+    path needs, mW): the link budget (impulse_responses, detect_delay_ns); None: none."""
     check_detector(detector)
     out = [np.empty(0)]
     for start in range(0, n_links, LINKS_PER_BATCH):
         size = min(LINKS_PER_BATCH, n_links - start)
-        link, delays, amplitudes = impulse_responses(model, rng, size)
-        out.append(detect_delay_ns(tap_powers(link, delays, amplitudes, tap_ns, size), tap_ns, detector, threshold_db))
+        part = slice(start, start + size)
+        link, delays, amplitudes = impulse_responses(
+            model, rng, size, None if received_mw is None else received_mw[part],
+            None if direct_gain is None else direct_gain[part])
+        out.append(detect_delay_ns(tap_powers(link, delays, amplitudes, tap_ns, size), tap_ns, detector, threshold_db,
+                                   noise_threshold_mw))
     return np.concatenate(out)

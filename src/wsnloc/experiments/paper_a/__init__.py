@@ -10,97 +10,55 @@ This module holds only the paper's table layout, its claims and figures.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import pandas as pd
 
 from wsnloc import results
 from wsnloc.analysis import setup_facts
-from wsnloc.campaign import Campaign
-from wsnloc.errors import ConfigError
 from wsnloc.estimators import batched
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments import claims as claims_of
+from wsnloc.experiments import cells, claims as claims_of
 from wsnloc.metrics import verdicts
 from wsnloc.metrics.stats import mean_ci95
 from wsnloc.metrics.tracking import cell_metrics, score
 
+PAPER = "paper_a"
 EXPERIMENT = "A"
 INPUT_TABLES = ("ranges", "rss", "imu", "truth", "anchors")   # the processed tables a run needs (see load_runs)
 MEASUREMENT_LABEL = {"toa": "distance (UWB)", "rss": "RSS (ZigBee)", "hybrid": "hybrid"}
+TABLES = cells.CELLS[PAPER]   # the paper's tables "Table I", "Table II": its cells (config estimators)
 # detail columns -> results metric; sqrt(PCRB) and efficiency RMSE / sqrt(PCRB) per run
 DETAIL_METRICS = {"median": "median_m", "p95": "p95_m", "max": "max_m", "sqrt_pcrb": "sqrt_pcrb_m",
                   "efficiency": "efficiency_ratio"}
 
 
+def anchors_label(row: dict) -> str:
+    """A row's anchor subsets as the paper writes them ("UWB=12, ZigBee=21")."""
+    return row["anchors"].replace("+", ", ")
+
+
 def row_label(row: dict) -> str:
-    anchors = ", ".join(row[k] for k in ("uwb", "zigbee") if k in row)
-    return f"{MEASUREMENT_LABEL[row['measurements']]} | {anchors}"
+    return f"{MEASUREMENT_LABEL[row['measurements']]} | {anchors_label(row)}"
 
 
-@dataclass
-class Settings:
-    epoch_s: float
-    rows: list
-    uwb_preliminary_filter: bool
-    max_range_m: float
-    range_sigma_m: float
-    rss_calibration: str
-    rss_model: dict
-    accel_sigma_mps2: float
-    initial_sigma_m: float
-    initial_speed_sigma_mps: float
-    motion_threshold_mps2: float
-    static_reference_s: float
-
-    @classmethod
-    def from_config(cls, spec: dict) -> "Settings":
-        return cls(**{k: spec[k] for k in cls.__dataclass_fields__})
-
-    def check_against(self, campaign: Campaign) -> None:
-        subsets = campaign.spec.get("subsets", {})
-        for i, row in enumerate(self.rows):
-            for key in ("uwb", "zigbee"):
-                if key in row and row[key] not in subsets:
-                    raise ConfigError(f"config key 'experiments.paper_a.rows.{i}.{key}': no subset {row[key]!r} "
-                                      f"in {campaign.source}")
-            needed = {"toa": ["uwb"], "rss": ["zigbee"], "hybrid": ["uwb", "zigbee"]}[row["measurements"]]
-            for key in needed:
-                if key not in row:
-                    raise ConfigError(f"config key 'experiments.paper_a.rows.{i}.{key}': required for "
-                                      f"{row['measurements']} measurements")
+def cell_params(spec: dict, label: str, table: str, row: dict) -> dict:
+    """Registry parameters of one row of one table (a cell) on scenario `label`."""
+    return cells.params(spec, table, label, PAPER, row)
 
 
-def estimator_params(settings: Settings, row: dict, motion_detection: bool) -> dict:
-    """Registry parameters of the `ekf` estimator for one row of Table I (or II, with motion detection)."""
-    return {
-        "anchors": "+".join(row[k] for k in ("uwb", "zigbee") if k in row),
-        "measurements": row["measurements"], "motion": "pv", "update": "epoch", "epoch_s": settings.epoch_s,
-        "preliminary_filter": settings.uwb_preliminary_filter, "max_range_m": settings.max_range_m,
-        "range_sigma_m": settings.range_sigma_m, "accel_sigma_mps2": settings.accel_sigma_mps2,
-        "initial_sigma_m": settings.initial_sigma_m, "initial_speed_sigma_mps": settings.initial_speed_sigma_mps,
-        "motion_detection": motion_detection, "motion_threshold_mps2": settings.motion_threshold_mps2,
-        "static_start_s": settings.static_reference_s, "rss_calibration": settings.rss_calibration,
-        "p0_dbm": settings.rss_model["p0_dbm"], "path_loss_exponent": settings.rss_model["path_loss_exponent"],
-        "sigma_db": settings.rss_model["sigma_db"], "d0_m": settings.rss_model.get("d0_m", 1.0),
-    }
-
-
-def run_all(datas: list[RunData], settings: Settings) -> list[pd.DataFrame]:
+def run_all(datas: list[RunData], spec: dict, label: str) -> list[pd.DataFrame]:
     """Estimates of every row, without (Table I) and with (Table II) motion detection, scored,
-    per run of `datas`; all runs x rows are stepped together (batched.cell_tracks)."""
-    cells = [(row, table, motion_detection) for row in settings.rows
-             for table, motion_detection in (("Table I", False), ("Table II", True))]
-    params = [estimator_params(settings, row, md) for row, _, md in cells]
-    tracks = batched.cell_tracks("ekf", [(data, p) for data in datas for p in params], where="experiments.paper_a")
-    labels = {"row": [row_label(row) for row, _, _ in cells], "table": [table for _, table, _ in cells]}
-    return [score(batched.stacked(tracks[i * len(cells):(i + 1) * len(cells)], labels), data.table("truth"))
+    per run of `datas` (scenario `label`); all runs x rows are stepped together (batched.cell_tracks)."""
+    grid = [(row, table) for row in spec["rows"] for table in TABLES]
+    params = [cell_params(spec, label, table, row) for row, table in grid]
+    tracks = batched.cell_tracks("ekf", [(data, p) for data in datas for p in params], where=cells.where(PAPER))
+    labels = {"row": [row_label(row) for row, _ in grid], "table": [table for _, table in grid]}
+    return [score(batched.stacked(tracks[i * len(grid):(i + 1) * len(grid)], labels), data.table("truth"))
             for i, data in enumerate(datas)]
 
 
-def run(data: RunData, settings: Settings) -> pd.DataFrame:
+def run(data: RunData, spec: dict, label: str) -> pd.DataFrame:
     """run_all of one run."""
-    return run_all([data], settings)[0]
+    return run_all([data], spec, label)[0]
 
 
 def run_metrics(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
@@ -112,16 +70,15 @@ def run_metrics(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
 
 def paper_value(paper: dict, row: dict, table: str, motion: str):
     for published in paper["rmse_m"]:
-        anchors = ", ".join(row[k] for k in ("uwb", "zigbee") if k in row)
-        if published["row"] == MEASUREMENT_LABEL[row["measurements"]] and published["anchors"] == anchors:
+        if published["row"] == MEASUREMENT_LABEL[row["measurements"]] and published["anchors"] == anchors_label(row):
             return published[f"{'I' if table == 'Table I' else 'II'}_{motion}"]
     return None
 
 
-def results_rows(metrics: pd.DataFrame, scenario: str, motion: str, settings: Settings, paper: dict) -> list[dict]:
+def results_rows(metrics: pd.DataFrame, scenario: str, motion: str, spec: dict, paper: dict) -> list[dict]:
     out = []
-    for table in ("Table I", "Table II"):
-        for row in settings.rows:
+    for table in TABLES:
+        for row in spec["rows"]:
             sel = metrics[(metrics["table"] == table) & (metrics["row"] == row_label(row))]
             out.append(results.row_over_runs(sel["rmse"], experiment=EXPERIMENT, table=table, row=row_label(row),
                                              column=motion, scenario=scenario, metric="rmse_m",
@@ -133,16 +90,16 @@ def results_rows(metrics: pd.DataFrame, scenario: str, motion: str, settings: Se
     return out
 
 
-def claims(metrics: dict[str, pd.DataFrame], motions: dict[str, str], settings: Settings) -> list[dict]:
+def claims(metrics: dict[str, pd.DataFrame], motions: dict[str, str], spec: dict) -> list[dict]:
     """Paper A's claims decided on per-run RMSE (experiments.claims): metrics[label] is a
     scenario's per-run metrics.csv, motions[label] its speed profile (constant / variable).
 
     Rows and tables of one scenario share their runs (paired); constant against variable
     compares two scenarios (independent runs, Welch interval).
     """
-    by_kind = {kind: [row_label(r) for r in settings.rows if r["measurements"] == kind] for kind in MEASUREMENT_LABEL}
-    labels = [row_label(r) for r in settings.rows]
-    tables = ("Table I", "Table II")
+    by_kind = {kind: [row_label(r) for r in spec["rows"] if r["measurements"] == kind] for kind in MEASUREMENT_LABEL}
+    labels = [row_label(r) for r in spec["rows"]]
+    tables = TABLES
 
     def rmse(label, table, row):
         return claims_of.runs_of(metrics[label], table=table, row=row)
@@ -176,10 +133,10 @@ def claims(metrics: dict[str, pd.DataFrame], motions: dict[str, str], settings: 
             claims_of.record("Motion detection improves every row", verdicts.claim(detection))]
 
 
-def setup_rows(estimates: dict[str, pd.DataFrame], settings: Settings) -> list[dict]:
+def setup_rows(estimates: dict[str, pd.DataFrame], spec: dict) -> list[dict]:
     """Set-up facts per scenario (analysis.setup_facts) on Table I's first TOA and RSS rows:
     the static share of epochs and the UWB / ZigBee anchors used per epoch."""
-    first = {kind: next((row_label(r) for r in settings.rows if r["measurements"] == kind), None)
+    first = {kind: next((row_label(r) for r in spec["rows"] if r["measurements"] == kind), None)
              for kind in ("toa", "rss")}
     rows = []
     for label, est in estimates.items():
@@ -218,9 +175,9 @@ def static_sweep_curve(sweep: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(sorted(points), columns=["x", "value", "ci95_low", "ci95_high"])
 
 
-def paper_gains(paper: dict, settings: Settings) -> dict[str, float]:
+def paper_gains(paper: dict, spec: dict) -> dict[str, float]:
     """The paper's Table II - Table I RMSE of the first hybrid row, per speed profile (m)."""
-    hybrid = next((r for r in settings.rows if r["measurements"] == "hybrid"), None)
+    hybrid = next((r for r in spec["rows"] if r["measurements"] == "hybrid"), None)
     if hybrid is None:
         return {}
     return {motion: paper_value(paper, hybrid, "Table II", motion) - paper_value(paper, hybrid, "Table I", motion)
@@ -242,12 +199,12 @@ def cdf_panels(estimates: dict[str, pd.DataFrame]) -> dict:
     return panels
 
 
-def anchor_curves(res: pd.DataFrame, settings: Settings) -> dict:
+def anchor_curves(res: pd.DataFrame, spec: dict) -> dict:
     """Table I RMSE against the number of anchors, per measurement type and scenario."""
     sel = res[(res["experiment"] == EXPERIMENT) & (res["table"] == "Table I") & (res["metric"] == "rmse_m")]
     curves = {}
-    for row in settings.rows:
-        count = sum(int(row[k].split("=")[1]) for k in ("uwb", "zigbee") if k in row)
+    for row in spec["rows"]:
+        count = sum(int(subset.split("=")[1]) for subset in row["anchors"].split("+"))
         for r in sel[sel["row"] == row_label(row)].itertuples():
             key = f"{MEASUREMENT_LABEL[row['measurements']]}, {r.column}"
             curves.setdefault(key, ([], []))

@@ -10,82 +10,33 @@ its claims and figures.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import pandas as pd
 
 from wsnloc import results
 from wsnloc.analysis import setup_facts
 from wsnloc.campaign import Campaign
-from wsnloc.errors import ConfigError
-from wsnloc.estimators import batched, registry
+from wsnloc.estimators import batched
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments import claims as claims_of
+from wsnloc.experiments import cells, claims as claims_of
 from wsnloc.metrics import verdicts
 from wsnloc.metrics.tracking import cell_metrics, score
 from wsnloc.signal.resample import resample_imu
 
+PAPER = "paper_b"
 EXPERIMENT = "B"
 INPUT_TABLES = ("ranges", "rss", "truth", "anchors", "imu_5hz")   # the processed tables a run needs (see load_runs)
-METHODS = {"uwb": "UWB only (Min-Max)", "imu": "IMU only (dead reckoning)",
-           "sskf": "steady-state KF fusion", "kf": "classical KF fusion"}
+# The paper's methods: its cells (config experiments.paper_b.estimators) and their row labels.
+METHODS = dict(zip(cells.CELLS[PAPER], ("UWB only (Min-Max)", "IMU only (dead reckoning)", "steady-state KF fusion",
+                                        "classical KF fusion")))   # uwb, imu, sskf, kf
 
 
-@dataclass
-class Settings:
-    epoch_s: float
-    uwb_subset: str
-    k_smallest: int
-    uwb_preliminary_filter: bool
-    max_range_m: float
-    static_bias_s: float
-    process_sigma_m: float
-    fix_sigma_m: float
-
-    @classmethod
-    def from_config(cls, spec: dict) -> "Settings":
-        keys = cls.__dataclass_fields__
-        return cls(**{k: spec[k] for k in keys})
-
-    def check_against(self, campaign: Campaign) -> None:
-        if self.uwb_subset not in campaign.spec.get("subsets", {}):
-            raise ConfigError(f"config key 'experiments.paper_b.uwb_subset': no subset {self.uwb_subset!r} "
-                              f"in {campaign.source}")
-
-
-def scenario_config(spec: dict, simulated: bool) -> dict:
-    """The paper's config for one scenario. On the paper's simulation set-up the sensor bias
-    is taken over `simulation_static_bias_s` (0: not estimated): paper B's simulated unit has
-    "accelerometers afflicted by a measurement additive gaussian noise N" and nothing else, so
-    there is no bias to remove, and an estimate from the first seconds at rest would only add
-    the mean of that noise as a constant acceleration error."""
-    return {**spec, "static_bias_s": spec.get("simulation_static_bias_s", 0.0)} if simulated else spec
-
-
-METHOD_ESTIMATOR = {"uwb": "minmax", "imu": "dead_reckoning", "sskf": "dr_sskf", "kf": "dr_kf"}
-
-
-def estimator_params(settings: Settings) -> dict:
-    """Registry parameters shared by paper B's four methods."""
-    return {"anchors": settings.uwb_subset, "epoch_s": settings.epoch_s, "k_smallest": settings.k_smallest,
-            "preliminary_filter": settings.uwb_preliminary_filter, "max_range_m": settings.max_range_m,
-            "static_start_s": settings.static_bias_s, "process_sigma_m": settings.process_sigma_m,
-            "fix_sigma_m": settings.fix_sigma_m, "measurements": "toa"}
-
-
-# The filters' a-priori sigmas act on the two fusions only.
-SENSITIVITY_METHODS = ("sskf", "kf")
-
-
-def run(data: RunData, settings: Settings, methods=tuple(METHOD_ESTIMATOR)) -> pd.DataFrame:
-    """UWB-only, IMU-only, steady-state KF and classical KF positions of one run (or the
-    given methods), scored."""
-    base, methods = estimator_params(settings), tuple(methods)
+def run(data: RunData, spec: dict, label: str, methods=tuple(METHODS)) -> pd.DataFrame:
+    """UWB-only, IMU-only, steady-state KF and classical KF positions of one run of scenario
+    `label` (or the given methods), scored."""
     tracks = []
-    for name in (METHOD_ESTIMATOR[m] for m in methods):
-        names = {p.name for p in registry.get(name).params}
-        params = {k: v for k, v in base.items() if k in names}
-        tracks += batched.cell_tracks(name, [(data, params)], where="experiments.paper_b")
+    for method in methods:
+        tracks += batched.cell_tracks(cells.estimator(spec, method),
+                                      [(data, cells.params(spec, method, label, PAPER))], where=cells.where(PAPER))
     return score(batched.stacked(tracks, {"method": list(methods)}, ("t", "x", "y")), data.table("truth"))
 
 
@@ -93,13 +44,14 @@ def run_metrics(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
     return cell_metrics(estimates, ["method"], truth)
 
 
-def evaluate_runs(run_tables: dict[str, dict], campaign: Campaign, settings: Settings, resample: dict) -> pd.DataFrame:
+def evaluate_runs(run_tables: dict[str, dict], campaign: Campaign, spec: dict, label: str,
+                  resample: dict) -> pd.DataFrame:
     """Per-run metrics of the four methods on runs given as raw-rate tables (e.g. extra
-    simulated runs), their IMU resampled with the workflow's `resample` settings."""
+    simulated runs of scenario `label`), their IMU resampled with the workflow's `resample` settings."""
     frames = []
     for name, tables in run_tables.items():
         data = RunData(dict(tables, imu_5hz=resample_imu(tables["imu"], **resample)), campaign, None, name)
-        frames.append(run_metrics(run(data, settings), tables["truth"]).assign(run=name))
+        frames.append(run_metrics(run(data, spec, label), tables["truth"]).assign(run=name))
     return pd.concat(frames, ignore_index=True)
 
 

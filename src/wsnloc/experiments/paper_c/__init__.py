@@ -12,70 +12,28 @@ module holds only the paper's table layout, its claims and figures.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import pandas as pd
 
 from wsnloc import results
 from wsnloc.analysis import setup_facts
 from wsnloc.campaign import Campaign
-from wsnloc.errors import ConfigError
 from wsnloc.estimators import batched
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments import claims as claims_of
+from wsnloc.experiments import cells, claims as claims_of
 from wsnloc.experiments.sensitivity import BASELINE
 from wsnloc.metrics import verdicts
 from wsnloc.metrics.stats import mean_ci95
 from wsnloc.metrics.tracking import cell_metrics, score
 
+PAPER = "paper_c"
 EXPERIMENT = "C"
 INPUT_TABLES = ("ranges", "truth", "anchors", "imu_5hz")   # the processed tables a run needs (see load_runs)
-MODELS = ("P", "PV", "PVA")
-# The a-priori sigmas and the models they act on (P: p_sigma_m; PV: white acceleration;
-# PVA: acceleration input noise and bias walk; the range sigma: all).
-SIGMA_MODELS = {"range_sigma_m": MODELS, "p_sigma_m": ("P",), "pv_accel_sigma_mps2": ("PV",),
-                "pva_accel_sigma_mps2": ("PVA",), "pva_bias_walk_sigma": ("PVA",)}
+MODELS = cells.CELLS[PAPER]   # the paper's motion models P, PV, PVA: its cells (config estimators)
 
 
-@dataclass
-class Settings:
-    epoch_s: float
-    table_1_subset: str
-    table_2_subsets: list
-    table_2_scenario: str
-    range_sigma_m: float
-    max_range_m: float
-    p_sigma_m: float
-    pv_accel_sigma_mps2: float
-    pva_accel_sigma_mps2: float
-    pva_bias_walk_sigma: float
-    initial_sigma_m: float
-    initial_speed_sigma_mps: float
-    initial_bias_sigma_mps2: float
-    static_bias_s: float
-
-    @classmethod
-    def from_config(cls, spec: dict) -> "Settings":
-        return cls(**{k: spec[k] for k in cls.__dataclass_fields__})
-
-    def check_against(self, campaign: Campaign) -> None:
-        subsets = campaign.spec.get("subsets", {})
-        for key, name in [("table_1_subset", self.table_1_subset)] + \
-                         [(f"table_2_subsets.{i}", s) for i, s in enumerate(self.table_2_subsets)]:
-            if name not in subsets:
-                raise ConfigError(f"config key 'experiments.paper_c.{key}': no subset {name!r} in {campaign.source}")
-
-
-def estimator_params(settings: Settings, model: str, subset: str) -> dict:
-    """Registry parameters of the `ekf` estimator for one motion model and beacon subset."""
-    s = settings
-    accel = {"P": s.pv_accel_sigma_mps2, "PV": s.pv_accel_sigma_mps2, "PVA": s.pva_accel_sigma_mps2}[model]
-    return {"anchors": subset, "measurements": "toa", "motion": model.lower(), "update": "epoch",
-            "epoch_s": s.epoch_s, "preliminary_filter": True, "max_range_m": s.max_range_m,
-            "range_sigma_m": s.range_sigma_m, "p_sigma_m": s.p_sigma_m, "accel_sigma_mps2": accel,
-            "bias_walk_sigma": s.pva_bias_walk_sigma, "initial_sigma_m": s.initial_sigma_m,
-            "initial_speed_sigma_mps": s.initial_speed_sigma_mps, "initial_bias_sigma_mps2": s.initial_bias_sigma_mps2,
-            "static_start_s": s.static_bias_s}
+def cell_params(spec: dict, label: str, model: str, subset: str) -> dict:
+    """Registry parameters of one motion model's cell with one beacon subset on scenario `label`."""
+    return cells.params(spec, model, label, PAPER, {"anchors": subset})
 
 
 # detail columns -> results metric; sqrt(PCRB) and efficiency RMSE / sqrt(PCRB) per run
@@ -83,20 +41,21 @@ DETAIL_METRICS = {"median": "median_m", "p95": "p95_m", "max": "max_m", "sqrt_pc
                   "efficiency": "efficiency_ratio"}
 
 
-def run_all(datas: list[RunData], settings: Settings, subsets: list[str], models=MODELS) -> list[pd.DataFrame]:
+def run_all(datas: list[RunData], spec: dict, label: str, subsets: list[str], models=MODELS) -> list[pd.DataFrame]:
     """Estimates of the (given) motion models for each beacon subset, scored against truth, per
-    run of `datas`; all runs x cells are stepped together (batched.cell_tracks), one frame per run."""
-    cells = [(model, subset) for subset in subsets for model in models]
-    params = [estimator_params(settings, model, subset) for model, subset in cells]
-    tracks = batched.cell_tracks("ekf", [(data, p) for data in datas for p in params], where="experiments.paper_c")
-    labels = {"model": [model for model, _ in cells], "subset": [subset for _, subset in cells]}
-    return [score(batched.stacked(tracks[i * len(cells):(i + 1) * len(cells)], labels), data.table("truth"))
+    run of `datas` (scenario `label`); all runs x cells are stepped together
+    (batched.cell_tracks), one frame per run."""
+    grid = [(model, subset) for subset in subsets for model in models]
+    params = [cell_params(spec, label, model, subset) for model, subset in grid]
+    tracks = batched.cell_tracks("ekf", [(data, p) for data in datas for p in params], where=cells.where(PAPER))
+    labels = {"model": [model for model, _ in grid], "subset": [subset for _, subset in grid]}
+    return [score(batched.stacked(tracks[i * len(grid):(i + 1) * len(grid)], labels), data.table("truth"))
             for i, data in enumerate(datas)]
 
 
-def run(data: RunData, settings: Settings, subsets: list[str], models=MODELS) -> pd.DataFrame:
+def run(data: RunData, spec: dict, label: str, subsets: list[str], models=MODELS) -> pd.DataFrame:
     """run_all of one run."""
-    return run_all([data], settings, subsets, models)[0]
+    return run_all([data], spec, label, subsets, models)[0]
 
 
 def run_metrics(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
@@ -107,10 +66,10 @@ def speed_label(campaign: Campaign, scenario: str) -> str:
     return f"{campaign.section('scenarios', scenario)['speed_mps'] * 100:.0f} cm/s"
 
 
-def results_rows(metrics: pd.DataFrame, scenario_label: str, speed: str, settings: Settings, paper: dict) -> list[dict]:
+def results_rows(metrics: pd.DataFrame, scenario_label: str, speed: str, spec: dict, paper: dict) -> list[dict]:
     out = []
     for model in MODELS:
-        sel = metrics[(metrics["subset"] == settings.table_1_subset) & (metrics["model"] == model)]
+        sel = metrics[(metrics["subset"] == spec["table_1_subset"]) & (metrics["model"] == model)]
         out.append(results.row_over_runs(sel["rmse"], experiment=EXPERIMENT, table="Table I", row=model, column=speed,
                                          scenario=scenario_label, metric="rmse_m",
                                          paper_value=paper["table_1_rmse_m"].get(model, {}).get(speed)))
@@ -119,8 +78,8 @@ def results_rows(metrics: pd.DataFrame, scenario_label: str, speed: str, setting
                 out.append(results.row_over_runs(sel[metric], experiment=EXPERIMENT, table="Table I detail",
                                                  row=model, column=f"{speed} {metric}", scenario=scenario_label,
                                                  metric=name))
-    if scenario_label == settings.table_2_scenario:
-        for subset in settings.table_2_subsets:
+    if scenario_label == spec["table_2_scenario"]:
+        for subset in spec["table_2_subsets"]:
             for model in MODELS:
                 sel = metrics[(metrics["subset"] == subset) & (metrics["model"] == model)]
                 out.append(results.row_over_runs(sel["rmse"], experiment=EXPERIMENT, table="Table II", row=subset,
@@ -134,7 +93,7 @@ def results_rows(metrics: pd.DataFrame, scenario_label: str, speed: str, setting
     return out
 
 
-def claims(metrics: dict[str, pd.DataFrame], speeds: dict[str, str], settings: Settings) -> list[dict]:
+def claims(metrics: dict[str, pd.DataFrame], speeds: dict[str, str], spec: dict) -> list[dict]:
     """Paper C's claims decided on per-run RMSE (experiments.claims): metrics[label] is a
     scenario's per-run metrics.csv, speeds[label] its speed ("20 cm/s").
 
@@ -144,17 +103,17 @@ def claims(metrics: dict[str, pd.DataFrame], speeds: dict[str, str], settings: S
     def rmse(label, subset, model):
         return claims_of.runs_of(metrics[label], subset=subset, model=model)
 
-    order = [claims_of.paired(rmse(label, settings.table_1_subset, lo), rmse(label, settings.table_1_subset, hi), "<",
+    order = [claims_of.paired(rmse(label, spec["table_1_subset"], lo), rmse(label, spec["table_1_subset"], hi), "<",
                               f"{speeds[label]}: {lo} - {hi}")
              for label in metrics for lo, hi in zip(MODELS, MODELS[1:])]
     by_speed = sorted(metrics, key=lambda label: float(speeds[label].split()[0]))
-    speed = [claims_of.unpaired(rmse(slow, settings.table_1_subset, m), rmse(fast, settings.table_1_subset, m), "<",
+    speed = [claims_of.unpaired(rmse(slow, spec["table_1_subset"], m), rmse(fast, spec["table_1_subset"], m), "<",
                                 f"{m}: {speeds[slow]} - {speeds[fast]} (independent runs)")
              for m in MODELS for slow, fast in zip(by_speed, by_speed[1:])]
     beacons = []
-    if settings.table_2_scenario in metrics:
-        subsets = settings.table_2_subsets
-        beacons = [claims_of.paired(rmse(settings.table_2_scenario, more, m), rmse(settings.table_2_scenario, fewer, m),
+    if spec["table_2_scenario"] in metrics:
+        subsets = spec["table_2_subsets"]
+        beacons = [claims_of.paired(rmse(spec["table_2_scenario"], more, m), rmse(spec["table_2_scenario"], fewer, m),
                                     "<", f"{m}: beacons {more} - {fewer}")
                    for m in MODELS for fewer, more in zip(subsets, subsets[1:])]
     return [claims_of.record("P < PV < PVA (Table I, every speed)", verdicts.claim(order)),
@@ -162,12 +121,12 @@ def claims(metrics: dict[str, pd.DataFrame], speeds: dict[str, str], settings: S
             claims_of.record("More beacons give a lower RMSE (Table II, every model)", verdicts.claim(beacons))]
 
 
-def setup_rows(estimates: dict[str, pd.DataFrame], settings: Settings) -> list[dict]:
+def setup_rows(estimates: dict[str, pd.DataFrame], spec: dict) -> list[dict]:
     """Set-up facts per scenario (analysis.setup_facts) on the P model with Table I's
     beacons: the static share of epochs and the beacons ranged per epoch."""
     rows = []
     for label, est in estimates.items():
-        cell = _table_1(est, settings, "P")
+        cell = _table_1(est, spec, "P")
         rows += [setup_facts.fact_row(EXPERIMENT, "static share of epochs", label, setup_facts.static_share(cell),
                                       "share"),
                  setup_facts.fact_row(EXPERIMENT, "beacons ranged per epoch", label,
@@ -175,24 +134,24 @@ def setup_rows(estimates: dict[str, pd.DataFrame], settings: Settings) -> list[d
     return rows
 
 
-MODEL_SIGMA = {"P": "p_sigma_m", "PV": "pv_accel_sigma_mps2", "PVA": "pva_accel_sigma_mps2"}
-
-
-def noise_curves(grid: pd.DataFrame, settings: Settings) -> dict[str, pd.DataFrame]:
+def noise_curves(grid: pd.DataFrame, spec: dict) -> dict[str, pd.DataFrame]:
     """Table I RMSE (m) of each model against the factor applied to its own a-priori sigma
-    (MODEL_SIGMA), from one scenario's sensitivity grid (experiments.sensitivity): per model
-    a frame x (factor), value (mean over the sampled runs), ci95_low, ci95_high."""
-    cell = grid[grid["subset"] == settings.table_1_subset]
+    (a sensitivity sigma `model.parameter`), from one scenario's sensitivity grid
+    (experiments.sensitivity): per model a frame x (factor), value (mean over the sampled
+    runs), ci95_low, ci95_high."""
+    cell = grid[grid["subset"] == spec["table_1_subset"]]
     curves = {}
-    for model, sigma in MODEL_SIGMA.items():
-        own = cell[(cell["model"] == model) & ((cell["setting"] == BASELINE) | (cell["sigma"] == sigma))]
-        points = [(factor, *mean_ci95(group["rmse"])) for factor, group in own.groupby("factor", sort=True)]
-        if len(points) > 1:
-            curves[f"{model} ({sigma})"] = pd.DataFrame(points, columns=["x", "value", "ci95_low", "ci95_high"])
+    for model in MODELS:
+        for sigma in (s for s in (spec.get("sensitivity") or {}).get("sigmas", []) if s.startswith(f"{model}.")):
+            own = cell[(cell["model"] == model) & ((cell["setting"] == BASELINE) | (cell["sigma"] == sigma))]
+            points = [(factor, *mean_ci95(group["rmse"])) for factor, group in own.groupby("factor", sort=True)]
+            if len(points) > 1:
+                curves[f"{model} ({sigma.split('.', 1)[1]})"] = pd.DataFrame(points, columns=["x", "value", "ci95_low",
+                                                                                            "ci95_high"])
     return curves
 
 
-def anchor_curves(res: pd.DataFrame, settings: Settings) -> dict:
+def anchor_curves(res: pd.DataFrame, spec: dict) -> dict:
     """Table II RMSE against the number of beacons, one line per model."""
     sel = res[(res["experiment"] == EXPERIMENT) & (res["table"] == "Table II") & (res["metric"] == "rmse_m")]
     curves = {}
@@ -203,36 +162,36 @@ def anchor_curves(res: pd.DataFrame, settings: Settings) -> dict:
     return curves
 
 
-def subsets_of(settings: Settings, label: str) -> list[str]:
+def subsets_of(spec: dict, label: str) -> list[str]:
     """Beacon subsets run on one scenario: Table I's, plus Table II's on its scenario."""
-    subsets = settings.table_2_subsets if label == settings.table_2_scenario else []
-    return list(dict.fromkeys(list(subsets) + [settings.table_1_subset]))
+    subsets = spec["table_2_subsets"] if label == spec["table_2_scenario"] else []
+    return list(dict.fromkeys(list(subsets) + [spec["table_1_subset"]]))
 
 
-def _table_1(est: pd.DataFrame, settings: Settings, model: str) -> pd.DataFrame:
-    return est[(est["model"] == model) & (est["subset"] == settings.table_1_subset)]
+def _table_1(est: pd.DataFrame, spec: dict, model: str) -> pd.DataFrame:
+    return est[(est["model"] == model) & (est["subset"] == spec["table_1_subset"])]
 
 
-def cdf_panels(estimates: dict[str, pd.DataFrame], settings: Settings) -> dict:
+def cdf_panels(estimates: dict[str, pd.DataFrame], spec: dict) -> dict:
     """Error samples (all runs) per scenario and model, Table I's beacons."""
-    return {label: {m: _table_1(est, settings, m)["error_m"].to_numpy() for m in MODELS}
+    return {label: {m: _table_1(est, spec, m)["error_m"].to_numpy() for m in MODELS}
             for label, est in estimates.items()}
 
 
-def histogram_panels(estimates: dict[str, pd.DataFrame], settings: Settings) -> dict:
+def histogram_panels(estimates: dict[str, pd.DataFrame], spec: dict) -> dict:
     """Errors of each model on Table II's scenario (the paper's Fig. 4b)."""
-    est = estimates.get(settings.table_2_scenario)
+    est = estimates.get(spec["table_2_scenario"])
     if est is None:
         return {}
-    return {f"{m} ({settings.table_2_scenario})": _table_1(est, settings, m)["error_m"] for m in MODELS}
+    return {f"{m} ({spec['table_2_scenario']})": _table_1(est, spec, m)["error_m"] for m in MODELS}
 
 
-def trajectory_panels(estimates: dict[str, pd.DataFrame], settings: Settings) -> dict:
+def trajectory_panels(estimates: dict[str, pd.DataFrame], spec: dict) -> dict:
     """First run of Table II's scenario: truth and the three models' tracks."""
-    est = estimates.get(settings.table_2_scenario)
+    est = estimates.get(spec["table_2_scenario"])
     if est is None:
         return {}
     first = est[est["run"] == est["run"].iloc[0]]
-    truth = _table_1(first, settings, "P")[["true_x", "true_y"]].rename(columns={"true_x": "x", "true_y": "y"})
-    return {f"{settings.table_2_scenario}, {first['run'].iloc[0]}": (truth, {m: _table_1(first, settings, m)
+    truth = _table_1(first, spec, "P")[["true_x", "true_y"]].rename(columns={"true_x": "x", "true_y": "y"})
+    return {f"{spec['table_2_scenario']}, {first['run'].iloc[0]}": (truth, {m: _table_1(first, spec, m)
                                                                           for m in MODELS})}

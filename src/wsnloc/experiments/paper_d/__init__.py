@@ -10,7 +10,6 @@ table layout, its claims, the cost comparison and figures.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -18,113 +17,61 @@ import pandas as pd
 from wsnloc import results
 from wsnloc.analysis import setup_facts
 from wsnloc.campaign import Campaign
-from wsnloc.errors import ConfigError
 from wsnloc.experiments import calibration
-from wsnloc.estimators import batched, registry
+from wsnloc.estimators import batched
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments import claims as claims_of
+from wsnloc.experiments import cells, claims as claims_of
 from wsnloc.estimators.trackers import kalman_matrices
 from wsnloc.filters.kalman import KalmanFilter
 from wsnloc.metrics import op_counts, verdicts
 from wsnloc.metrics.tracking import cell_metrics, score
 from wsnloc.tracking.velocity_bounded import VelocityBoundedTracker
 
+PAPER = "paper_d"
 EXPERIMENT = "D"
 INPUT_TABLES = ("ranges", "rss", "truth", "anchors")   # the processed tables a run needs (see load_runs)
 TECHNIQUES = ("narrowband", "uwb", "pmix", "fmix")
 LOCALIZER_LABEL = {"minmax": "Min-Max", "multilateration": "Multilateration"}
 TECHNIQUE_LABEL = {"narrowband": "narrowband", "uwb": "UWB", "pmix": "P-mix", "fmix": "F-mix"}
-COST_LABEL = {"velocity": "velocity tracker", "kalman": "Kalman filter"}
-# The a-priori sigmas of paper D: the comparison KF's (they act on its cells only).
-SENSITIVITY_SIGMAS = ("kalman.accel_sigma_mps2", "kalman.position_sigma_m", "kalman.initial_speed_sigma_mps")
-
-
-@dataclass
-class Settings:
-    """Paper D parameters from config (experiments.paper_d)."""
-
-    epoch_s: float
-    k_smallest: int
-    uwb_subset: str
-    narrowband_subset: str
-    uwb_preliminary_filter: bool
-    max_range_m: float
-    rss_calibration: str
-    rss_model: dict
-    pmix_weights: dict
-    tracker_window: int
-    tracker_speed_from: str
-    kalman: dict
-    cost_iterations: int
-
-    @classmethod
-    def from_config(cls, spec: dict) -> "Settings":
-        return cls(epoch_s=spec["epoch_s"], k_smallest=spec["k_smallest"], uwb_subset=spec["subsets"]["uwb"],
-                   narrowband_subset=spec["subsets"]["narrowband"],
-                   uwb_preliminary_filter=spec["uwb_preliminary_filter"], max_range_m=spec["max_range_m"],
-                   rss_calibration=spec["rss_calibration"], rss_model=spec["rss_model"],
-                   pmix_weights=spec["pmix_weights"], tracker_window=spec["tracker"]["window"],
-                   tracker_speed_from=spec["tracker"]["speed_from"], kalman=spec["kalman"],
-                   cost_iterations=spec["cost_iterations"])
-
-
-    def check_against(self, campaign: Campaign) -> None:
-        """Anchor subsets must exist in the campaign file; names the config key otherwise."""
-        for role, name in (("uwb", self.uwb_subset), ("narrowband", self.narrowband_subset)):
-            if name not in campaign.spec.get("subsets", {}):
-                raise ConfigError(f"config key 'experiments.paper_d.subsets.{role}': no subset {name!r} "
-                                  f"in {campaign.source} (has: {', '.join(campaign.spec.get('subsets', {}))})")
-
-
 TECHNIQUE_OF = {"narrowband": "rss", "uwb": "toa", "pmix": "pmix", "fmix": "fmix"}   # paper label -> registry
+# The trackers of Tables 2 and 3: the paper's cells (config experiments.paper_d.estimators), each over
+# every localizer's fixes; the raw stage (Table 1) is the localizer itself.
+TRACKERS = cells.CELLS[PAPER]   # velocity, kalman
+STAGES = ("raw",) + TRACKERS
+COST_LABEL = {"velocity": "velocity tracker", "kalman": "Kalman filter"}
 
 
-def estimator_params(settings: Settings) -> dict:
-    """Registry parameters shared by paper D's cells (fixes, fusions and both trackers)."""
-    w = settings.pmix_weights
-    k = settings.kalman
-    return {"anchors": f"{settings.uwb_subset}+{settings.narrowband_subset}", "epoch_s": settings.epoch_s,
-            "k_smallest": settings.k_smallest, "preliminary_filter": settings.uwb_preliminary_filter,
-            "max_range_m": settings.max_range_m, "rss_calibration": settings.rss_calibration,
-            "p0_dbm": settings.rss_model["p0_dbm"], "path_loss_exponent": settings.rss_model["path_loss_exponent"],
-            "d0_m": settings.rss_model.get("d0_m", 1.0), "pmix_toa_weight": w["uwb"] / (w["uwb"] + w["narrowband"]),
-            "window": settings.tracker_window, "speed_from": settings.tracker_speed_from,
-            "accel_sigma_mps2": k["accel_sigma_mps2"], "position_sigma_m": k["position_sigma_m"],
-            "initial_speed_sigma_mps": k["initial_speed_sigma_mps"]}
-
-
-def cells(settings: Settings) -> list[tuple[str, str, str, str, dict]]:
-    """(localizer, technique, stage, registry estimator, its parameters) of every cell of Tables 1-3."""
-    base = estimator_params(settings)
+def cell_list(spec: dict, label: str, stages=STAGES) -> list[tuple[str, str, str, str, dict]]:
+    """(localizer, technique, stage, registry estimator, its parameters on scenario `label`) of
+    every cell of Tables 1-3 in the given stages: the raw fix is `minmax` / `multilateration` on
+    RSS distances or ranges, or the fusion `pmix` / `fmix` with that solver; a tracker stage is
+    its cell over those fixes."""
     out = []
     for localizer in LOCALIZER_LABEL:
         for technique, registry_technique in TECHNIQUE_OF.items():
-            if technique in ("pmix", "fmix"):
-                raw = (technique, {"solver": localizer})
-            else:
-                raw = (localizer, {"measurements": registry_technique})
-            tracked = {"solver": localizer, "fixes": registry_technique}
-            out += [(localizer, technique, "raw", raw[0], raw[1]),
-                    (localizer, technique, "velocity", "velocity_tracker", tracked),
-                    (localizer, technique, "kalman", "kf_tracker", tracked)]
-    return [(loc, tech, stage, name, {k: v for k, v in {**base, **extra}.items() if k in _names(name)})
-            for loc, tech, stage, name, extra in out]
+            for stage in stages:
+                if stage != "raw":
+                    name, layout = cells.estimator(spec, stage), {"solver": localizer, "fixes": registry_technique}
+                    out.append((localizer, technique, stage, name, cells.params(spec, stage, label, PAPER, layout)))
+                    continue
+                if technique in ("pmix", "fmix"):
+                    name, layout = technique, {"solver": localizer}
+                else:
+                    name, layout = localizer, {"measurements": registry_technique}
+                out.append((localizer, technique, stage, name, cells.layout_params(spec, name, label, PAPER, layout)))
+    return out
 
 
-def _names(estimator: str) -> set[str]:
-    return {p.name for p in registry.get(estimator).params}
-
-
-def run_all(datas: list[RunData], settings: Settings, stages=("raw", "velocity", "kalman")) -> list[pd.DataFrame]:
-    """All estimates of each run (every cell of the given stages), scored against its truth; the
-    cells of one registry estimator over all runs go through one batched.cell_tracks (the KF
-    cells of every run and technique are stepped together)."""
-    selected = [cell for cell in cells(settings) if cell[2] in stages]
-    tracks: dict[int, list[batched.Track]] = {}
+def run_all(datas: list[RunData], spec: dict, label: str, stages=STAGES) -> list[pd.DataFrame]:
+    """All estimates of each run (every cell of the given stages) of scenario `label`, scored
+    against its truth; the cells of one registry estimator over all runs go through one
+    batched.cell_tracks (the KF cells of every run and technique are stepped together)."""
+    selected = cell_list(spec, label, stages)
+    tracks: dict[int, list] = {}
     for name in dict.fromkeys(cell[3] for cell in selected):
         mine = [i for i, cell in enumerate(selected) if cell[3] == name]
         out = batched.cell_tracks(name, [(data, selected[i][4]) for i in mine for data in datas],
-                                  where="experiments.paper_d")
+                                  where=cells.where(PAPER))
         for j, i in enumerate(mine):
             tracks[i] = out[j * len(datas):(j + 1) * len(datas)]
     return [score(batched.stacked([tracks[i][r] for i in range(len(selected))],
@@ -134,9 +81,9 @@ def run_all(datas: list[RunData], settings: Settings, stages=("raw", "velocity",
             for r, data in enumerate(datas)]
 
 
-def run(data: RunData, settings: Settings, stages=("raw", "velocity", "kalman")) -> pd.DataFrame:
+def run(data: RunData, spec: dict, label: str, stages=STAGES) -> pd.DataFrame:
     """run_all of one run."""
-    return run_all([data], settings, stages)[0]
+    return run_all([data], spec, label, stages)[0]
 
 
 def run_metrics(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
@@ -144,17 +91,21 @@ def run_metrics(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
     return cell_metrics(estimates, ["localizer", "technique", "stage"], truth)
 
 
-def rss_models_for_runs(run_tables: dict[str, dict], campaign: Campaign, settings: Settings) -> dict[str, dict]:
-    """RSS model per run (see wsnloc.experiments.calibration)."""
-    members = campaign.spec["subsets"][settings.narrowband_subset]
-    return calibration.rss_models_for_runs(run_tables, campaign, members, settings.rss_calibration, settings.rss_model)
+def rss_models_for_runs(run_tables: dict[str, dict], campaign: Campaign, spec: dict, label: str) -> dict[str, dict]:
+    """RSS model per run (see wsnloc.experiments.calibration), fitted on the ZigBee anchors of
+    the cells' `anchors` (the F-mix cell's parameters: every cell shares them)."""
+    p = cells.layout_params(spec, "fmix", label, PAPER, {})
+    zigbee = set(campaign.anchors_of("zigbee")["anchor_id"])
+    members = [a for subset in p["anchors"].split("+") for a in campaign.spec["subsets"][subset] if a in zigbee]
+    return calibration.rss_models_for_runs(run_tables, campaign, members, p)
 
 
-def evaluate_runs(run_tables: dict[str, dict], campaign: Campaign, settings: Settings) -> pd.DataFrame:
-    """Per-run metrics of every cell on runs given as tables (e.g. extra simulated runs),
-    each run's RSS model calibrated as in the workflow (rss_models_for_runs)."""
-    models = rss_models_for_runs(run_tables, campaign, settings)
-    estimates = run_all([RunData(tables, campaign, models[name], name) for name, tables in run_tables.items()], settings)
+def evaluate_runs(run_tables: dict[str, dict], campaign: Campaign, spec: dict, label: str) -> pd.DataFrame:
+    """Per-run metrics of every cell on runs given as tables (e.g. extra simulated runs of
+    scenario `label`), each run's RSS model calibrated as in the workflow (rss_models_for_runs)."""
+    models = rss_models_for_runs(run_tables, campaign, spec, label)
+    estimates = run_all([RunData(tables, campaign, models[name], name) for name, tables in run_tables.items()],
+                        spec, label)
     return pd.concat([run_metrics(est, tables["truth"]).assign(run=name)
                       for (name, tables), est in zip(run_tables.items(), estimates)], ignore_index=True)
 
@@ -190,22 +141,23 @@ def results_rows(metrics: pd.DataFrame, scenario: str) -> list[dict]:
     return rows
 
 
-def measure_cost(settings: Settings, repeats: int = 5) -> dict[str, float]:
-    """Median time per step (microseconds) of the velocity tracker and the KF on this machine.
+def measure_cost(spec: dict, label: str, repeats: int = 5) -> dict[str, float]:
+    """Median time per step (microseconds) of the velocity tracker and the KF on this machine,
+    with their cells' parameters on scenario `label`.
 
     Each repeat feeds `cost_iterations` noisy fixes of a straight walk; the median over
     repeats of the mean time per step is reported.
     """
     rng = np.random.default_rng(0)
-    n = settings.cost_iterations
-    t = np.arange(n) * settings.epoch_s
+    velocity, kalman = (cells.params(spec, cell, label, PAPER) for cell in TRACKERS)
+    n = spec["cost_iterations"]
+    t = np.arange(n) * kalman["epoch_s"]
     fixes = np.column_stack([0.3 * t, np.zeros(n)]) + rng.normal(0, 1.0, (n, 2))
-    k = settings.kalman
-    F, Q, H, R, P0 = kalman_matrices(settings.epoch_s, k["accel_sigma_mps2"], k["position_sigma_m"],
-                                     k["initial_speed_sigma_mps"])
+    F, Q, H, R, P0 = kalman_matrices(kalman["epoch_s"], kalman["accel_sigma_mps2"], kalman["position_sigma_m"],
+                                     kalman["initial_speed_sigma_mps"])
     per_step = {"velocity": [], "kalman": []}
     for _ in range(repeats):
-        tracker = VelocityBoundedTracker(settings.tracker_window, settings.tracker_speed_from)
+        tracker = VelocityBoundedTracker(velocity["window"], velocity["speed_from"])
         start = time.perf_counter()
         for k in range(n):
             tracker.step(t[k], fixes[k])
@@ -231,9 +183,10 @@ def cost_rows(cost_us: dict[str, float], paper_ms: dict[str, float]) -> list[dic
     return rows
 
 
-def operation_counts(settings: Settings) -> dict[str, dict]:
-    """Arithmetic operations per step of both trackers and their ratios (metrics.op_counts)."""
-    return op_counts.cost_table(settings.tracker_window)
+def operation_counts(spec: dict, label: str) -> dict[str, dict]:
+    """Arithmetic operations per step of both trackers and their ratios (metrics.op_counts),
+    with the velocity cell's window on scenario `label`."""
+    return op_counts.cost_table(cells.params(spec, "velocity", label, PAPER)["window"])
 
 
 def operation_rows(counts: dict[str, dict], paper_ms: dict[str, float]) -> list[dict]:

@@ -1,0 +1,70 @@
+"""Paper B's report section: its tables and details (from results.csv), the set-up note and
+the differences of protocol (section.html.j2 beside this file) and the sentences of "Why it
+differs"."""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from wsnloc.experiments import cells
+from wsnloc.experiments.paper_b import EXPERIMENT as B, METHODS, PAPER, SNR_TABLE
+from wsnloc.report.explanations import Numbers, finite, ranging_severity
+from wsnloc.report.sections import cell_of, columns_of, grid_table, paper_section
+
+
+def section(results: pd.DataFrame, claims: dict, figures: dict[str, str], paper: dict, labels: list[str],
+            spec: dict, numbers: Numbers, config: dict) -> dict:
+    """Context of paper B's section: RMSE and max error per method and scenario `labels`."""
+    methods = list(METHODS.values())
+    tables = []
+    for table, metric, title in (("RMSE", "rmse_m", "RMSE [m]"), ("Max error", "max_m", "Max error [m]")):
+        sel = results[(results["experiment"] == B) & (results["table"] == table)]
+        grid = {"title": f"{title} (paper: simulation column beside b_simulation, real-data column beside the "
+                         f"campaign scenarios)", "scenario": ", ".join(labels), "columns": labels, "rows": []}
+        for method in methods:
+            grid["rows"].append({"label": method, "cells": [
+                cell_of(sel, row=method, scenario=sc, metric=metric) for sc in labels]})
+        tables.append(grid)
+    snr_columns = columns_of(results, B, SNR_TABLE)
+    if snr_columns:
+        tables.append(grid_table(results, experiment=B, table=SNR_TABLE, rows=[METHODS["imu"]], columns=snr_columns,
+                                 metric="rmse_m", title=f"{SNR_TABLE}, RMSE [m] (noise added to the 5 Hz output)",
+                                 scenario=", ".join(dict.fromkeys(results[results["table"] == SNR_TABLE]["scenario"]))))
+    details = [{"title": f"Detail, {sc}", "metrics": ["median_m", "p95_m"],
+                "lines": [{"label": m, "cells": [cell_of(results, experiment=B, table="Detail", scenario=sc, row=m,
+                                                       column=stat, metric=f"{stat}_m") for stat in ("median", "p95")]}
+                          for m in methods]} for sc in labels]
+    simulated = list(spec.get("simulation_scenarios", []))
+    measured = [label for label in labels if label not in simulated]
+    setup = cells.params(spec, "sskf", (measured or labels)[0], PAPER)
+    simulation_setup = cells.params(spec, "sskf", simulated[0], PAPER) if simulated else setup
+    return paper_section(B, paper, spec, claims, figures, tables=tables, details=details, setup=setup,
+                         simulation_setup=simulation_setup, why=why(numbers, measured, simulated))
+
+
+def why(n: Numbers, scenarios: list[str], simulated: list[str]) -> list[str]:
+    """Dead reckoning against SNR, UWB NLOS ranging, rests."""
+    out = []
+    imu, uwb = METHODS["imu"], METHODS["uwb"]
+    for sc in simulated:
+        ours, paper = n.value(B, "RMSE", imu, sc), n.value(B, "RMSE", imu, sc, "paper_value")
+        at50, at60, at70 = (n.value(B, SNR_TABLE, imu, f"{snr} dB") for snr in (50, 60, 70))
+        if finite(ours, paper, at50, at60, at70):
+            out.append(f"{sc}: dead reckoning {ours:.2f} m against the paper's {paper:.2f} m. With the noise added to "
+                       f"the 5 Hz accelerometer output, our curve (figure below) gives {at50:.2f} m at 50 dB, "
+                       f"{at60:.2f} m at 60 dB and {at70:.2f} m at 70 dB SNR: the reading of the paper's SNR decides "
+                       f"this column.")
+    for sc in scenarios:
+        ours, paper = n.value(B, "RMSE", uwb, sc), n.value(B, "RMSE", uwb, sc, "paper_value")
+        r = n.ranging(sc)
+        if finite(ours, paper, r["nlos_share"], r["nlos_bias_m"]):
+            out.append(f"{sc}: Min-Max on UWB {ours:.2f} m against the paper's {paper:.2f} m: {r['nlos_share']:.0%} "
+                       f"of our UWB ranges are NLOS with a median excess of only {r['nlos_bias_m']:.2f} m.")
+        static = n.fact(B, "static share of epochs", sc)
+        if finite(static):
+            out.append(f"{sc}: the cart stands still {static:.0%} of the time; the paper's cart "
+                       f"moves continuously, so its dead reckoning never benefits from a standstill.")
+    real = [v for v in (n.value(B, "RMSE", uwb, sc, "paper_value") for sc in scenarios) if finite(v)]
+    out += ranging_severity(n, B, {"Min-Max on UWB": "uwb"},
+                            f"; the paper's real data: {real[0]:.2f} m" if real else "")
+    return out

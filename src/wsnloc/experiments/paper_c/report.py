@@ -1,0 +1,53 @@
+"""Paper C's report section: its tables, bound lines and details (from results.csv), the
+set-up note (section.html.j2 beside this file) and the sentences of "Why it differs"."""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from wsnloc.experiments.paper_c import EXPERIMENT as C, MODELS, cell_params, speed_label
+from wsnloc.report.explanations import Numbers, campaign_of, finite
+from wsnloc.report.sections import cell_of, columns_of, bound_line, grid_table, paper_section
+
+
+def section(results: pd.DataFrame, claims: dict, figures: dict[str, str], paper: dict, labels: list[str],
+            spec: dict, numbers: Numbers, config: dict) -> dict:
+    """Context of paper C's section on its scenarios `labels`."""
+    table_1, table_2, scenario_2 = spec["table_1_subset"], list(spec["table_2_subsets"]), spec["table_2_scenario"]
+    tables = [
+        grid_table(results, experiment=C, table="Table I", rows=list(MODELS), columns=columns_of(results, C, "Table I"),
+                   metric="rmse_m", title=f"Table I: RMSE [m], beacons {table_1}", scenario=", ".join(labels)),
+        grid_table(results, experiment=C, table="Table II", rows=table_2, columns=list(MODELS), metric="rmse_m",
+                   title="Table II: RMSE [m] by beacon set", scenario=scenario_2),
+    ]
+    detail_columns = columns_of(results, C, "Table I detail")
+    details = [{"title": "Table I detail (median, p95, max per speed)", "metrics": detail_columns,
+                "lines": [{"label": m, "cells": [cell_of(results, experiment=C, table="Table I detail", row=m, column=c)
+                                                 for c in detail_columns]} for m in MODELS]}]
+    speeds = [c.removesuffix(" efficiency") for c in detail_columns if c.endswith(" efficiency")]   # scenario order
+    bounds = [bound_line(results, f"{m} / {sc}", C, sc, {"table": "Table I detail", "row": m, "prefix": f"{speed} "},
+                         {"table": f"consistency: {table_1}", "row": m})
+              for m in MODELS for sc, speed in zip(labels, speeds)]
+    bounds += [bound_line(results, f"Table II: {subset}, {m} / {scenario_2}", C, scenario_2,
+                          {"table": "Table II detail", "row": subset, "prefix": f"{m} "},
+                          {"table": f"consistency: {subset}", "row": m})
+               for subset in table_2 for m in MODELS]
+    setup = {model: cell_params(spec, labels[0], model, table_1) for model in MODELS}
+    return paper_section(C, paper, spec, claims, figures, tables=tables, bounds=bounds, details=details, setup=setup,
+                         why=why(numbers, config, labels, setup["P"]["epoch_s"]))
+
+
+def why(n: Numbers, config: dict, scenarios: list[str], epoch_s: float) -> list[str]:
+    """Assumed IMU for PVA, beacons per epoch, ranging accuracy."""
+    out = ["PVA takes the acceleration of an assumed 5 Hz IMU (a Cricket listener has no accelerometer), with its "
+           "bias removed at rest and the heading integrated from the true start pose; see the sensitivity table for "
+           "how the P / PV / PVA ordering depends on the a-priori noise settings."]
+    for sc in scenarios:
+        speed = speed_label(campaign_of(config, sc), sc.split("/", 1)[1])
+        beacons = n.fact(C, "beacons ranged per epoch", sc)
+        r = n.ranging(sc)
+        ours, paper = n.value(C, "Table I", "P", speed), n.value(C, "Table I", "P", speed, "paper_value")
+        if finite(beacons, r["los_median_m"], ours, paper):
+            out.append(f"{sc}: {beacons:.1f} beacons ranged per {epoch_s:g} s epoch, median range error "
+                       f"{r['los_median_m']:.3f} m; P RMSE {ours:.3f} m against the paper's {paper:.3f} m.")
+    return out
