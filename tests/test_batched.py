@@ -122,7 +122,7 @@ def test_other_estimators_fall_back_to_one_run_at_a_time():
         params = dict(params, anchors="all")
         _assert_same(batched.run_many(name, datas, params), [registry.run(name, datas[0], params)])
     assert not array_ekf.supports(registry.get("tracker").resolve({}))
-    assert array_ekf.supports(registry.get("ekf").resolve({}))
+    assert array_ekf.supports(bayes.resolve_update(datas[0], registry.get("ekf").resolve({})))    # bursts: epoch
 
 
 def test_padded_measurements_change_nothing():

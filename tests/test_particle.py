@@ -165,8 +165,10 @@ def test_outlier_mixture_ignores_a_wild_range_that_drags_the_gaussian_likelihood
 
 
 def test_pf_nis_matches_the_kalman_filter_on_a_linear_case():
-    kf, pf = _linear_run(0, 5000, steps=5)
-    assert pf.nis == pytest.approx(kf.nis, rel=0.1)
+    """Averaged over 8 seeds (one seed's PF NIS scatters by about 15% around the KF's at 5000
+    particles, once the resampling kernel refreshes the cloud)."""
+    ratios = [pf.nis / kf.nis for kf, pf in (_linear_run(seed, 5000, steps=5) for seed in range(8))]
+    assert np.mean(ratios) == pytest.approx(1.0, abs=0.1)
 
 
 def test_invalid_parameters_are_rejected():

@@ -42,7 +42,7 @@ def test_arbitrary_bytes_in_newcom_logs(campaign, simulated_run, tmp_path, name,
     result, inventory = newcom.ingest_run(run, campaign)
     lines = data.count(b"\n") + 1
     assert inventory[name]["quarantined"] <= lines
-    assert set(result) == {"ranges", "rss", "imu", "truth", "anchors", "quarantine"}
+    assert set(result) == {"ranges", "rss", "tdoa", "imu", "truth", "anchors", "quarantine"}
 
 
 @FUZZ

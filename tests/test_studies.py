@@ -20,7 +20,7 @@ def test_parameters_resolve_from_defaults_entries_and_overrides():
     tracker = cell_params(SPEC, "tracker", "site", "walk", "studies.s")
     assert walk["max_range_m"] == 60.0 and walk["epoch_s"] == 0.5 and run["epoch_s"] == 1.0
     assert walk["accel_sigma_mps2"] == 0.9 and tracker["accel_sigma_mps2"] == 0.9    # dataset layer wins
-    assert tracker["update"] == "sequential" and walk["update"] == "epoch"
+    assert tracker["update"] == "sequential" and walk["update"] == "auto"        # ekf: from the data
     assert study_cells({"studies": {"s": SPEC}})["s"][0] == ("site", "walk", "tracker")
 
 

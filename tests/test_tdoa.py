@@ -133,7 +133,7 @@ def tdoa_run(seconds=60.0, noise=0.1, seed=0, rate_hz=10.0):
     return RunData(tables, None, None, f"tdoa-{seed}")
 
 
-@pytest.mark.parametrize("name", ["tracker", "ekf", "ukf", "pf", "ekf_rts", "ekf_filterpy"])
+@pytest.mark.parametrize("name", ["tracker", "ekf", "ukf", "pf", "ekf_rts", "ekf_filterpy", "sliding_window"])
 def test_filters_track_range_differences(name):
     data = tdoa_run()
     estimates = registry.run(name, data, {"measurements": "tdoa", "range_sigma_m": 0.1})
@@ -212,7 +212,7 @@ def test_estimate_picks_tdoa_on_a_tdoa_run(tmp_path, capsys):
 
 def test_registry_lists_tdoa_among_the_filters_measurements(capsys):
     accepting = {name for name, e in registry.ESTIMATORS.items() if e.reads_tdoa}
-    assert {"ekf", "tracker", "ukf", "pf", "ekf_rts"} <= accepting and "minmax" not in accepting
+    assert {"ekf", "tracker", "ukf", "pf", "ekf_rts", "sliding_window"} <= accepting and "minmax" not in accepting
     assert main(["estimators"]) == 0
     listed = {line.split(":")[0].split()[0] for line in capsys.readouterr().out.splitlines() if "[TDOA]" in line}
     assert listed == accepting
@@ -259,3 +259,93 @@ def test_convert_tdoa_cli_writes_a_tdoa_run_that_estimate_tracks(tmp_path):
     assert main(["estimate", "--format", "generic", str(converted), "--out", str(tmp_path / "est")]) == 0
     metrics = json.loads((tmp_path / "est" / "metrics.json").read_text())
     assert metrics["availability"] > 0.9 and metrics["median_m"] < 0.3, metrics
+
+
+# ---- simulator ---------------------------------------------------------------------------------------
+def test_sync_residual_is_the_sync_jitter_and_grows_until_the_next_sync():
+    from wsnloc.sim.tdoa import _sync_errors
+
+    rng = np.random.default_rng(1)
+    period, jitter = 0.15, 1e-9
+    at_sync = _sync_errors(4000, np.array([3 * period]), period, jitter, rng)
+    before_next = _sync_errors(4000, np.array([4 * period - 1e-9]), period, jitter, rng)
+    assert np.std(at_sync) == pytest.approx(jitter, rel=0.05)               # n_k
+    assert np.std(before_next) == pytest.approx(np.sqrt(5) * jitter, rel=0.05)   # 2 n_k - n_{k-1}
+    assert np.all(_sync_errors(3, np.linspace(0, 2, 50), period, 0.0, rng) == 0.0)
+
+
+@pytest.fixture(scope="module")
+def simulated_tdoa_run(tmp_path_factory):
+    from wsnloc.campaign import Campaign
+    from wsnloc.sim.newcom import simulate_run
+    from wsnloc.sim.seeding import run_seed_sequence
+
+    from conftest import ROOT
+
+    campaign = Campaign.load(ROOT / "config" / "campaigns" / "newcom.yaml")
+    run = simulate_run(campaign, "tdoa", run_seed_sequence(0, "newcom", "tdoa", 1), tmp_path_factory.mktemp("sim"))
+    return campaign, run
+
+
+def test_simulated_tdoa_is_ingested_with_truth_and_tracked(simulated_tdoa_run):
+    from wsnloc.io.newcom import ingest_run as ingest_newcom
+
+    campaign, run = simulated_tdoa_run
+    result, inventory = ingest_newcom(run, campaign)
+    tdoa, truth = result["tdoa"], result["truth"]
+    assert inventory["tdoa.csv"]["quarantined"] == 0 and len(tdoa) > 1000
+    assert set(tdoa["ref_anchor_id"]) == {campaign.section("radio", "uwb")["tdoa"]["reference_anchor"]}
+    anchors = result["anchors"].set_index("anchor_id")
+    x, y = np.interp(tdoa["t"], truth["t"], truth["x"]), np.interp(tdoa["t"], truth["t"], truth["y"])
+
+    def d(ids):
+        return np.hypot(x - anchors.loc[ids, "x"].to_numpy(), y - anchors.loc[ids, "y"].to_numpy())
+
+    error = tdoa["tdoa_m"] - (d(tdoa["anchor_id"]) - d(tdoa["ref_anchor_id"]))
+    assert abs(np.median(error)) < 0.3 and np.percentile(np.abs(error), 50) < 0.4     # channel + sync errors
+    data = RunData(result, campaign, None, "sim-tdoa")
+    metrics = {m: score(registry.run("tracker", data, {"measurements": m}), truth) for m in ("toa", "tdoa")}
+    medians = {m: np.nanmedian(s["error_m"]) for m, s in metrics.items()}
+    assert metrics["tdoa"]["error_m"].notna().mean() > 0.85 and medians["tdoa"] < 1.5 * medians["toa"] + 0.1, medians
+
+
+def test_tdoa_beside_newcom_logs_is_quarantined_by_the_generic_rules(simulated_tdoa_run, tmp_path):
+    import shutil
+
+    from wsnloc.io.newcom import ingest_run as ingest_newcom
+
+    campaign, run = simulated_tdoa_run
+    copy = tmp_path / "run"
+    shutil.copytree(run, copy)
+    with open(copy / "tdoa.csv", "a") as f:
+        f.write("12.0,U99,U03,1.0\n12.1,U03,U03,0.0\n")
+    result, inventory = ingest_newcom(copy, campaign)
+    bad = result["quarantine"][result["quarantine"]["file"] == "tdoa.csv"]["reason"].tolist()
+    assert bad == [f"unknown anchor 'U99' (not in {campaign.source})",
+                   "anchor 'U03' is its own reference (a range difference needs two anchors)"]
+    assert inventory["tdoa.csv"]["quarantined"] == 2 and inventory["tdoa.csv"]["unknown_anchors"] == {"U99": 1}
+
+
+def test_sliding_window_tdoa_factors_jacobian_and_noise_free_solution():
+    """The window's range-difference residuals W (h - z): analytic Jacobian = central differences;
+    noise-free differences of a tag at rest are solved to the truth."""
+    from wsnloc.filters.sliding_window import RangeFactors, SlidingWindowEstimator
+
+    receivers = np.array([[0.0, 0.0], [20.0, 0.0], [20.0, 20.0], [0.0, 20.0]])
+    model = TdoaModel(receivers, np.array([[1, 0], [2, 0], [3, 0]]), 0.1)
+    truth = np.array([6.0, 13.0])
+    W = np.linalg.inv(np.linalg.cholesky(model.R()))
+    t = np.repeat([0.2, 0.7, 1.2, 1.7], 3)
+    window = SlidingWindowEstimator(2.0, 0.5, 0.5)
+    knots = 2.0 - 0.5 * np.arange(window.n_knots - 1, -1, -1)
+    j = np.clip(np.floor((t - knots[0]) / 0.5 + 1e-9).astype(int), 0, window.n_knots - 1)
+    blocks = np.kron(np.eye(4), W)
+    factors = RangeFactors(j, t - knots[j], np.tile(receivers[1:], (4, 1)), np.zeros(12),
+                           np.tile(model.h(truth), 4), np.full(12, 0.1), np.tile(receivers[:1], (12, 1)),
+                           np.zeros(12), blocks)
+    theta = np.random.default_rng(0).normal(5.0, 2.0, 4 * window.n_knots)
+    numerical = _numerical_jacobian(lambda th: window._residuals(th, None, factors), theta)
+    np.testing.assert_allclose(window._jacobian(theta, None, factors), numerical, atol=1e-6)
+    estimate = window.estimate(2.0, t, factors.anchors, 0.0, factors.ranges, 0.1, np.array([8.0, 8.0, 0.0, 0.0]),
+                               (factors.ref, factors.ref_dz, blocks))
+    assert np.hypot(*(estimate.x[:2] - truth)) < 1e-6

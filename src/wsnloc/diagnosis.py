@@ -18,6 +18,10 @@ Values (`diagnose_run`, all optional, NaN where the estimator or run has none):
                     per-anchor biases leave offsets b_a.
   self_scale, self_offset_m   the filter's own self-calibration states, where it has them
   calibrated_scale  the donor calibration applied, where one was
+  regularised, skipped, reinitialised   numerical guards (filters.numerics): covariances made
+                    positive definite, updates skipped (singular or non-finite), particle-filter
+                    restarts from a fix after its likelihood collapsed (attrs, where counted)
+  update            the update mode used (`auto` resolved from the data: estimators.auto), not a metric
 Sentences (`findings`): one per value outside its tolerance, each "what: likely cause; remedy".
 """
 
@@ -35,6 +39,7 @@ GATED_SHARE_LIMIT = 0.05        # more rejected than this: the model is wrong mo
 SCALE_TOLERANCE = 0.03          # |s - 1| above this: a common range scale error (UWB clock/antenna delay ~1%)
 OFFSET_TOLERANCE_M = 0.15       # |b_a| above this: a per-anchor bias (antenna delay, cable; UWB sigma ~0.1 m)
 MIN_RANGES = 50                 # fewer ranges along the track: no scale / offset fit
+GUARDS = ("regularised", "skipped", "reinitialised")
 
 
 def _nis(estimates: pd.DataFrame, p: dict) -> dict:
@@ -42,7 +47,7 @@ def _nis(estimates: pd.DataFrame, p: dict) -> dict:
     used = np.isfinite(nis)
     if not used.any():
         return {}
-    if p.get("update") == "sequential":
+    if estimates.attrs.get("update", p.get("update")) == "sequential":       # attrs: the mode `auto` chose
         dof = np.ones(used.sum())
     else:
         dof = np.maximum(estimates["n_meas"].to_numpy(float)[used], 1.0)
@@ -78,6 +83,9 @@ def diagnose_run(data: RunData, estimates: pd.DataFrame, p: dict) -> dict:
         out["self_scale"] = float(a["range_scale"])
     if "range_offset_m" in a:
         out["self_offset_m"] = float(a["range_offset_m"])
+    out.update({k: int(a[k]) for k in GUARDS if k in a})
+    if "update" in a:
+        out["update"] = str(a["update"])
     if a.get("range_calibration", "none") != "none" and "calibrated_scale" in a:
         out["calibrated_scale"] = float(a["calibrated_scale"])
     return out
@@ -111,6 +119,12 @@ def findings(d: dict, p: dict) -> list[str]:
             out.append(f"NIS {d['nis_mean']:.2f} per dof is below its 95% band [{d['nis_low']:.2f}, "
                        f"{d['nis_high']:.2f}]: the measurement noise is set larger than the data need; a smaller "
                        f"one would follow the track more closely")
+    guarded = {k: d[k] for k in GUARDS if d.get(k, 0) > 0}
+    if guarded:
+        listed = ", ".join(f"{k} {n}" for k, n in guarded.items())
+        out.append(f"numerical guards acted ({listed}: covariances made positive definite, updates skipped, particle "
+                   f"filter restarted from a fix): the measurements disagree with the model or the geometry is "
+                   f"degenerate (few or collinear anchors); check the anchors, raise range_sigma_m or use `tracker`")
     scale = d.get("range_scale", np.nan)
     if np.isfinite(scale) and abs(scale - 1.0) > SCALE_TOLERANCE:
         out.append(f"ranges look {abs(scale - 1.0):.0%} {'long' if scale > 1 else 'short'} against the track: "
@@ -126,7 +140,7 @@ def findings(d: dict, p: dict) -> list[str]:
 
 def metrics_of(d: dict) -> dict:
     """Flat scalar columns of a diagnosis for metrics files (offsets as 'A=b;...', findings counted)."""
-    out = {f"diag_{k}": v for k, v in d.items() if k != "range_offsets_m"}
+    out = {f"diag_{k}": v for k, v in d.items() if k not in ("range_offsets_m", "update")}
     offsets = d.get("range_offsets_m") or {}
     out["diag_max_abs_offset_m"] = max((abs(v) for v in offsets.values()), default=np.nan)
     out["diag_range_offsets_m"] = ";".join(f"{k}={v:.3f}" for k, v in offsets.items())
@@ -135,7 +149,8 @@ def metrics_of(d: dict) -> dict:
 
 def report(d: dict, p: dict) -> str:
     """Lines for `wsnloc estimate`: the values, then each finding (or that the model fits)."""
-    values = [f"gated {d['gated_share']:.1%}" if np.isfinite(d.get("gated_share", np.nan)) else None,
+    values = [f"{d['update']} updates" if "update" in d else None,
+              f"gated {d['gated_share']:.1%}" if np.isfinite(d.get("gated_share", np.nan)) else None,
               f"restarts {d.get('restarts', 0)}",
               f"NIS {d['nis_mean']:.2f} per dof (95% band {d['nis_low']:.2f}-{d['nis_high']:.2f})"
               if "nis_mean" in d else None,

@@ -37,7 +37,9 @@ from wsnloc.experiments import calibration
 from wsnloc.metrics.tracking import RUN_METRICS, run_metrics, score
 
 EXPERIMENT_PREFIX = "study:"
-QUALITY_TABLE = ["run", "subset"] + QUALITY_COLUMNS   # a cell's per-epoch bound and consistency values
+# a cell's per-epoch bound and consistency values; epoch_update: 1 where the filter updated per epoch
+# (its `update: auto` resolved so on that run), else 0 (the NIS of sequential updates gives no ANIS)
+QUALITY_TABLE = ["run", "subset"] + QUALITY_COLUMNS + ["epoch_update"]
 REPORTED = RUN_METRICS + ("resets", "gated", "time_per_step")   # per cell and run; results.csv: mean and 95% interval
 BOUND_METRICS = ("sqrt_pcrb", "efficiency")  # Bayesian filters only
 CALIBRATION = ("calibrated_scale", "calibration_fitted", "range_scale", "range_offset")   # where a cell has them
@@ -219,7 +221,8 @@ def run_cell(label: str, cell: str, name: str, p: dict, subsets: list[str], runs
             efficiency = {}
             if bayesian:
                 quality, efficiency = run_quality(data, q, scored)
-                scored = scored.join(quality[["pcrb_m2", "nees"]])
+                scored = scored.join(quality[["pcrb_m2", "nees"]]).assign(
+                    epoch_update=float(est.attrs.get("update", q.get("update")) == "epoch"))
             estimates.append(scored)
             metrics.append({"run": run, "subset": subset, **run_metrics(scored, run_tables["truth"]),
                             **diagnosis.metrics_of(diagnosis.diagnose_run(data, est, q)),
@@ -295,8 +298,10 @@ def bound_summary(study: str, cells: list[dict], qualities: list[pd.DataFrame]) 
     rows, bound_panels, consistency_panels = [], [], []
     for cell, quality in zip(cells, qualities):
         for subset, group in quality.groupby("subset", sort=False):
+            update = "epoch" if group["epoch_update"].all() else "sequential"        # as the runs resolved it
             cell_rows, bound, panels = cell_outputs(
-                group, dict(cell["parameters"], anchors=subset), cell["cell"], f"{cell['label']}: {cell['cell']} [{subset}]",
+                group, dict(cell["parameters"], anchors=subset, update=update), cell["cell"],
+                f"{cell['label']}: {cell['cell']} [{subset}]",
                 experiment=EXPERIMENT_PREFIX + study, table=subset, row=cell["cell"], scenario=cell["label"])
             rows += cell_rows
             bound_panels.append(bound)

@@ -85,6 +85,7 @@ def _transitions(motion: MotionModel, steps: np.ndarray, static_of_step: np.ndar
 def _pcrb_inputs(data: RunData, p: dict):
     """(epoch end times, output step index of each, P0, F, Q, information (steps, n, n)) of the
     bound of a filter with resolved parameters p on one run; None without epochs."""
+    p = bayes.resolve_update(data, p)
     source = bayes.measurement_source(data, p)
     times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
     if len(times) == 0:
@@ -186,6 +187,7 @@ def bound_model(p: dict) -> str:
         noise.append("log-normal RSS (the filter's path-loss model)")
     if p["measurements"] == "tdoa":
         noise.append(f"range differences, arrival noise sigma {p['range_sigma_m']:g} m per anchor")
-    update = "epoch updates" if p["update"] == "epoch" else "sequential updates"
+    update = {"epoch": "epoch updates", "sequential": "sequential updates"}.get(
+        p["update"], "updates by epoch or sequential as the data call for (auto)")
     detection = ", static epochs frozen" if p["motion_detection"] else ""
     return f"{motion}; {', '.join(noise)}; anchors {p['anchors']}; {update} every {p['epoch_s']:g} s{detection}"

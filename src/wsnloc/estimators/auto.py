@@ -8,9 +8,16 @@ model that ranges do not; TDOA gives less of the geometry than the ranges it may
 Applied by `wsnloc estimate` to parameters not given with --set.
 `motion_for`: a filter with the default constant-velocity model (`motion: pv`, 2-D) on a run
 with an odometry table uses it (`motion: odometry`, the unicycle model it drives).
+
+`update_mode`: the Bayesian filters' `update: auto` (their default, bayes.run_filters) is
+`epoch` on synchronous rounds and `sequential` on asynchronous measurements.
+`fix_window_epochs`: per-epoch fixes (estimators.fixes) read the latest value of each anchor
+over the last FIX_WINDOW_S seconds when most epochs hear fewer than 3 anchors.
 """
 
 from __future__ import annotations
+
+import numpy as np
 
 from wsnloc.estimators.run_data import RunData
 
@@ -33,6 +40,58 @@ def measurements_for(data: RunData, p: dict, explicit: set[str], choices: dict |
     if not len(data.usable_rss()):
         return p
     return dict(p, **{k: "rss" for k in free})
+
+
+SYNCHRONOUS_SHARE = 0.5     # bursts in at least this share of the epochs with measurements: synchronous
+
+
+def update_mode(t: np.ndarray, anchor: np.ndarray, times: np.ndarray, period: float) -> tuple[str, str]:
+    """The update mode the ranges at times t (s, sorted) to `anchor` call for, and why.
+    RSS does not decide it (bayes.resolve_update passes the ranges only; a filter on RSS alone
+    keeps `epoch`): the RSS samples of one receiver within a period are mostly fast fading,
+    correlated from sample to sample, so each is not an independent measurement; their mean in
+    dB per epoch is the ML estimate of the local mean power (estimators.epochs) and one
+    update with it does not let a burst of fading samples drag the filter along the steep
+    log-distance curve near a receiver.
+
+    An epoch (t_k - period, t_k] of the grid `times` is a **burst** when its measurements share
+    one time stamp and come from at least two anchors: a synchronous round, which the epoch
+    update (one update with the per-anchor means, output at t_k) uses as the sequential one
+    would. When bursts make up at least SYNCHRONOUS_SHARE of the epochs that hold measurements
+    the data are synchronous: `epoch` (the papers' filters; the array EKF steps many runs at
+    once). Otherwise (ranges one anchor at a time, or each anchor at its own time stamp) an
+    epoch update would treat measurements up to one period old as taken at t_k and average
+    away all but one per anchor: `sequential` (each measurement at its own time)."""
+    if len(t) == 0 or len(times) == 0:
+        return "epoch", "no ranges"
+    epoch = np.searchsorted(times, t, side="left")
+    inside = epoch < len(times)
+    epoch, t, anchor = epoch[inside], t[inside], np.asarray(anchor, dtype=object)[inside]
+    starts = np.flatnonzero(np.r_[True, epoch[1:] != epoch[:-1]])
+    ends = np.r_[starts[1:], len(epoch)]
+    one_stamp = np.array([t[a] == t[b - 1] for a, b in zip(starts, ends)])
+    anchors = np.array([len(set(anchor[a:b])) for a, b in zip(starts, ends)])
+    bursts = float(np.mean(one_stamp & (anchors >= 2))) if len(starts) else 0.0
+    if bursts >= SYNCHRONOUS_SHARE:
+        return "epoch", f"synchronous: {bursts:.0%} of the epochs are single-time-stamp rounds of >= 2 anchors"
+    single = float(np.mean(anchors == 1))
+    return "sequential", (f"asynchronous: {bursts:.0%} of the epochs are single-time-stamp rounds "
+                          f"({single:.0%} hold a single anchor)")
+
+
+FIX_WINDOW_S = 4.0          # s: as the tracker's initiator (multilateration over the last 4 s)
+FIX_ANCHORS = 3             # a 2-D fix needs three anchors
+
+
+def fix_window_epochs(anchors_per_epoch: np.ndarray, period: float) -> int:
+    """Epochs a per-epoch fix reads: 1 when at least half of the epochs with measurements hear
+    FIX_ANCHORS anchors or more (synchronous rounds: the papers' solvers, unchanged), else the
+    epochs of FIX_WINDOW_S (ranges one anchor at a time: a fix from the latest range of each
+    anchor over the window, up to FIX_WINDOW_S old, instead of none in most epochs)."""
+    heard = anchors_per_epoch[anchors_per_epoch > 0]
+    if len(heard) == 0 or np.mean(heard >= FIX_ANCHORS) >= 0.5:
+        return 1
+    return max(1, int(np.ceil(FIX_WINDOW_S / period - 1e-9)))
 
 
 def motion_for(run_tables: dict, p: dict, explicit: set[str]) -> dict:

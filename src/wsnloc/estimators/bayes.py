@@ -10,6 +10,11 @@ Update modes (core.epoch_loop, core.sequential_loop)
   time are used as they come; output at the same epoch ends t_k, predicted from the
   last update (not stored). When every measurement of an epoch carries the time t_k,
   both modes give the same estimates.
+- `auto` (the default of every filter but `tracker`): `epoch` on synchronous ranging rounds
+  and RSS alone, `sequential` on asynchronous ranges, decided per run (resolve_update,
+  estimators.auto.update_mode); attrs `update` says which.
+Numerical guards (filters.numerics): per run, the covariances regularised, updates skipped
+  and particle-filter restarts, in attrs `regularised`, `skipped`, `reinitialised`.
 Initiator (core.WindowInitiator, `init_window_s`): the first time the measurements of the
   last `init_window_s` seconds (per-anchor means) give a multilateration fix, the state
   starts there (speed and bias 0, P0).
@@ -42,6 +47,7 @@ import pandas as pd
 
 from wsnloc.errors import ConfigError
 from wsnloc.estimators import array_ekf, range_calibration
+from wsnloc.estimators.auto import update_mode
 from wsnloc.estimators.core import CoastingDeleter, FilterBank, RunInputs, Track, WindowInitiator, \
     epoch_loop, sequential_loop
 from wsnloc.estimators.filter_options import UpdateCounts, configured_factory
@@ -52,6 +58,7 @@ from wsnloc.estimators.run_data import RunData
 from wsnloc.estimators.smoothing import ForwardPass
 from wsnloc.estimators.tdoa import TdoaSource
 from wsnloc.filters.kalman import ExtendedKalmanFilter
+from wsnloc.filters.numerics import Guards
 from wsnloc.filters.particle import ParticleFilter
 from wsnloc.filters.reference import FilterpyEKF
 from wsnloc.filters.ukf import UnscentedKalmanFilter
@@ -59,16 +66,17 @@ from wsnloc.inertial.motion_detection import static_epochs
 
 ODOMETRY_INPUTS = ("v_mps", "yaw_rate_rps")     # the odometry table's columns, the odometry model's u
 
-def ekf_factory(p: dict, data: RunData):
+
+def ekf_factory(p: dict, data: RunData, guards: Guards):
     def make(x0: np.ndarray, P0: np.ndarray, motion: MotionModel):
         F, Q, _ = motion.matrices(motion.period_s)
-        return ExtendedKalmanFilter(x0, P0, F, Q)
+        return ExtendedKalmanFilter(x0, P0, F, Q, guards)
     return make
 
 
-def ukf_factory(p: dict, data: RunData):
+def ukf_factory(p: dict, data: RunData, guards: Guards):
     def make(x0: np.ndarray, P0: np.ndarray, motion: MotionModel):
-        return UnscentedKalmanFilter(x0, P0, p["alpha"], p["beta"], p["kappa"])
+        return UnscentedKalmanFilter(x0, P0, p["alpha"], p["beta"], p["kappa"], guards)
     return make
 
 
@@ -77,23 +85,24 @@ def run_generator(seed: int, data: RunData) -> np.random.Generator:
     return np.random.default_rng([seed, zlib.crc32(data.name.encode())])
 
 
-def pf_factory(p: dict, data: RunData):
+def pf_factory(p: dict, data: RunData, guards: Guards):
     rng = run_generator(p["seed"], data)           # one stream per run: a restarted track continues it
 
     def make(x0: np.ndarray, P0: np.ndarray, motion: MotionModel):
         return ParticleFilter(x0, P0, p["n_particles"], rng, p["resample_threshold"], p["outlier_probability"],
-                              p["outlier_span_m"])
+                              p["outlier_span_m"], guards)
     return make
 
 
-def filterpy_factory(p: dict, data: RunData):
+def filterpy_factory(p: dict, data: RunData, guards: Guards):
     def make(x0: np.ndarray, P0: np.ndarray, motion: MotionModel):
         return FilterpyEKF(x0, P0)
     return make
 
 
-# filter name -> factory(parameters, run) -> make(x0, P0, motion) -> a filter with x, P, nis,
-# predict(F, Q, u, B) and update_model(model)
+# filter name -> factory(parameters, run, guards) -> make(x0, P0, motion) -> a filter with x, P, nis,
+# predict(F, Q, u, B) and update_model(model); guards (filters.numerics): the run's counters of
+# regularised covariances, skipped updates and particle-filter restarts
 FILTERS = {"ekf": ekf_factory, "ukf": ukf_factory, "pf": pf_factory, "filterpy": filterpy_factory}
 
 
@@ -182,12 +191,28 @@ def components(p: dict) -> tuple[WindowInitiator, CoastingDeleter]:
     return WindowInitiator(p["init_window_s"] or p["epoch_s"]), CoastingDeleter(p["max_coast_s"])
 
 
+def resolve_update(data: RunData, p: dict) -> dict:
+    """p with `update: auto` replaced by the mode the run's ranges call for (auto.update_mode:
+    epoch on synchronous rounds and on RSS alone, else sequential); other modes unchanged."""
+    if p["update"] != "auto":
+        return p
+    records = measurement_source(data, p).records()
+    times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
+    ranges = records.kind == 0
+    mode, _ = data.cached(("update_mode", p["epoch_s"], p["anchors"], p["measurements"], p["preliminary_filter"],
+                           p["max_range_m"]),
+                          lambda: update_mode(records.t[ranges], records.anchor[ranges], times, p["epoch_s"]))
+    return dict(p, update=mode)
+
+
 def run_filters(cells: list[tuple[RunData, dict]], forward: ForwardPass | None = None) -> list[Track]:
     """run_filter of every (run, resolved parameters) cell, as Tracks. Epoch-mode cells sharing
     a motion model, period, initiator, deleter and bank kind run through one core.epoch_loop
     (the bare EKF of ARRAY_MIN_CELLS cells or more as array_ekf.ArrayEKF, other filters and
     smaller groups as a core.FilterBank, the same numbers to round-off); sequential cells
-    through core.sequential_loop one at a time. forward (smoothing): one cell."""
+    through core.sequential_loop one at a time (`update: auto` resolved per run: resolve_update).
+    forward (smoothing): one cell. attrs `update`: the mode used."""
+    cells = [(data, resolve_update(data, p)) for data, p in cells]
     groups: dict[tuple, list[int]] = {}
     for i, (_, p) in enumerate(cells):
         if p["update"] == "epoch":
@@ -201,14 +226,16 @@ def run_filters(cells: list[tuple[RunData, dict]], forward: ForwardPass | None =
         motion, (initiator, deleter) = motion_model(p), components(p)
         runs = [run_inputs(data, q, motion) for data, q in (cells[i] for i in members)]
         counts = [UpdateCounts() for _ in members]
-        makes = [configured_factory(FILTERS[q["filter"]](q, data), q, c, data.campaign)
-                 for (data, q), c in zip((cells[i] for i in members), counts)]
+        guards = [Guards() for _ in members]
+        makes = [configured_factory(FILTERS[q["filter"]](q, data, g), q, c, data.campaign)
+                 for (data, q), c, g in zip((cells[i] for i in members), counts, guards)]
         if key[0] == "sequential":
             out = [sequential_loop(makes[0], runs[0], motion, initiator, deleter, forward)]
         else:
             bank = array_ekf.ArrayEKF(runs, p["epoch_s"], motion.dim) if key[0] and len(runs) >= ARRAY_MIN_CELLS \
                 else FilterBank(makes, [r.source.epoch_models(r.times, p["epoch_s"]) for r in runs])
             out = epoch_loop(bank, runs, motion, p["epoch_s"], initiator, deleter, forward)
-        for i, run, c, (rows, resets) in zip(members, runs, counts, out):
-            tracks[i] = Track(rows, {"resets": resets, **c.attrs(), **run.source.correction.describe()})
+        for i, run, c, g, (rows, resets) in zip(members, runs, counts, guards, out):
+            tracks[i] = Track(rows, {"resets": resets, "update": cells[i][1]["update"], **c.attrs(), **g.attrs(),
+                                     **run.source.correction.describe()})
     return tracks

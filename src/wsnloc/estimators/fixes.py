@@ -5,7 +5,9 @@ Techniques: `toa` (measured ranges, projected to the tag's plane for 3-D anchors
 (RSS turned into distances by inverting the path-loss model), `pmix` (weighted barycentre
 of the toa and rss fixes) and `fmix` (one solver on the toa and rss distances together).
 Each solver sees only the k smallest distances of its set (k = 0: all), paper D's
-selection: longer ranges are less accurate.
+selection: longer ranges are less accurate. When most epochs hear fewer than 3 anchors (ranges
+one anchor at a time) an epoch's fix uses the latest mean of each anchor over the last
+auto.FIX_WINDOW_S seconds (auto.fix_window_epochs; synchronous rounds: the epoch alone).
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from wsnloc.estimators.auto import fix_window_epochs
 from wsnloc.estimators.measurements import MeasurementSource, rss_params
 from wsnloc.estimators.run_data import RunData
 from wsnloc.geometry.lateration import LOCALIZERS
@@ -63,7 +66,20 @@ def _flat(source: MeasurementSource, times: np.ndarray, period: float, kind: int
     """(epoch index, anchor ids (object), per-anchor epoch means) of one measurement kind
     (0 ranges, 1 RSS) over all epochs, by epoch, then anchor id (MeasurementSource.epochs' order)."""
     means = source.epoch_means(times, period)[kind]
-    return means.epoch, source.anchor_ids(kind)[means.code], means.mean
+    epoch, ids, values = means.epoch, source.anchor_ids(kind)[means.code], means.mean
+    window = fix_window_epochs(np.bincount(epoch, minlength=len(times)), period)
+    return _latest_within(epoch, ids, values, len(times), window) if window > 1 else (epoch, ids, values)
+
+
+def _latest_within(epoch: np.ndarray, ids: np.ndarray, values: np.ndarray, n_epochs: int, window: int):
+    """(epoch, anchor ids, values) with each anchor's latest value of the last `window` epochs
+    at every epoch (by epoch, then anchor id)."""
+    names, column = np.unique(ids.astype(str), return_inverse=True)
+    latest = np.full((n_epochs, len(names)), np.nan)
+    latest[epoch, column] = values
+    latest = pd.DataFrame(latest).ffill(limit=window - 1).to_numpy()
+    rows, cols = np.nonzero(np.isfinite(latest))
+    return rows, names[cols].astype(object), latest[rows, cols]
 
 
 def _epoch_fixes(data: RunData, p: dict, technique: str, rss) -> pd.DataFrame:

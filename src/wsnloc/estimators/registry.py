@@ -78,11 +78,14 @@ FILTER = (
           "% scale error and slip at speeds up to ~2 m/s)", minimum=1e-6),
     Param("odometry_yaw_rate_sigma_rps", 0.05, "rad/s", "odometry: yaw-rate error held over a step (~3 deg/s: "
           "wheel-base uncertainty and slip of differential-drive odometry)", minimum=1e-6),
-    Param("update", "epoch", "", "epoch: one update per period; sequential: at each measurement's time", str,
-          ("epoch", "sequential")),
+    Param("update", "auto", "", "epoch: one update per period; sequential: at each measurement's time; auto: "
+          "epoch on synchronous ranging rounds and on RSS alone, sequential on asynchronous ranges (one anchor at a "
+          "time, or each anchor at its own time stamp), decided from the run's data (estimators.auto)", str,
+          ("auto", "epoch", "sequential")),
     Param("range_sigma_m", 0.3, "m", "range noise standard deviation in R (TDOA: of each anchor's arrival or "
           "range; a pair's difference has sqrt(2) times it)", minimum=1e-6),
-    Param("p_sigma_m", 0.15, "m", "P model: position change per period T", minimum=0.0),
+    Param("p_sigma_m", 0.5, "m", "P model: position change per period T (0.5: a walk at 1 m/s over the 0.5 s "
+          "period; paper C sets its own)", minimum=0.0),
     Param("accel_sigma_mps2", 0.5, "m/s^2", "PV: white acceleration; PVA: acceleration input noise", minimum=0.0),
     Param("bias_walk_sigma", 0.01, "m/s^2/sqrt(s)", "PVA: accelerometer bias random walk", minimum=0.0),
     Param("initial_sigma_m", 1.0, "m", "initial position sigma (around the initiator's fix)", minimum=1e-6),
@@ -113,15 +116,19 @@ PARTICLE = (
           "a few cm for a 1 m posterior spread at 1000; cost grows linearly", int, minimum=1),
     Param("resample_threshold", 0.5, "1", "systematic resampling when the effective sample size 1 / sum w^2 "
           "falls below this share of N (0..1; the usual N/2 rule)", minimum=0.0),
-    Param("outlier_probability", 0.0, "1", "heavy-tailed range likelihood (1 - eps) N(r; 0, sigma^2) + eps / span "
-          "(0..1; 0: Gaussian, the EKF's likelihood; ~0.05 for NLOS-heavy UWB)", minimum=0.0),
+    Param("outlier_probability", 0.05, "1", "heavy-tailed range likelihood (1 - eps) N(r; 0, sigma^2) + eps / span "
+          "(0..1; 0: Gaussian, the EKF's likelihood; 0.05: real UWB, where NLOS and multipath give a few ranges "
+          "metres long, which a Gaussian likelihood lets drag the cloud)", minimum=0.0),
     Param("outlier_span_m", 50.0, "m", "span of the uniform outlier component: the longest range error "
           "possible (site diagonal plus the largest NLOS excess)", minimum=1e-3),
     Param("seed", 0, "1", "random stream of each run: numpy Generator seeded with (seed, CRC-32 of the run's "
           "name), so results are reproducible and runs independent", int, minimum=0),
 )
 SLIDING_WINDOW = (
-    Param("range_sigma_m", 0.3, "m", "range noise standard deviation (residuals are whitened by it)", minimum=1e-6),
+    Param("measurements", "toa", "", "toa: ranges; tdoa: range differences (tdoa table, each time group whitened "
+          "by its correlated noise)", str, ("toa", "tdoa")),
+    Param("range_sigma_m", 0.3, "m", "range noise standard deviation (residuals are whitened by it; TDOA: of "
+          "each anchor's arrival)", minimum=1e-6),
     Param("window_s", 2.0, "s", "window W: ranges of the last W seconds are solved jointly (4 rounds at 2 Hz; "
           "cost and latency grow with W)", minimum=1e-3),
     Param("knot_s", 0.5, "s", "spacing of the constant-velocity knots (one per 2 Hz round); at most window_s",
@@ -261,8 +268,9 @@ ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
     Estimator("ukf", "Unscented Kalman filter (scaled sigma points) with the EKF's motion models, measurements, "
               "update modes, initiator and coasting limit", COMMON + RSS + _filter(FILTER, "ukf") + UKF,
               bayes.run_filter, _filter_inputs),
-    Estimator("pf", "Bootstrap particle filter (systematic resampling on ESS, optional heavy-tailed range "
-              "likelihood) with the EKF's motion models, measurements, update modes, initiator and coasting limit",
+    Estimator("pf", "Bootstrap particle filter (systematic resampling on ESS with a shrunk kernel, heavy-tailed "
+              "range likelihood, restart from a fix when its likelihood collapses) with the EKF's motion models, "
+              "measurements, update modes, initiator and coasting limit",
               COMMON + RSS + _filter(FILTER, "pf") + PARTICLE, bayes.run_filter, _filter_inputs),
     Estimator("ekf_filterpy", "filterpy's EKF (the textbook reference) in the same loops, initiator, coasting "
               "limit and update options as ekf: its estimates equal ekf's to round-off",

@@ -73,7 +73,6 @@ def model_of(data: RunData, anchor_ids, ref_ids, values, sigma_m: float, dimensi
 class TdoaSource:
     """The range differences of the pairs whose two anchors are in the subset `anchors`."""
 
-    kinds = ("tdoa",)
     correction = RangeCorrection()
 
     def __init__(self, data: RunData, anchors: str, sigma_m: float, max_range_m: float, range_calibration: str,
@@ -86,7 +85,6 @@ class TdoaSource:
         members = data.members(anchors)
         frame = data.usable_tdoa()
         frame = frame[frame["anchor_id"].isin(members) & frame["ref_anchor_id"].isin(members)]
-        self.frame = frame
         keys = (frame["anchor_id"] + PAIR + frame["ref_anchor_id"]).to_numpy(dtype=object)
         self._key = ("tdoa", anchors, dimensions)
         self._records = Records(frame["t"].to_numpy(float), np.zeros(len(frame), dtype=np.int8), keys,

@@ -6,12 +6,16 @@ State x (n,), covariance P (n, n), transition F, process noise Q, observation H,
             x <- x + K y,  P <- (I - K H) P (I - K H)^T + K R K^T      (Joseph form)
 The attribute names follow filterpy.kalman.KalmanFilter so results can be compared
 one to one; the innovation y, its covariance S and NIS = y^T S^-1 y of the last update
-are kept for diagnostics.
+are kept for diagnostics. An update with a singular S or a non-finite result (real data:
+a degenerate geometry, a non-finite model) is skipped, the prior kept, and counted in
+`guards.skipped` (filters.numerics).
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from wsnloc.filters.numerics import Guards, usable
 
 
 def inverse(S: np.ndarray) -> np.ndarray:
@@ -23,7 +27,7 @@ def inverse(S: np.ndarray) -> np.ndarray:
 
 
 class KalmanFilter:
-    def __init__(self, x, P, F, Q, H, R):
+    def __init__(self, x, P, F, Q, H, R, guards: Guards | None = None):
         self.x = np.asarray(x, dtype=float).copy()
         self.P = np.asarray(P, dtype=float).copy()
         self.F = np.asarray(F, dtype=float)
@@ -35,6 +39,7 @@ class KalmanFilter:
         self.K = np.zeros((len(self.x), self.H.shape[0]))
         self._S_inv = None
         self._eye = np.eye(len(self.x))
+        self.guards = guards if guards is not None else Guards()
 
     def predict(self, F=None, Q=None, u=None, B=None) -> None:
         """x <- F x (+ B u), P <- F P F^T + Q; F and Q default to the filter's own (a step of
@@ -51,15 +56,21 @@ class KalmanFilter:
         (default H x). The measurement size may change from call to call."""
         H = self.H if H is None else H
         R = self.R if R is None else R
-        self.y = z - (H @ self.x if hx is None else hx)
+        y = z - (H @ self.x if hx is None else hx)
         PHt = self.P @ H.T
-        self.S = H @ PHt + R
-        S_inv = inverse(self.S)
-        self.K = PHt @ S_inv
-        self.x = self.x + self.K @ self.y
-        joseph = self._eye - self.K @ H
-        self.P = joseph @ self.P @ joseph.T + self.K @ R @ self.K.T
-        self._S_inv = S_inv
+        S = H @ PHt + R
+        try:
+            S_inv = inverse(S)
+        except np.linalg.LinAlgError:
+            S_inv = np.full_like(S, np.nan)
+        K = PHt @ S_inv
+        x = self.x + K @ y
+        joseph = self._eye - K @ H
+        P = joseph @ self.P @ joseph.T + K @ R @ K.T
+        if not usable(x, P):
+            self.guards.skipped += 1
+            return
+        self.y, self.S, self.K, self.x, self.P, self._S_inv = y, S, K, x, P, S_inv
 
     @property
     def nis(self) -> float:
@@ -74,9 +85,9 @@ class ExtendedKalmanFilter(KalmanFilter):
     the Joseph-form update above (filterpy.kalman.ExtendedKalmanFilter.update does the same).
     """
 
-    def __init__(self, x, P, F, Q):
+    def __init__(self, x, P, F, Q, guards: Guards | None = None):
         n = len(np.asarray(x))
-        super().__init__(x, P, F, Q, np.zeros((1, n)), np.eye(1))
+        super().__init__(x, P, F, Q, np.zeros((1, n)), np.eye(1), guards)
 
     def update_nonlinear(self, z, h, jacobian, R) -> None:
         self.update(z, H=jacobian(self.x), R=R, hx=h(self.x))

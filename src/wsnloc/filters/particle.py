@@ -15,19 +15,40 @@ update:   log w_i <- log w_i + sum_j log p(z_j | X_i),  then normalised with log
           log_likelihood = log sum_i w_i(prior) p(z | X_i), the measurement's marginal likelihood.
 resample: systematic, when ESS = 1 / sum w_i^2 < resample_threshold * N:
           positions u_k = (U + k) / N, U ~ U[0, 1), k = 0..N-1; particle k copies X_j with the
-          smallest j whose cumulative weight exceeds u_k; weights reset to 1 / N.
+          smallest j whose cumulative weight exceeds u_k; weights reset to 1 / N; then each
+          particle is moved by the shrunk Gaussian kernel of Liu & West (2001):
+            X_k <- a X_k + (1 - a) x + h L e_k,  e_k ~ N(0, I),  a = sqrt(1 - h^2),
+          x, L L^T = P the weighted mean and covariance before resampling and
+          h = (4 / (N (n + 2)))^(1 / (n + 4)) (the Gaussian kernel's optimal bandwidth, as in
+          the regularised particle filter of Musso, Oudjane & Le Gland 2001); the shrinkage
+          keeps the cloud's mean and covariance (a^2 P + h^2 P = P) while refreshing it.
+          Without it, measurements milliseconds apart (a ranging round's anchors, each at its
+          own time) resample again and again with almost no process noise in between, and
+          the cloud collapses onto a few copies of one particle that cannot follow the target.
 x = sum w_i X_i,  P = sum w_i (X_i - x)(X_i - x)^T.
 NIS of an update: y^T S^-1 y with y = z - sum w_i h(X_i), S = weighted covariance of h(X_i) + R
 (prior weights), as for a Gaussian filter.
+Collapse: a cloud that has left the target (started from a bad fix, or diverged) sees every
+measurement far in the tail of its predictive density: exp(-NIS / 2), the measurement's
+effective likelihood relative to a zero innovation, collapses. An update is a miss when
+NIS / m > COLLAPSE_NIS_PER_DOF (beyond 5 sigma per element); when more than half of the last
+COLLAPSE_WINDOW updates missed, the filter is `lost`: the loop's deleter drops it and the
+initiator restarts it from a fresh fix (estimators.core), counted in guards.reinitialised.
+Particles or weights that become non-finite skip the update (guards.skipped).
 """
 
 from __future__ import annotations
 
+from collections import deque
+
 import numpy as np
 
 from wsnloc.filters.measurement_models import RangeModel
+from wsnloc.filters.numerics import Guards, usable
 
 LOG_2PI = np.log(2.0 * np.pi)
+COLLAPSE_NIS_PER_DOF = 25.0     # (5 sigma)^2: a Gaussian innovation exceeds it with probability 6e-7
+COLLAPSE_WINDOW = 10            # updates over which the misses are counted
 
 
 def noise_square_root(Q) -> np.ndarray:
@@ -64,7 +85,7 @@ def systematic_resample(weights, rng: np.random.Generator) -> np.ndarray:
 def range_elements(model) -> np.ndarray:
     """Boolean mask (m,) of the measurement elements that are ranges (RangeModel parts)."""
     parts = getattr(model, "parts", [model])
-    return np.concatenate([np.full(len(p.anchors), isinstance(p, RangeModel)) for p in parts])
+    return np.concatenate([np.full(len(p.R()), isinstance(p, RangeModel)) for p in parts])   # rows of each part
 
 
 def element_log_likelihoods(residuals, variances, heavy_tailed, outlier_probability: float,
@@ -86,7 +107,7 @@ class ParticleFilter:
     """
 
     def __init__(self, x, P, n_particles: int, rng: np.random.Generator, resample_threshold: float = 0.5,
-                 outlier_probability: float = 0.0, outlier_span_m: float = 50.0):
+                 outlier_probability: float = 0.0, outlier_span_m: float = 50.0, guards: Guards | None = None):
         if n_particles < 1:
             raise ValueError(f"particle filter n_particles must be >= 1, got {n_particles}")
         if not 0.0 <= resample_threshold <= 1.0:
@@ -105,6 +126,9 @@ class ParticleFilter:
         self.log_likelihood = float("nan")
         self.nis = float("nan")
         self.resampled = False
+        self.guards = guards if guards is not None else Guards()
+        self.misses: deque = deque(maxlen=COLLAPSE_WINDOW)
+        self.lost = False
 
     @property
     def weights(self) -> np.ndarray:
@@ -139,7 +163,6 @@ class ParticleFilter:
         residuals = model.z - model.h_many(self.particles)           # (N, m)
         y = w @ residuals                                              # z - sum w_i h(X_i)
         spread = residuals - y
-        self.nis = float(y @ np.linalg.solve((w[:, None] * spread).T @ spread + R, y))
         heavy_tailed = range_elements(model) if self.outlier_probability > 0 else np.zeros(len(y), dtype=bool)
         log_det = 0.0
         if np.any(R != np.diag(variances)):        # correlated noise (TDOA): whitened residuals L^-1 r, R = L L^T
@@ -149,9 +172,23 @@ class ParticleFilter:
         log_p = element_log_likelihoods(residuals, variances, heavy_tailed,
                                         self.outlier_probability, self.outlier_span_m)
         joint = self.log_weights + log_p.sum(axis=1) - log_det
-        self.log_likelihood = log_sum_exp(joint)
+        log_likelihood = log_sum_exp(joint)
+        if not (usable(y) and np.isfinite(log_likelihood)):
+            self.guards.skipped += 1
+            return
+        self.nis = float(y @ np.linalg.solve((w[:, None] * spread).T @ spread + R, y))
+        self.log_likelihood = log_likelihood
         self.log_weights = joint - self.log_likelihood
+        self.misses.append(self.nis > COLLAPSE_NIS_PER_DOF * len(y))
+        if len(self.misses) == COLLAPSE_WINDOW and 2 * sum(self.misses) > COLLAPSE_WINDOW:
+            self.lost = True
+            self.guards.reinitialised += 1
         self.resampled = self.ess < self.resample_threshold * len(self.particles)
         if self.resampled:
-            self.particles = self.particles[systematic_resample(self.weights, self.rng)]
-            self.log_weights = np.full(len(self.particles), -np.log(len(self.particles)))
+            n, dim = self.particles.shape
+            h = (4.0 / (n * (dim + 2))) ** (1.0 / (dim + 4))
+            mean, kernel = self.x, h * noise_square_root(self.P)
+            kept = self.particles[systematic_resample(self.weights, self.rng)]
+            self.particles = np.sqrt(1.0 - h**2) * kept + (1.0 - np.sqrt(1.0 - h**2)) * mean \
+                + self.rng.standard_normal(kept.shape) @ kernel.T
+            self.log_weights = np.full(n, -np.log(n))

@@ -13,12 +13,17 @@ knot_s apart and covering the window [t_end - window_s, t_end]. Whitened residua
   one per range measured at time t to an anchor a with height difference dz, from the knot j
   before t (delta = t - tau_j):
       (sqrt(||p_j + delta v_j - a||^2 + dz^2) - r) / sigma
+  or, for range differences (TDOA) r(a) - r(b) measured together (one group, correlated
+  noise R_g = D diag(sigma^2) D^T as measurement_models.TdoaModel), the group's residuals
+  whitened by R_g = L_g L_g^T:  L_g^-1 (h_g - z_g), h_i = r(a_i) - r(b_i)
 Minimised with filters.least_squares (scipy.optimize.least_squares' trust-region algorithm
 and robust-loss scaling, in numpy; ftol = xtol = gtol = 1e-12), warm-started from the
 previous window; the robust loss rho (huber, soft_l1, cauchy or linear) acts on the range
 residuals only, with f_scale in units of sigma (the priors stay Gaussian). Covariance of the
 knots: (J^T J)^-1 with J the loss-weighted Jacobian at the solution; the estimate is the last
-knot (x, P).
+knot (x, P). On real data (filters.numerics, counted in `guards.regularised`): a J^T J that is
+singular or whose inverse is not positive definite (ranges from too few anchors in the window,
+a degenerate geometry) and a prior covariance that is not positive definite are regularised.
 """
 
 from __future__ import annotations
@@ -30,6 +35,7 @@ import numpy as np
 from wsnloc.filters.least_squares import LOSSES, robust_least_squares
 from wsnloc.filters.measurement_models import MIN_DISTANCE
 from wsnloc.filters.motion_models import constant_velocity
+from wsnloc.filters.numerics import Guards, regularise, safe_cholesky
 
 STATE = 4
 
@@ -42,13 +48,18 @@ def white_noise_acceleration_cov(dt: float, accel_sigma: float) -> np.ndarray:
 
 class RangeFactors(NamedTuple):
     """The window's ranges, each tied to the knot before it: knot (k,) index, delta (k,) s
-    after that knot, anchors (k, 2) m, dz (k,) m, ranges (k,) m, sigma (k,) m."""
+    after that knot, anchors (k, 2) m, dz (k,) m, ranges (k,) m, sigma (k,) m; for range
+    differences also the reference anchors (k, 2) and their dz (k,) (NaN rows: plain ranges) and
+    the whitening matrix W (k, k) (block-diagonal L_g^-1; None: diag(1 / sigma))."""
     knot: np.ndarray
     delta: np.ndarray
     anchors: np.ndarray
     dz: np.ndarray
     ranges: np.ndarray
     sigma: np.ndarray
+    ref: np.ndarray | None = None
+    ref_dz: np.ndarray | None = None
+    whiten: np.ndarray | None = None
 
 
 class WindowEstimate(NamedTuple):
@@ -61,7 +72,8 @@ class SlidingWindowEstimator:
     """Call estimate() once per output time, with increasing t_end."""
 
     def __init__(self, window_s: float = 2.0, knot_s: float = 0.5, accel_sigma: float = 0.5,
-                 loss: str = "huber", f_scale: float = 1.345, prior_inflation: float = 10.0):
+                 loss: str = "huber", f_scale: float = 1.345, prior_inflation: float = 10.0,
+                 guards: Guards | None = None):
         if loss not in LOSSES:
             raise ValueError(f"sliding window loss must be one of {sorted(LOSSES)}, got {loss!r}")
         for name, value in (("window_s", window_s), ("knot_s", knot_s), ("accel_sigma", accel_sigma),
@@ -79,6 +91,7 @@ class SlidingWindowEstimator:
         self._J_cv = (np.kron(np.eye(self.n_knots - 1, self.n_knots, 1), self._W_cv)
                       - np.kron(np.eye(self.n_knots - 1, self.n_knots), self._W_cv @ self.Phi))
         self._previous = None      # (knot times (K,), states (K, 4), covariance (4K, 4K))
+        self.guards = guards if guards is not None else Guards()
 
     def _propagate(self, times):
         """The previous solution carried to the given times by the constant-velocity model, each
@@ -95,11 +108,14 @@ class SlidingWindowEstimator:
         block = cov[STATE * j[0]:STATE * (j[0] + 1), STATE * j[0]:STATE * (j[0] + 1)]
         return means, F @ block @ F.T + white_noise_acceleration_cov(dt[0], self.accel_sigma)
 
-    def estimate(self, t_end, t, anchors_xy, dz_m, ranges_m, sigma_m, initial_state=None) -> WindowEstimate:
+    def estimate(self, t_end, t, anchors_xy, dz_m, ranges_m, sigma_m, initial_state=None,
+                 differences=None) -> WindowEstimate:
         """Solve the window ending at t_end (s) from the ranges measured in it.
 
         t (k,) s, each in [t_end - window_s, t_end]; anchors_xy (k, 2) m; dz_m (k,) anchor
         height - tag height (m, 0 for 2-D ranges); ranges_m (k,) m; sigma_m (k,) m, > 0.
+        differences: for range differences r(a) - r(b) (ranges_m the measured differences),
+        (reference anchors (k, 2) m, their dz (k,) m, whitening W (k, k) with W^T W = R^-1).
         initial_state (4,): starting guess for the first call (default: the anchors' centroid,
         at rest); later calls warm-start from, and put a weak prior on, the previous solution.
         """
@@ -122,15 +138,27 @@ class SlidingWindowEstimator:
             start, prior = np.tile(guess, (self.n_knots, 1)), None
         else:
             start, first_cov = self._propagate(knots)
-            prior = (start[0], np.linalg.inv(np.linalg.cholesky(self.prior_inflation * first_cov)))
+            prior = (start[0], np.linalg.inv(safe_cholesky(self.prior_inflation * first_cov, self.guards)))
         j = np.clip(np.floor((t - knots[0]) / self.knot_s + 1e-9).astype(int), 0, self.n_knots - 1)
-        ranges = RangeFactors(j, t - knots[j], anchors_xy, dz_m, ranges_m, sigma_m)
+        ranges = RangeFactors(j, t - knots[j], anchors_xy, dz_m, ranges_m, sigma_m, *(differences or ()))
         n_gaussian = STATE * (self.n_knots - 1) + (0 if prior is None else STATE)
         theta, J = self._solve(start.ravel(), prior, ranges, n_gaussian)
-        cov = np.linalg.inv(J.T @ J)
+        cov = self._covariance(J)
         states = theta.reshape(self.n_knots, STATE)
         self._previous = (knots, states, cov)
         return WindowEstimate(states[-1].copy(), cov[-STATE:, -STATE:].copy(), len(t))
+
+    def _covariance(self, J: np.ndarray) -> np.ndarray:
+        """(J^T J)^-1, of regularise(J^T J) when J^T J is singular or its inverse not positive
+        definite (counted)."""
+        information = J.T @ J
+        try:
+            cov = np.linalg.inv(information)
+            np.linalg.cholesky(cov)
+            return cov
+        except np.linalg.LinAlgError:
+            self.guards.regularised += 1
+            return np.linalg.inv(regularise(information))
 
     def _solve(self, start, prior, ranges, n_gaussian):
         """(theta, loss-weighted J at theta): the window's minimiser from start, the first
@@ -140,17 +168,33 @@ class SlidingWindowEstimator:
                                         self.rho, self.f_scale, n_gaussian, ftol=1e-12, xtol=1e-12, gtol=1e-12)
         return solution.x, solution.jac
 
-    def _range_geometry(self, theta, ranges):
+    def _range_geometry(self, theta, ranges, anchors=None, dz=None):
+        """(p - a, distance) of each factor's position at its time to `anchors` (default its anchor)."""
         s = theta.reshape(self.n_knots, STATE)[ranges.knot]
-        diff = s[:, :2] + ranges.delta[:, None] * s[:, 2:] - ranges.anchors
-        return diff, np.maximum(np.sqrt((diff**2).sum(axis=1) + ranges.dz**2), MIN_DISTANCE)
+        diff = s[:, :2] + ranges.delta[:, None] * s[:, 2:] - (ranges.anchors if anchors is None else anchors)
+        return diff, np.maximum(np.sqrt((diff**2).sum(axis=1) + (ranges.dz if dz is None else dz) ** 2), MIN_DISTANCE)
+
+    def _measurement(self, theta, ranges):
+        """(h (k,), dh/dp (k, 2)) of the factors: ranges, or range differences r(a) - r(b)."""
+        diff, h = self._range_geometry(theta, ranges)
+        gradient = diff / h[:, None]
+        if ranges.ref is not None:
+            ref_diff, ref_h = self._range_geometry(theta, ranges, ranges.ref, ranges.ref_dz)
+            h, gradient = h - ref_h, gradient - ref_diff / ref_h[:, None]
+        return h, gradient
+
+    def _whiten(self, ranges, values):
+        """Whitened rows: W values, or values / sigma without a whitening matrix."""
+        if ranges.whiten is None:
+            return values / (ranges.sigma if values.ndim == 1 else ranges.sigma[:, None])
+        return ranges.whiten @ values
 
     def _residuals(self, theta, prior, ranges):
         s = theta.reshape(self.n_knots, STATE)
         parts = [] if prior is None else [prior[1] @ (s[0] - prior[0])]
         parts.append(((s[1:] - s[:-1] @ self.Phi.T) @ self._W_cv.T).ravel())
-        _, h = self._range_geometry(theta, ranges)
-        parts.append((h - ranges.ranges) / ranges.sigma)
+        h, _ = self._measurement(theta, ranges)
+        parts.append(self._whiten(ranges, h - ranges.ranges))
         return np.concatenate(parts)
 
     def _jacobian(self, theta, prior, ranges):
@@ -160,8 +204,9 @@ class SlidingWindowEstimator:
         if prior is not None:
             J[:STATE, :STATE] = prior[1]
         J[n_prior:n_gaussian] = self._J_cv
-        diff, h = self._range_geometry(theta, ranges)
-        unit = diff / (h * ranges.sigma)[:, None]
+        _, gradient = self._measurement(theta, ranges)
         cols = STATE * ranges.knot[:, None] + np.arange(STATE)          # [x, y, vx, vy] of knot j
-        J[n_gaussian + np.arange(len(cols))[:, None], cols] = np.hstack([unit, ranges.delta[:, None] * unit])
+        rows = np.zeros((len(cols), J.shape[1]))
+        rows[np.arange(len(cols))[:, None], cols] = np.hstack([gradient, ranges.delta[:, None] * gradient])
+        J[n_gaussian:] = self._whiten(ranges, rows)
         return J

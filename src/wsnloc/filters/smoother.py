@@ -7,6 +7,8 @@ Backward pass, k = N-2 .. 0:
   x_k+1|k = F_k+1 x_k|k (+ B_k+1 u_k+1),   P_k+1|k = F_k+1 P_k|k F_k+1^T + Q_k+1
   C_k = P_k|k F_k+1^T P_k+1|k^-1
   x_k|N = x_k|k + C_k (x_k+1|N - x_k+1|k),  P_k|N = P_k|k + C_k (P_k+1|N - P_k+1|k) C_k^T
+A P_k+1|k that is not positive definite (round-off after a regularised filter step) is
+regularised before the solve (filters.numerics.regularise).
 The motion model is linear, so recomputing the prediction from (F, Q) gives exactly the
 filter's prediction; for an EKF/UKF the smoother is the linear RTS smoother around the
 filtered estimates (the measurement non-linearity only enters through them).
@@ -15,6 +17,8 @@ filtered estimates (the measurement non-linearity only enters through them).
 from __future__ import annotations
 
 import numpy as np
+
+from wsnloc.filters.numerics import regularise
 
 
 def rts_smooth(xs, Ps, Fs, Qs, us=None, Bs=None) -> tuple[np.ndarray, np.ndarray]:
@@ -39,7 +43,10 @@ def rts_smooth(xs, Ps, Fs, Qs, us=None, Bs=None) -> tuple[np.ndarray, np.ndarray
         if us is not None and np.all(np.isfinite(us[k + 1])):
             x_pred = x_pred + Bs[k + 1] @ us[k + 1]
         P_pred = F @ Ps[k] @ F.T + Qs[k + 1]
-        C = np.linalg.solve(P_pred, F @ Ps[k]).T           # P_k F^T P_pred^-1 (P_pred symmetric)
+        try:
+            C = np.linalg.solve(P_pred, F @ Ps[k]).T       # P_k F^T P_pred^-1 (P_pred symmetric)
+        except np.linalg.LinAlgError:
+            C = np.linalg.solve(regularise(P_pred), F @ Ps[k]).T
         x_s[k] = xs[k] + C @ (x_s[k + 1] - x_pred)
         P_s[k] = Ps[k] + C @ (P_s[k + 1] - P_pred) @ C.T
     return x_s, P_s

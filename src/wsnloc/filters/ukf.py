@@ -12,6 +12,8 @@ the current (x, P), i.e. after any predict (Q included), as in Wan & van der Mer
   Z_i = h(chi_i),  z_hat = sum Wm_i Z_i,  S = sum Wc_i (Z_i - z_hat)(Z_i - z_hat)^T + R
   Pxz = sum Wc_i (chi_i - x)(Z_i - z_hat)^T,  K = Pxz S^-1,  y = z - z_hat
   x <- x + K y,  P <- P - K S K^T,  NIS = y^T S^-1 y
+On real data (filters.numerics): an indefinite P is regularised before its Cholesky factor
+is taken, and an update with a singular S or a non-finite result is skipped; both counted.
 With predict/update pairs this is exactly filterpy.kalman.UnscentedKalmanFilter with
 MerweScaledSigmaPoints (which redraws its points at the end of predict).
 """
@@ -19,6 +21,8 @@ MerweScaledSigmaPoints (which redraws its points at the end of predict).
 from __future__ import annotations
 
 import numpy as np
+
+from wsnloc.filters.numerics import Guards, safe_cholesky, usable
 
 
 class UnscentedKalmanFilter:
@@ -30,7 +34,7 @@ class UnscentedKalmanFilter:
     positive semi-definite.
     """
 
-    def __init__(self, x, P, alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0):
+    def __init__(self, x, P, alpha: float = 1.0, beta: float = 2.0, kappa: float = 0.0, guards: Guards | None = None):
         if alpha <= 0:
             raise ValueError(f"UKF alpha must be > 0, got {alpha}")
         self.x = np.asarray(x, dtype=float).copy()
@@ -47,10 +51,12 @@ class UnscentedKalmanFilter:
         self.y = np.zeros(0)
         self.S = np.zeros((0, 0))
         self._S_inv = None
+        self.guards = guards if guards is not None else Guards()
 
     def sigma_points(self) -> np.ndarray:
-        """(2n + 1, n) scaled sigma points of the current (x, P), ordered chi_0, chi_1..n, chi_n+1..2n."""
-        L = np.linalg.cholesky(self._spread * self.P)
+        """(2n + 1, n) scaled sigma points of the current (x, P), ordered chi_0, chi_1..n, chi_n+1..2n
+        (an indefinite P is regularised first: filters.numerics.safe_cholesky, counted)."""
+        L = safe_cholesky(self._spread * self.P, self.guards)
         return np.vstack([self.x, self.x + L.T, self.x - L.T])
 
     def predict(self, F, Q, u=None, B=None) -> None:
@@ -67,13 +73,19 @@ class UnscentedKalmanFilter:
         z_hat = self.Wm @ Z
         dZ = Z - z_hat
         dX = chi - self.x
-        self.S = (self.Wc[:, None] * dZ).T @ dZ + model.R()
+        S = (self.Wc[:, None] * dZ).T @ dZ + model.R()
         Pxz = (self.Wc[:, None] * dX).T @ dZ
-        self._S_inv = np.linalg.inv(self.S)
-        K = Pxz @ self._S_inv
-        self.y = model.z - z_hat
-        self.x = self.x + K @ self.y
-        self.P = self.P - K @ self.S @ K.T
+        try:
+            S_inv = np.linalg.inv(S)
+        except np.linalg.LinAlgError:
+            S_inv = np.full_like(S, np.nan)
+        K = Pxz @ S_inv
+        y = model.z - z_hat
+        x, P = self.x + K @ y, self.P - K @ S @ K.T
+        if not usable(x, P):                   # a singular S or a non-finite model: the prior is kept
+            self.guards.skipped += 1
+            return
+        self.S, self._S_inv, self.y, self.x, self.P = S, S_inv, y, x, P
 
     @property
     def nis(self) -> float:

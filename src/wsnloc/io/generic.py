@@ -171,6 +171,16 @@ class _Table:
                 "reordered": self.reordered}
 
 
+def tdoa_beside(path: Path, anchors: pd.DataFrame, anchors_source: str) -> tuple[pd.DataFrame, list, dict]:
+    """A tdoa table beside another format's logs (the simulator's one-way UWB TDOA), read with
+    this reader's rules against the campaign's anchors (`anchors_source` names where they are):
+    (usable rows, quarantine rows (file, line, text, reason), inventory entry)."""
+    table = _Table(path, "tdoa")
+    unknown = table.known_anchors(set(anchors["anchor_id"]), anchors_source)
+    usable, inventory = table.usable(), table.inventory()
+    return usable, table.quarantined(), {**inventory, **({"unknown_anchors": unknown} if unknown else {})}
+
+
 def _unique_anchors(table: _Table, anchors: pd.DataFrame) -> None:
     """A duplicate anchor id makes every later lookup ambiguous: refuse the file."""
     repeated = anchors["anchor_id"][anchors["anchor_id"].duplicated()]

@@ -21,7 +21,7 @@ import pyarrow.csv as pacsv
 
 from wsnloc.campaign import Campaign
 from wsnloc.errors import IngestError
-from wsnloc.io import tables
+from wsnloc.io import generic, tables
 from wsnloc.io.rawlines import Quarantine, RawFile, check_magic, header_value, iter_fields, read_raw
 from wsnloc.io.timeorder import in_order, keep_in_time_order, longest_ordered, out_of_order_reasons
 
@@ -395,7 +395,8 @@ def _truth_lines(raw: RawFile, length: float, quarantine: Quarantine) -> pd.Data
 def ingest_run(run_dir: str | Path, campaign: Campaign) -> tuple[dict[str, pd.DataFrame], dict]:
     """Parse the four logs of one run directory.
 
-    Returns the tables (ranges, rss, imu, truth, anchors, quarantine) and an inventory:
+    Returns the tables (ranges, rss, imu, truth, anchors, quarantine; tdoa from an optional
+    tdoa.csv / tdoa.parquet beside the logs, generic format and rules) and an inventory:
     per file its SHA-256, line count and quarantined count. A missing file raises
     IngestError naming it.
     """
@@ -404,7 +405,10 @@ def ingest_run(run_dir: str | Path, campaign: Campaign) -> tuple[dict[str, pd.Da
         raise IngestError(f"{run_dir}: not a directory")
     quarantine = Quarantine()
     raws = {name: read_raw(run_dir / name, quarantine) for name in FILES}
+    tdoa_path = generic.find(run_dir, "tdoa")        # optional: one-way UWB TDOA (generic format, sim.tdoa)
+    tdoa = generic.tdoa_beside(tdoa_path, campaign.anchors, campaign.source) if tdoa_path is not None else None
     result = {
+        "tdoa": tdoa[0] if tdoa is not None else tables.empty("tdoa"),
         "ranges": parse_uwb(raws["uwb.log"], campaign, quarantine),
         "rss": parse_zigbee(raws["zigbee.log"], campaign, quarantine),
         "imu": parse_imu(raws["imu.log"], campaign, quarantine),
@@ -418,4 +422,8 @@ def ingest_run(run_dir: str | Path, campaign: Campaign) -> tuple[dict[str, pd.Da
                "quarantined": int((q["file"] == name).sum())}
         for name, raw in raws.items()
     }
+    if tdoa is not None:
+        rows = pd.DataFrame(tdoa[1], columns=["file", "line", "text", "reason"]).astype(q.dtypes.to_dict())
+        result["quarantine"] = pd.concat([q, rows], ignore_index=True) if len(rows) else q
+        inventory[tdoa_path.name] = tdoa[2]
     return result, inventory

@@ -1,7 +1,9 @@
 """Simulate one run of the Newcom++-like campaign and write its raw logs.
 
 Writes exactly the files of shared/spec/raw-formats.md (uwb.log, zigbee.log, imu.log,
-truth.log) plus meta.yaml; nothing else (no hidden true ranges). Byte-for-byte
+truth.log) plus meta.yaml; nothing else (no hidden true ranges). A scenario with the override
+`uwb_tdoa: true` also writes `tdoa.csv` (generic format: one-way UWB TDOA with synchronised
+anchors, sim.tdoa; settings in radio.uwb.tdoa). Byte-for-byte
 deterministic for a given campaign file, scenario and seed sequence.
 """
 
@@ -15,6 +17,7 @@ from wsnloc.sim import link_budget
 from wsnloc.sim import rss as rss_model
 from wsnloc.sim import trajectory as motion
 from wsnloc.sim import uwb_channel
+from wsnloc.sim.tdoa import tdoa_text
 from wsnloc.sim.logs import imu_text, lines_text, positions as _positions, truth_text, write_run
 from wsnloc.sim.seeding import model_rng
 
@@ -190,5 +193,9 @@ def simulate_run(campaign: Campaign, scenario: str, seeds: np.random.SeedSequenc
         "imu.log": imu_text(campaign, traj, model_rng(seeds, "imu"), imu_noise, clock_ms),
         "truth.log": truth_text(campaign, traj, clock_ms, "rail_m"),
     }
+    if overrides.get("uwb_tdoa", False):
+        files["tdoa.csv"] = tdoa_text(campaign, uwb_settings(campaign, overrides), traj,
+                                      *(model_rng(seeds, f"tdoa-{m}") for m in ("timing", "channel", "clock", "shadow")),
+                                      detector, clock_ms)
     return write_run(out_dir, files, campaign, scenario, seeds,
                      {"uwb_detector": detector, "imu_noise_model": imu_noise, **(meta or {})})

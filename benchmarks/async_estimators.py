@@ -1,0 +1,145 @@
+"""Every registry estimator on asynchronous data: the shared real runs and a synthetic run
+ranged one anchor at a time, each through `wsnloc estimate` (estimate.estimate_run) with the
+estimator's defaults.
+
+    python benchmarks/async_estimators.py [--realdata ../shared/realdata] [--out benchmarks/out/async]
+                                          [--estimators ekf,pf] [--cases los/trajectory-a-case-1]
+
+Runs: cucudasluv (outdoor UWB, 4 anchors ranged ~1 ms apart, 6 cases, `wsnloc convert`),
+philotuxo (BLE RSSI, 5 tracks, the estimators that read RSS, with `--calibration` = the next
+track, as benchmarks/realdata.py) and `synthetic/one_at_a_time`: a 1 m/s walk around a 10 m
+square inside 4 anchors (20 m square), ranges (0.1 m noise) to one random anchor at a time,
+Poisson arrivals at 4 Hz, 600 s (seeded). Estimators needing an IMU are skipped (these runs
+have none); those reading only ranges are skipped on the RSS-only tracks.
+Per (run, estimator): exit (ok or the error), availability, median and RMSE of the 2-D error
+(m), median / tracker's median on the same run, resets and the numerical-guard counters
+(`regularised`, `skipped`, `reinitialised` where the estimator has them). Prints a Markdown
+table and writes it to OUT/async_estimators.md (and .csv). The scratch folder is git-ignored.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+import traceback
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "src"))
+
+from wsnloc.estimate import estimate_run  # noqa: E402
+from wsnloc.estimators import registry  # noqa: E402
+from wsnloc.io.convert import convert_cucudasluv, convert_philotuxo  # noqa: E402
+from wsnloc.io.generic import run_campaign  # noqa: E402
+from wsnloc.studies import reads_rss  # noqa: E402
+
+INERTIAL_TABLES = {"imu", "imu_5hz"}
+COUNTERS = ("resets", "regularised", "skipped", "reinitialised")
+ANCHORS = {"A1": (0.0, 0.0), "A2": (20.0, 0.0), "A3": (20.0, 20.0), "A4": (0.0, 20.0)}
+
+
+def synthetic_run(folder: Path, seed: int = 7, duration_s: float = 600.0, rate_hz: float = 4.0,
+                  speed_mps: float = 1.0, noise_m: float = 0.1) -> Path:
+    """A generic run: ranges to one random anchor at a time (see the module docstring)."""
+    rng = np.random.default_rng(seed)
+    t = np.cumsum(rng.exponential(1.0 / rate_hz, int(duration_s * rate_hz * 1.5)))
+    t = t[t < duration_s]
+    ids = rng.choice(np.array(list(ANCHORS)), len(t))
+
+    def walk(times):
+        s = np.mod(speed_mps * times, 40.0)
+        corners = np.array([[5.0, 5.0], [15.0, 5.0], [15.0, 15.0], [5.0, 15.0], [5.0, 5.0]])
+        side = np.floor_divide(s, 10.0).astype(int)
+        return corners[side] + (corners[side + 1] - corners[side]) * (np.mod(s, 10.0) / 10.0)[:, None]
+
+    xy = np.array([ANCHORS[a] for a in ids])
+    ranges = np.hypot(*(walk(t) - xy).T) + rng.normal(0.0, noise_m, len(t))
+    folder.mkdir(parents=True, exist_ok=True)
+    pd.DataFrame({"anchor_id": list(ANCHORS), "tech": "uwb", "x": [v[0] for v in ANCHORS.values()],
+                  "y": [v[1] for v in ANCHORS.values()]}).to_csv(folder / "anchors.csv", index=False)
+    pd.DataFrame({"t": t, "anchor_id": ids, "range_m": ranges}).to_csv(folder / "ranges.csv", index=False)
+    t_truth = np.arange(0.0, duration_s, 0.05)
+    p = walk(t_truth)
+    pd.DataFrame({"t": t_truth, "x": p[:, 0], "y": p[:, 1]}).to_csv(folder / "truth.csv", index=False)
+    return folder
+
+
+def runs(src: Path, out: Path) -> list[tuple[str, Path, Path | None, bool]]:
+    """(label, run folder, calibration donor or None, has ranges) of every run."""
+    items = []
+    if (src / "cucudasluv-uwb").is_dir():
+        for run in convert_cucudasluv(src / "cucudasluv-uwb", out / "converted" / "cucudasluv"):
+            items.append((f"cucudasluv/{run.run_dir.parent.name}/{run.run_dir.name}", run.run_dir, None, True))
+    if (src / "philotuxo-ble-rssi").is_dir():
+        tracks = [r.run_dir for r in convert_philotuxo(src / "philotuxo-ble-rssi", out / "converted" / "philotuxo")]
+        for i, track in enumerate(tracks):
+            items.append((f"philotuxo/{track.name}", track, tracks[(i + 1) % len(tracks)], False))
+    items.append(("synthetic/one_at_a_time", synthetic_run(out / "converted" / "synthetic" / "one_at_a_time"),
+                  None, True))
+    return items
+
+
+def applicable(name: str, has_ranges: bool) -> bool:
+    """Whether the estimator can run here: no IMU on these runs; RSS-only runs need an estimator
+    that can read RSS (measurements_for switches measurements/fixes to rss)."""
+    estimator = registry.get(name)
+    p = estimator.resolve({})
+    if INERTIAL_TABLES & set(estimator.tables(p)):
+        return False
+    if has_ranges:
+        return True
+    return bool({"measurements", "fixes"} & {q.name for q in estimator.params}) or reads_rss(name, p)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--realdata", default=str(ROOT.parent / "shared" / "realdata"),
+                        help="the shared real datasets (default ../shared/realdata beside the checkout)")
+    parser.add_argument("--out", default=str(ROOT / "benchmarks" / "out" / "async"))
+    parser.add_argument("--estimators", default="", help="comma-separated subset (default: all)")
+    parser.add_argument("--cases", default="", help="comma-separated substrings of the run labels")
+    args = parser.parse_args(argv)
+    out = Path(args.out)
+    names = [n for n in (args.estimators.split(",") if args.estimators else registry.ESTIMATORS) if n]
+    if "tracker" not in names:
+        names.insert(0, "tracker")
+    rows = []
+    for label, run_dir, donor, has_ranges in runs(Path(args.realdata), out):
+        if args.cases and not any(c in label for c in args.cases.split(",")):
+            continue
+        for name in names:
+            if not applicable(name, has_ranges):
+                continue
+            started = time.perf_counter()
+            row = {"run": label, "estimator": name}
+            try:
+                metrics = estimate_run("generic", run_dir, run_campaign(run_dir), out / "estimates" / label / name,
+                                       name, {}, donor)
+                summary = pd.read_json(out / "estimates" / label / name / "metrics.json", typ="series")
+                row.update(exit="ok", availability=metrics.get("availability", np.nan),
+                           median_m=metrics.get("median_m", np.nan), rmse_m=metrics.get("rmse_m", np.nan),
+                           **{c: summary.get(c, summary.get(f"diag_{c}", np.nan)) for c in COUNTERS})
+            except Exception as error:          # noqa: BLE001 - the table reports every failure
+                row.update(exit=f"{type(error).__name__}: {str(error).splitlines()[0][:80]}")
+                traceback.print_exc(file=sys.stderr)
+            row["seconds"] = time.perf_counter() - started
+            rows.append(row)
+            print(row, flush=True)
+    table = pd.DataFrame(rows)
+    tracker = table[table["estimator"] == "tracker"].set_index("run")["median_m"]
+    table["vs_tracker"] = table["median_m"] / table["run"].map(tracker)
+    out.mkdir(parents=True, exist_ok=True)
+    table.to_csv(out / "async_estimators.csv", index=False)
+    columns = ["run", "estimator", "exit", "availability", "median_m", "vs_tracker", "rmse_m", *COUNTERS, "seconds"]
+    text = table.reindex(columns=columns).to_markdown(index=False, floatfmt=".3g")
+    (out / "async_estimators.md").write_text(text + "\n")
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
