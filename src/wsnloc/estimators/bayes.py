@@ -51,7 +51,8 @@ from wsnloc.estimators.auto import update_mode
 from wsnloc.estimators.core import CoastingDeleter, FilterBank, RunInputs, Track, WindowInitiator, \
     epoch_loop, sequential_loop
 from wsnloc.estimators.filter_options import UpdateCounts, configured_factory
-from wsnloc.estimators.inertial import epoch_inputs, floor_input
+from wsnloc.estimators.fixes import epoch_fixes
+from wsnloc.estimators.inertial import epoch_inputs, floor_input, heading_from_fixes
 from wsnloc.estimators.measurements import MeasurementSource, rss_params
 from wsnloc.estimators.motion import MotionModel
 from wsnloc.estimators.run_data import RunData
@@ -140,6 +141,16 @@ def static_flags(data: RunData, p: dict, times: np.ndarray) -> np.ndarray:
                                              p["motion_threshold_mps2"], p["static_start_s"]))
 
 
+def pva_heading(data: RunData, p: dict) -> float | None:
+    """Start heading (rad) of the PVA input's gyro integration: None (the campaign path's, a known
+    start pose) for initial_heading 'path'; for 'fixes' measured from the run's first
+    multilateration fixes (inertial.heading_from_fixes), the path's when they never move 1 m."""
+    if p["initial_heading"] == "path":
+        return None
+    fixes = epoch_fixes(data, dict(p, solver="multilateration", k_smallest=0, refine=True), "toa")
+    return heading_from_fixes(fixes)
+
+
 def run_inputs(data: RunData, p: dict, motion: MotionModel) -> RunInputs:
     """What a filter with parameters p reads from the run: measurement source, epoch end
     times, static flags and inputs per epoch (PVA: mean floor acceleration; odometry: mean
@@ -148,7 +159,7 @@ def run_inputs(data: RunData, p: dict, motion: MotionModel) -> RunInputs:
     times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
     inputs = None
     if motion.kind == "pva":
-        inputs = epoch_inputs(floor_input(data, p["static_start_s"]), times)
+        inputs = epoch_inputs(floor_input(data, p["static_start_s"], pva_heading(data, p)), times)
     elif motion.kind == "odometry":
         inputs = epoch_inputs(data.require("odometry", "the odometry motion model"), times, ODOMETRY_INPUTS)
     return RunInputs(times, source, static_flags(data, p, times), inputs)

@@ -49,9 +49,12 @@ RSS = (
     Param("sigma_db", 4.0, "dB", "configured shadowing standard deviation", minimum=1e-3),
     Param("d0_m", 1.0, "m", "reference distance of the path-loss model", minimum=1e-3),
 )
+REFINE = Param("refine", True, "", "multilateration: Gauss-Newton refinement of the closed-form linear least "
+               "squares (false: the linear solution alone, paper D's 'simple geometric technique')", bool)
 SOLVER = (
     Param("solver", "minmax", "", "position solver", str, fixes.SOLVERS),
     Param("k_smallest", 0, "1", "use only the k smallest distances of an epoch (0: all; paper D: 6)", int, minimum=0),
+    REFINE,
     Param("pmix_toa_weight", 0.5, "1", "P-mix: weight w of the range fix (the RSS fix gets 1 - w)", minimum=0.0),
 )
 VELOCITY = (
@@ -63,6 +66,9 @@ KALMAN_FIXES = (
     Param("accel_sigma_mps2", 0.5, "m/s^2", "white acceleration of the PV model"),
     Param("position_sigma_m", 1.5, "m", "fix noise (R = sigma^2 I) and initial position sigma"),
     Param("initial_speed_sigma_mps", 0.5, "m/s", "initial speed sigma"),
+    Param("speed_input", False, "", "also update with the velocity algorithm's speed estimate (window, speed_from) "
+          "as a measurement of ||v|| (paper D §4.2)", bool),
+    Param("speed_sigma_mps", 0.5, "m/s", "speed_input: standard deviation of the speed estimate in R", minimum=1e-6),
 )
 FILTER = (
     Param("filter", "ekf", "", "Bayesian filter (ukf, pf and filterpy have their own estimators)", str, ("ekf",)),
@@ -91,6 +97,9 @@ FILTER = (
     Param("initial_sigma_m", 1.0, "m", "initial position sigma (around the initiator's fix)", minimum=1e-6),
     Param("initial_speed_sigma_mps", 0.5, "m/s", "initial speed sigma", minimum=1e-6),
     Param("initial_bias_sigma_mps2", 0.05, "m/s^2", "PVA: initial accelerometer bias sigma", minimum=1e-6),
+    Param("initial_heading", "fixes", "", "PVA: heading the gyro is integrated from: fixes = measured from the "
+          "first multilateration fixes 1 m apart, path = the campaign path's start heading (a known start pose)",
+          str, ("fixes", "path")),
     Param("init_window_s", 0.0, "s", "initiator: multilateration on the last W seconds of measurements "
           "(0: one period)", minimum=0.0),
     Param("max_coast_s", 10.0, "s", "drop the track after this long without an update; restart by the initiator",
@@ -208,7 +217,8 @@ def _velocity_run(data: RunData, p: dict) -> pd.DataFrame:
 def _kalman_run(data: RunData, p: dict) -> pd.DataFrame:
     matrices = trackers.kalman_matrices(p["epoch_s"], p["accel_sigma_mps2"], p["position_sigma_m"],
                                         p["initial_speed_sigma_mps"])
-    return trackers.kalman_track(fixes.epoch_fixes(data, p, p["fixes"]), matrices)
+    speed = (p["window"], p["speed_from"], p["speed_sigma_mps"]) if p["speed_input"] else None
+    return trackers.kalman_track(fixes.epoch_fixes(data, p, p["fixes"]), matrices, speed)
 
 
 def _minmax_fixes(p: dict) -> dict:
@@ -231,7 +241,7 @@ def _filter_inputs(p: dict) -> tuple[str, ...]:
         + (("odometry",) if p["motion"] == "odometry" else ())
 
 
-K_SMALLEST = _drop(SOLVER, "solver", "pmix_toa_weight")
+K_SMALLEST = _drop(SOLVER, "solver", "pmix_toa_weight", "refine")
 SOLVER_MEASUREMENTS = K_SMALLEST + (Param("measurements", "toa", "", "toa: ranges; rss: RSS distances", str,
                                           ("toa", "rss")),)
 FIX_SOURCE = COMMON + RSS + SOLVER + (Param("fixes", "toa", "", "fixes tracked: toa, rss, pmix or fmix", str,
@@ -241,8 +251,9 @@ TRACKER_DEFAULTS = dict(update="sequential", init_window_s=4.0, initial_sigma_m=
 ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
     Estimator("minmax", "Min-Max: centre of the intersection of the range boxes, per epoch (paper D)",
               COMMON + RSS + SOLVER_MEASUREMENTS, _solver_run("minmax", None)),
-    Estimator("multilateration", "Linearised least squares + Gauss-Newton on the ranges, per epoch (paper D)",
-              COMMON + RSS + SOLVER_MEASUREMENTS, _solver_run("multilateration", None)),
+    Estimator("multilateration", "Linearised least squares (+ Gauss-Newton with refine) on the ranges, per epoch "
+              "(paper D)", COMMON + RSS + SOLVER_MEASUREMENTS + (REFINE,),
+              _solver_run("multilateration", None)),
     Estimator("pmix", "P-mix: weighted barycentre of the range fix and the RSS fix (paper D)",
               COMMON + RSS + SOLVER, _solver_run(None, "pmix")),
     Estimator("fmix", "F-mix: one solver on ranges and RSS distances together (paper D)",
@@ -250,7 +261,7 @@ ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
     Estimator("velocity_tracker", "Velocity-bounded tracker over per-epoch fixes (paper D)",
               FIX_SOURCE + VELOCITY, _velocity_run),
     Estimator("kf_tracker", "Constant-velocity Kalman filter over per-epoch fixes (paper D's comparison)",
-              FIX_SOURCE + KALMAN_FIXES, _kalman_run),
+              FIX_SOURCE + KALMAN_FIXES + VELOCITY, _kalman_run),
     Estimator("ekf", "EKF: motion model p / pv / pva, toa / rss / hybrid measurements, epoch or sequential "
               "updates, optional motion detection (papers A and C)",
               COMMON + RSS + FILTER, bayes.run_filter, _filter_inputs),
