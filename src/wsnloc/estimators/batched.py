@@ -63,7 +63,11 @@ def cell_tracks(name: str, cells: list[tuple[RunData, dict]], where: str = "") -
     estimator = registry.get(name)
     params = [estimator.resolve(overrides, where) for _, overrides in cells]
     if estimator.function is bayes.run_filter:
-        return bayes.run_filters([(data, p) for (data, _), p in zip(cells, params)])
+        fitted = [bayes.self_fitted(p) for p in params]       # several passes each (estimators.self_fit)
+        plain = [i for i, f in enumerate(fitted) if not f]
+        tracks = dict(zip(plain, bayes.run_filters([(cells[i][0], params[i]) for i in plain])))
+        return [tracks[i] if i in tracks else Track.of(bayes.run_filter(cells[i][0], params[i]))
+                for i in range(len(cells))]
     if name == "kf_tracker":
         return [Track.of(frame) for frame in _kalman_cells([data for data, _ in cells], params)]
     return [Track.of(estimator.function(data, p)) for (data, _), p in zip(cells, params)]

@@ -23,7 +23,7 @@ from wsnloc.estimators.epochs import AnchorMeans, Epoch, anchor_means, per_epoch
 from wsnloc.estimators.range_calibration import RangeCorrection
 from wsnloc.estimators.run_data import RunData
 from wsnloc.filters.measurement_models import RangeModel, RssModel, Stacked
-from wsnloc.geometry.lateration import multilateration, multilateration_3d
+from wsnloc.geometry.lateration import multilateration, multilateration_3d, weighted_centroid
 from wsnloc.geometry.selection import rss_to_distance
 
 KINDS = {"toa": ("ranges",), "rss": ("rss",), "hybrid": ("ranges", "rss"), "tdoa": ("tdoa",)}   # tdoa: estimators.tdoa
@@ -136,8 +136,12 @@ class MeasurementSource:
             z.append(np.asarray(ranges, dtype=float))
         if len(rss):
             p = self.rss_params
-            where = self.data.positions_3d(rss_ids) if spatial else self.data.positions(rss_ids)
-            parts.append(RssModel(where, p.p0_dbm, p.path_loss_exponent, p.sigma_db, p.d0_m))
+            if spatial:
+                parts.append(RssModel(self.data.positions_3d(rss_ids), p.p0_dbm, p.path_loss_exponent, p.sigma_db,
+                                      p.d0_m))
+            else:
+                parts.append(RssModel(self.data.positions(rss_ids), p.p0_dbm, p.path_loss_exponent, p.sigma_db,
+                                      p.d0_m, self.data.height_offsets(rss_ids) if self.data.three_d else None))
             z.append(np.asarray(rss, dtype=float))
         return Stacked(parts, np.concatenate(z)) if parts else None
 
@@ -205,13 +209,21 @@ class MeasurementSource:
 
     def window_fix(self, t: float, window: float, axes: int = 2) -> np.ndarray | None:
         """Multilateration (fix, or fix_3d with axes 3) on the per-anchor means of the records in
-        (t - window, t] (Records.window_means); None with fewer than 3 records. Cached per run:
-        sources that share the measurement set and RSS model share it."""
+        (t - window, t] (Records.window_means), on RSS alone the weighted centroid of the receivers
+        nearest by the path-loss model (geometry.lateration.weighted_centroid; with axes 3 at the
+        fixed tag height); None with fewer than 3 records. Cached per run: sources that share the
+        measurement set and RSS model share it."""
         def build():
             records = self.records()
             a, b = np.searchsorted(records.t, [t - window, t], side="right")
-            solve = self.fix_3d if axes == 3 else self.fix
-            return None if b - a < 3 else solve(*records.window_means(a, b))
+            if b - a < 3:
+                return None
+            means = records.window_means(a, b)
+            if len(means[1]) == 0:          # RSS only: the weighted centroid of the 3 nearest receivers
+                full = t - window >= records.t[0]      # over a full window: a few samples say little
+                fix = weighted_centroid(*self.horizontal_distances(*means)) if full else None
+                return fix if fix is None or axes == 2 else np.append(fix, self.data.tag_height_m)
+            return self.fix_3d(*means) if axes == 3 else self.fix(*means)
         return self.data.cached(("window_fix", self._data_key, self.rss_params, t, window, axes), build)
 
 

@@ -21,7 +21,8 @@ import numpy as np
 import pandas as pd
 
 from wsnloc.errors import ConfigError, did_you_mean
-from wsnloc.estimators import batch, bayes, core, filter_options, fixes, inertial, range_calibration, trackers
+from wsnloc.estimators import batch, bayes, core, filter_options, fixes, inertial, range_calibration, self_fit, \
+    trackers
 from wsnloc.estimators.motion import MOTIONS
 from wsnloc.estimators.parameters import Param, resolve
 from wsnloc.estimators.run_data import RunData
@@ -112,6 +113,9 @@ FILTER = (
     Param("range_calibration", "none", "", "correct the ranges before filtering: other_run = scale and per-anchor "
           "offsets fitted on a donor run with truth of the same dataset (configured values without one), "
           "configured = the campaign file's range_calibration, none = as measured", str, range_calibration.SOURCES),
+    Param("self_fit", "none", "", "two_pass: fit the range noise and process noise by maximum likelihood of the "
+          "innovations, then the range scale and per-anchor offsets against the track, and run again with them "
+          "(offline, no truth; 3 passes; estimators.self_fit); none: the configured values", str, self_fit.MODES),
 ) + filter_options.PARAMS
 UKF = (
     Param("alpha", 1.0, "1", "UKF sigma-point spread; 1 with kappa = 0 gives lambda = 0: non-negative weights, "
@@ -246,7 +250,8 @@ SOLVER_MEASUREMENTS = K_SMALLEST + (Param("measurements", "toa", "", "toa: range
                                           ("toa", "rss")),)
 FIX_SOURCE = COMMON + RSS + SOLVER + (Param("fixes", "toa", "", "fixes tracked: toa, rss, pmix or fmix", str,
                                             fixes.TECHNIQUES),)
-TRACKER_DEFAULTS = dict(update="sequential", init_window_s=4.0, initial_sigma_m=2.0, gate_probability=0.999)
+TRACKER_DEFAULTS = dict(update="sequential", init_window_s=4.0, initial_sigma_m=2.0, gate_probability=0.999,
+                        self_fit="two_pass")
 
 ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
     Estimator("minmax", "Min-Max: centre of the intersection of the range boxes, per epoch (paper D)",

@@ -7,8 +7,12 @@ d_i = ||p - a_i|| (floored at 1 mm to keep the Jacobian finite).
   (3-D state: H_i = [(x - x_i)/d_i, (y - y_i)/d_i, (z - z_i)/d_i, 0 ...])
   with a known height difference dz_i between anchor and tag (3-D ranges, 2-D state):
   h_i = sqrt(d_i^2 + dz_i^2),  H_i = [(x - x_i)/h_i, (y - y_i)/h_i, 0 ...]
-- RSS (log-normal shadowing):          h_i = P0 - 10 n log10(d_i / d0)
-                                       H_i = [-10 n / ln10 (x - x_i)/d_i^2, -10 n / ln10 (y - y_i)/d_i^2, 0 ...]
+- RSS (log-normal shadowing):          h_i = P0 - 10 n log10(D_i / d0),  D_i = max(sqrt(d_i^2 + dz_i^2), d0)
+                                       H_i = [-10 n / ln10 (x - x_i)/D_i^2, -10 n / ln10 (y - y_i)/D_i^2, 0 ...]
+  (0 where the distance is below d0): the log-distance model holds from the reference distance
+  d0 on (Rappaport, Wireless Communications, sec. 4.9); below it, the 1/d^2 Jacobian of a
+  horizontal distance near a receiver would throw the state far away on one sample. dz_i:
+  receiver height - tag height (3-D distance), 0 in 2-D.
 - hybrid: the two stacked, R = blockdiag(R_TOA, R_RSS).
 - TDOA range difference of pair i = (receiver a_i, reference receiver b_i), with r_j the
   (3-D when dz_j is known) distance to receiver j:
@@ -84,18 +88,27 @@ class RssModel:
     exponent: float
     sigma_db: float
     d0_m: float = 1.0
+    dz_m: np.ndarray | None = None   # (m,) receiver height - tag height; None: 2-D
+
+    def _distance(self, d: np.ndarray) -> np.ndarray:
+        """D = max(sqrt(d^2 + dz^2), d0) of horizontal distances d (m)."""
+        return np.maximum(d if self.dz_m is None else np.sqrt(d**2 + self.dz_m**2), self.d0_m)
 
     def h(self, x) -> np.ndarray:
-        return self.p0_dbm - 10.0 * self.exponent * np.log10(_geometry(x, self.anchors)[1] / self.d0_m)
+        return self.p0_dbm - 10.0 * self.exponent * np.log10(self._distance(_geometry(x, self.anchors)[1]) / self.d0_m)
 
     def h_many(self, X) -> np.ndarray:
         """h at every row of X (N, n): (N, m) RSS in dBm."""
-        return self.p0_dbm - 10.0 * self.exponent * np.log10(_distances_many(X, self.anchors) / self.d0_m)
+        return self.p0_dbm - 10.0 * self.exponent * np.log10(self._distance(_distances_many(X, self.anchors))
+                                                              / self.d0_m)
 
     def jacobian(self, x) -> np.ndarray:
         diff, d = _geometry(x, self.anchors)
+        full = d if self.dz_m is None else np.sqrt(d**2 + self.dz_m**2)
+        D = self._distance(d)
         H = np.zeros((len(self.anchors), len(x)))
-        H[:, :diff.shape[1]] = -10.0 * self.exponent / np.log(10.0) * diff / (d**2)[:, None]
+        H[:, :diff.shape[1]] = np.where((full >= self.d0_m)[:, None],
+                            -10.0 * self.exponent / np.log(10.0) * diff / (D**2)[:, None], 0.0)
         return H
 
     def R(self) -> np.ndarray:
