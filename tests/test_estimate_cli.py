@@ -28,7 +28,10 @@ def test_estimators_lists_the_registry_as_json(capsys):
     assert len(listed) >= 12 and {"name", "parameters"} <= set(listed[0])
     ekf = next(e for e in listed if e["name"] == "ekf")
     motion = next(p for p in ekf["parameters"] if p["name"] == "motion")
-    assert motion["default"] == "pv" and motion["choices"] == ["p", "pv", "pva"]
+    assert motion["default"] == "pv" and motion["choices"] == ["p", "pv", "pva", "odometry"]
+    dimensions = next(p for p in ekf["parameters"] if p["name"] == "dimensions")
+    assert dimensions["default"] == 2 and {"odometry_speed_sigma_mps", "odometry_yaw_rate_sigma_rps"} <= {
+        p["name"] for p in ekf["parameters"]}
     assert main(["estimators"]) == 0 and "tracker (default of `wsnloc estimate`)" in capsys.readouterr().out
 
 

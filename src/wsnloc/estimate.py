@@ -2,7 +2,8 @@
 
 raw run -> canonical tables (OUT/tables, with quarantine) -> 5 Hz IMU when the estimator
 reads it -> estimates (OUT/estimates.parquet) -> metrics against the run's truth
-(OUT/metrics.json: rmse_m, mean_m, median_m, p75_m, p90_m, p95_m, max_m, n, availability; the gated share
+(OUT/metrics.json: rmse_m, mean_m, median_m, p75_m, p90_m, p95_m, max_m, n, availability, and rmse_3d_m
+with a 3-D state and truth with z; the gated share
 and the range calibration applied, with its fitted values; see studies.calibration_metrics; the
 diagnosis values diag_*, see wsnloc.diagnosis; without truth only the estimator and diagnosis).
 """
@@ -19,7 +20,7 @@ from wsnloc.campaign import Campaign
 from wsnloc.errors import WsnlocError
 from wsnloc.diagnosis import diagnose_run, metrics_of as diagnosis_metrics, report as diagnosis_report
 from wsnloc.estimators import registry
-from wsnloc.estimators.auto import measurements_for
+from wsnloc.estimators.auto import measurements_for, motion_for
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments.calibration import calibrate, calibrate_ranges, calibrate_tdoa
 from wsnloc.io import tables
@@ -32,7 +33,7 @@ from wsnloc.studies import calibration_metrics, diagnose, reads_rss
 
 RESAMPLE = {"rate_hz": 5.0, "grid_rate_hz": 500.0, "max_gap_s": 0.1, "kaiser_beta": 8.0}   # config/schema.yaml defaults
 METRIC_KEYS = {"rmse": "rmse_m", "mean": "mean_m", "median": "median_m", "p75": "p75_m", "p90": "p90_m",
-               "p95": "p95_m", "max": "max_m", "n": "n", "availability": "availability"}
+               "p95": "p95_m", "max": "max_m", "n": "n", "availability": "availability", "rmse_3d": "rmse_3d_m"}
 
 
 def load_run(fmt: str, run_dir: Path, campaign: Campaign | None, out_dir: Path) -> dict[str, pd.DataFrame]:
@@ -115,6 +116,8 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
                               {param.name: param.choices for param in estimator.params})
     notes += [f"{k}={v}: the run has {'range differences' if v == 'tdoa' else 'RSS'} and no usable range"
               for k, v in chosen.items() if p[k] != v]
+    p, chosen = chosen, motion_for(run_tables, chosen, set(overrides))
+    notes += [f"{k}={v}: the run has odometry" for k, v in chosen.items() if p[k] != v]
     p = chosen
     if calibration_dir is not None and "range_calibration" in p and "range_calibration" not in overrides \
             and len(run_tables["ranges"]) and p.get("measurements", "toa") != "rss":

@@ -172,10 +172,12 @@ def _fill(out: Measurements, i: int, run: RunInputs, epoch: np.ndarray, counts: 
 def supports(p: dict) -> bool:
     """Whether the resolved parameters `p` are the epoch-mode EKF this module steps: the bare
     filter (no gate, robust loss, self-calibration, per-wall noise) on uncorrected ranges or RSS
-    (TDOA runs as a filter bank: its noise is not diagonal)."""
+    (TDOA runs as a filter bank: its noise is not diagonal), with a 2-D state and a motion model
+    whose F does not depend on an input (not odometry)."""
     bare = all(p.get(k, off) == off for k, off in filter_options.OFF.items())
     return p.get("filter") == "ekf" and p.get("update") == "epoch" and bare \
-        and p.get("range_calibration", "none") == "none" and p.get("measurements") != "tdoa"
+        and p.get("range_calibration", "none") == "none" and p.get("measurements") != "tdoa" \
+        and p.get("dimensions", 2) == 2 and p.get("motion") != "odometry"
 
 
 class ArrayEKF:

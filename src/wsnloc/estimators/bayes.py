@@ -65,6 +65,9 @@ from wsnloc.filters.reference import FilterpyEKF
 from wsnloc.filters.ukf import UnscentedKalmanFilter
 from wsnloc.inertial.motion_detection import static_epochs
 
+ODOMETRY_INPUTS = ("v_mps", "yaw_rate_rps")     # the odometry table's columns, the odometry model's u
+
+
 def ekf_factory(p: dict, data: RunData, guards: Guards):
     def make(x0: np.ndarray, P0: np.ndarray, motion: MotionModel):
         F, Q, _ = motion.matrices(motion.period_s)
@@ -105,8 +108,14 @@ FILTERS = {"ekf": ekf_factory, "ukf": ukf_factory, "pf": pf_factory, "filterpy":
 
 
 def motion_model(p: dict) -> MotionModel:
-    return MotionModel(p["motion"], p["epoch_s"], p["p_sigma_m"], p["accel_sigma_mps2"], p["bias_walk_sigma"],
-                       p["initial_sigma_m"], p["initial_speed_sigma_mps"], p["initial_bias_sigma_mps2"])
+    """The motion model of parameters p; ConfigError for a state it has not (3-D PVA or odometry)."""
+    try:
+        return MotionModel(p["motion"], p["epoch_s"], p["p_sigma_m"], p["accel_sigma_mps2"], p["bias_walk_sigma"],
+                           p["initial_sigma_m"], p["initial_speed_sigma_mps"], p["initial_bias_sigma_mps2"],
+                           p.get("dimensions", 2), p.get("odometry_speed_sigma_mps", 0.0),
+                           p.get("odometry_yaw_rate_sigma_rps", 0.0))
+    except ValueError as exc:
+        raise ConfigError(f"config keys 'motion' / 'dimensions': {exc}") from None
 
 
 def measurement_source(data: RunData, p: dict) -> MeasurementSource:
@@ -114,10 +123,12 @@ def measurement_source(data: RunData, p: dict) -> MeasurementSource:
     ranges (or TDOA, `measurements: tdoa`, through estimators.tdoa.TdoaSource) corrected by the
     configured range calibration (range_calibration.correction)."""
     if p["measurements"] == "tdoa":
-        args = (p["anchors"], p["range_sigma_m"], p["max_range_m"], range_calibration.correction(data, p))
+        args = (p["anchors"], p["range_sigma_m"], p["max_range_m"], range_calibration.correction(data, p),
+                p.get("dimensions", 2))
         return data.cached(("tdoa_source",) + args, lambda: TdoaSource(data, *args))
     args = (p["measurements"], p["anchors"], p["range_sigma_m"], p["preliminary_filter"], p["max_range_m"],
-            rss_params(data, p) if p["measurements"] != "toa" else None, range_calibration.correction(data, p))
+            rss_params(data, p) if p["measurements"] != "toa" else None, range_calibration.correction(data, p),
+            p.get("dimensions", 2))
     return data.cached(("measurement_source",) + args, lambda: MeasurementSource(data, *args))
 
 
@@ -143,11 +154,15 @@ def pva_heading(data: RunData, p: dict) -> float | None:
 
 def run_inputs(data: RunData, p: dict, motion: MotionModel) -> RunInputs:
     """What a filter with parameters p reads from the run: measurement source, epoch end
-    times, static flags and PVA inputs (None without)."""
+    times, static flags and inputs per epoch (PVA: mean floor acceleration; odometry: mean
+    speed and yaw rate; None without)."""
     source = measurement_source(data, p)
     times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
-    inputs = epoch_inputs(floor_input(data, p["static_start_s"], pva_heading(data, p)), times) \
-        if motion.kind == "pva" else None
+    inputs = None
+    if motion.kind == "pva":
+        inputs = epoch_inputs(floor_input(data, p["static_start_s"], pva_heading(data, p)), times)
+    elif motion.kind == "odometry":
+        inputs = epoch_inputs(data.require("odometry", "the odometry motion model"), times, ODOMETRY_INPUTS)
     return RunInputs(times, source, static_flags(data, p, times), inputs)
 
 
@@ -191,6 +206,8 @@ def run_smoother(data: RunData, p: dict) -> pd.DataFrame:
         Ps = np.array([P for _, P in smoothed])
         out["x"], out["y"] = xs[:, 0], xs[:, 1]
         out["p_xx"], out["p_xy"], out["p_yy"] = Ps[:, 0, 0], Ps[:, 0, 1], Ps[:, 1, 1]
+        if "z" in out:
+            out["z"], out["p_zz"] = xs[:, 2], Ps[:, 2, 2]
     return out
 
 

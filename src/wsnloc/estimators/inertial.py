@@ -98,13 +98,14 @@ def heading_from_fixes(fixes: pd.DataFrame, baseline_m: float = HEADING_BASELINE
     return float(np.arctan2(dy, dx))
 
 
-def epoch_inputs(acc: pd.DataFrame, times: np.ndarray) -> np.ndarray:
-    """(len(times), 2) mean floor-frame acceleration over each period; NaN without IMU samples."""
+def epoch_inputs(acc: pd.DataFrame, times: np.ndarray, columns: tuple[str, str] = ("ax", "ay")) -> np.ndarray:
+    """(len(times), 2) mean of two input columns over each period (t_k-1, t_k]: the floor-frame
+    acceleration (ax, ay) by default, or the odometry's (v_mps, yaw_rate_rps); NaN without samples."""
     index = np.searchsorted(times, acc["t"].to_numpy(), side="left")
     valid = index < len(times)
     out = np.full((len(times), 2), np.nan)
     counts = np.bincount(index[valid], minlength=len(times))
-    for j, column in enumerate(("ax", "ay")):
+    for j, column in enumerate(columns):
         sums = np.bincount(index[valid], weights=acc[column].to_numpy()[valid], minlength=len(times))
         with np.errstate(invalid="ignore", divide="ignore"):
             out[:, j] = sums / counts

@@ -5,7 +5,8 @@ parameters (default, unit, meaning) and one entry point.
 
 returns a DataFrame sorted by time with columns t (s), x, y (m) and, where the estimator
 has one, the position covariance p_xx, p_xy, p_yy (m^2); Bayesian filters add n_meas
-(measurements in the last update) and nis. `estimates.attrs` carries counters (resets).
+(measurements in the last update) and nis, and with a 3-D state (`dimensions: 3`) z (m)
+and p_zz (m^2). `estimates.attrs` carries counters (resets).
 Estimators are compositions of the parts in this package: position solvers and fusions
 (fixes), trackers over fixes (trackers), Bayesian filters (bayes, motion, measurements)
 and the inertial pipelines (inertial).
@@ -74,8 +75,16 @@ FILTER = (
     Param("filter", "ekf", "", "Bayesian filter (ukf, pf and filterpy have their own estimators)", str, ("ekf",)),
     Param("measurements", "toa", "", "toa: ranges; rss: RSS; hybrid: both stacked; tdoa: range differences "
           "(tdoa table, correlated noise of pairs sharing an anchor)", str, tuple(KINDS)),
-    Param("motion", "pv", "", "p: random walk; pv: constant velocity; pva: measured acceleration input + bias",
+    Param("motion", "pv", "", "p: random walk; pv: constant velocity; pva: measured acceleration input + bias; "
+          "odometry: unicycle driven by the run's odometry table (speed, yaw rate; heading in the state)",
           str, MOTIONS),
+    Param("dimensions", 2, "1", "position axes of the state: 2 (x, y; the tag at the campaign's fixed "
+          "tag_height_m, the default for planar data) or 3 (x, y, z; motion p or pv; needs anchors at varied "
+          "heights for z to be observable)", int, minimum=2),
+    Param("odometry_speed_sigma_mps", 0.1, "m/s", "odometry: speed error held over a step (wheel odometry: a few "
+          "% scale error and slip at speeds up to ~2 m/s)", minimum=1e-6),
+    Param("odometry_yaw_rate_sigma_rps", 0.05, "rad/s", "odometry: yaw-rate error held over a step (~3 deg/s: "
+          "wheel-base uncertainty and slip of differential-drive odometry)", minimum=1e-6),
     Param("update", "auto", "", "epoch: one update per period; sequential: at each measurement's time; auto: "
           "epoch on synchronous ranging rounds and on RSS alone, sequential on asynchronous ranges (one anchor at a "
           "time, or each anchor at its own time stamp), decided from the run's data (estimators.auto)", str,
@@ -232,7 +241,8 @@ def _fused_run(steady_state: bool):
 
 
 def _filter_inputs(p: dict) -> tuple[str, ...]:
-    return (("imu",) if p["motion_detection"] else ()) + (("imu_5hz",) if p["motion"] == "pva" else ())
+    return (("imu",) if p["motion_detection"] else ()) + (("imu_5hz",) if p["motion"] == "pva" else ()) \
+        + (("odometry",) if p["motion"] == "odometry" else ())
 
 
 K_SMALLEST = _drop(SOLVER, "solver", "pmix_toa_weight", "refine")

@@ -9,6 +9,9 @@ Applied the same way to every estimator, study and paper.
   number of estimates n and availability; per cell also rmse_moving, the RMSE over the
   estimates at which the target moves (true speed at least STATIC_SPEED_MPS, moving_mask):
   claims about speed compare moving epochs only, so the rests' share does not decide them.
+- 3-D: where the truth has a height z and the estimates a z (a 3-D state), also
+  error_3d_m = ||(x, y, z) estimate - truth|| and its RMSE rmse_3d (m); errors are
+  horizontal (2-D) otherwise.
 """
 
 from __future__ import annotations
@@ -53,8 +56,15 @@ def score(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
     three (replacing any of those names in place), not a copy assigned column by column."""
     position = truth_at(truth, estimates["t"].to_numpy(float))
     error = np.hypot(estimates["x"].to_numpy(float) - position[:, 0], estimates["y"].to_numpy(float) - position[:, 1])
+    spatial = {}
+    if "z" in estimates and "z" in truth and np.isfinite(truth["z"].to_numpy(float)).any():
+        given = np.isfinite(truth["z"].to_numpy(float))           # rows with a height (z may be left empty)
+        true_z = np.interp(estimates["t"].to_numpy(float), truth["t"][given], truth["z"][given],
+                           left=np.nan, right=np.nan)
+        spatial = {"true_z": true_z, "error_3d_m": np.hypot(error, estimates["z"].to_numpy(float) - true_z)}
     out = pd.DataFrame({**{name: estimates[name].array for name in estimates.columns},
-                        "true_x": position[:, 0], "true_y": position[:, 1], "error_m": error}, index=estimates.index)
+                        "true_x": position[:, 0], "true_y": position[:, 1], "error_m": error, **spatial},
+                       index=estimates.index)
     out.attrs = copy.deepcopy(estimates.attrs)
     return out
 
@@ -108,9 +118,11 @@ def covered_share(t: np.ndarray, finite: np.ndarray, span: tuple[float, float] |
 
 
 def run_metrics(scored: pd.DataFrame, truth: pd.DataFrame, period: float | None = None) -> dict[str, float]:
-    """The per-run metrics (RUN_METRICS) of one run's scored estimates."""
+    """The per-run metrics (RUN_METRICS) of one run's scored estimates, and rmse_3d (m) where
+    they have 3-D errors (score)."""
     stats = error_summary(scored["error_m"]) if len(scored) else error_summary([])
-    return {**stats, "availability": availability(scored, truth, period)}
+    spatial = {"rmse_3d": error_summary(scored["error_3d_m"])["rmse"]} if "error_3d_m" in scored else {}
+    return {**stats, "availability": availability(scored, truth, period), **spatial}
 
 
 def cell_metrics(scored: pd.DataFrame, keys: list[str], truth: pd.DataFrame) -> pd.DataFrame:
