@@ -9,7 +9,9 @@ Converts the shared real datasets (`wsnloc convert`), then per run:
 - philotuxo (BLE RSSI): `wsnloc estimate` with no flags, and with `--calibration <next track>`
   (cyclically), against the plain gated EKF on the path-loss model fitted on that donor and the
   weighted centroid of the 3 strongest receivers per second (wsnloc.references).
-Prints a Markdown table and writes it to OUT/realdata.md. The scratch folder is git-ignored.
+Prints a Markdown table and writes it to OUT/realdata.md (the scratch folder is git-ignored);
+with --docs, also between the markers of docs/realdata.md. Exits 1 when an acceptance check of
+issue 28 fails (ours >= LS.csv on a cucudasluv case; calibrated BLE not below both references).
 """
 
 from __future__ import annotations
@@ -23,6 +25,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
 from wsnloc.estimate import estimate_run  # noqa: E402
+from wsnloc.estimators import registry  # noqa: E402
+from wsnloc.estimators.run_data import RunData  # noqa: E402
 from wsnloc.experiments.realdata import published_scores, reference_scores  # noqa: E402
 from wsnloc.io.convert import convert_cucudasluv, convert_philotuxo  # noqa: E402
 from wsnloc.io.generic import ingest_run, run_campaign  # noqa: E402
@@ -36,9 +40,28 @@ def _ours(run_dir: Path, out: Path, donor: Path | None = None) -> float:
     return metrics["rmse_m"]
 
 
+def self_fit_cost(tables: dict, run_dir: Path) -> float:
+    """Wall time of the default tracker (self_fit=two_pass) over one plain pass (self_fit=none),
+    each the best of 2 runs on a fresh RunData (no shared cache)."""
+    def best(overrides: dict) -> float:
+        times = []
+        for _ in range(2):
+            data = RunData(tables, run_campaign(run_dir), None, str(run_dir))
+            started = time.perf_counter()
+            registry.run("tracker", data, overrides)
+            times.append(time.perf_counter() - started)
+        return min(times)
+    return best({}) / best({"self_fit": "none"})
+
+
+FAILED: list[str] = []
+BEGIN, END = "<!-- benchmarks/realdata.py: begin -->", "<!-- benchmarks/realdata.py: end -->"
+
+
 def uwb_rows(src: Path, out: Path) -> list[str]:
     rows = ["| case | ours: `wsnloc estimate` | LS.csv (our scoring) | ESKF.csv (our scoring) | "
-            "LS RMSE_2d published | ESKF RMSE_2d published | ours < LS.csv |", "|---|---|---|---|---|---|---|"]
+            "LS RMSE_2d published | ESKF RMSE_2d published | ours < LS.csv | self-fit cost (x plain pass) |",
+            "|---|---|---|---|---|---|---|---|"]
     for run in convert_cucudasluv(src, out / "converted" / "cucudasluv"):
         run_dir = run.run_dir
         label = f"{run_dir.parent.name}/{run_dir.name}"
@@ -46,10 +69,12 @@ def uwb_rows(src: Path, out: Path) -> list[str]:
         tables, _ = ingest_run(run_dir)
         refs = reference_scores(run_dir, tables, None, run_campaign(run_dir))
         published = published_scores(run_dir)
+        if not ours < refs["LS.csv"]:
+            FAILED.append(f"{label}: ours {ours:.3f} >= LS.csv {refs['LS.csv']:.3f}")
         rows.append(f"| {label} | {ours:.3f} | {refs['LS.csv']:.3f} | {refs['ESKF.csv']:.3f} | "
                     f"{published.get('LS RMSE_2d', float('nan')):.3f} | "
                     f"{published.get('ESKF RMSE_2d', float('nan')):.3f} | "
-                    f"{'yes' if ours < refs['LS.csv'] else 'no'} |")
+                    f"{'yes' if ours < refs['LS.csv'] else 'no'} | {self_fit_cost(tables, run_dir):.1f} |")
     return rows
 
 
@@ -65,6 +90,8 @@ def ble_rows(src: Path, out: Path) -> list[str]:
         donor_tables, _ = ingest_run(donor)
         refs = reference_scores(run_dir, tables, donor_tables, run_campaign(run_dir))
         wins = calibrated < refs[EKF_REF] and calibrated < refs[CENTROID_REF]
+        if not wins:
+            FAILED.append(f"{run_dir.name}: calibrated {calibrated:.3f} not below both references")
         rows.append(f"| {run_dir.name} ({donor.name}) | {plain:.3f} | {calibrated:.3f} | {refs[EKF_REF]:.3f} | "
                     f"{refs[CENTROID_REF]:.3f} | {'yes' if wins else 'no'} |")
     return rows
@@ -74,17 +101,25 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--realdata", default=str(ROOT.parent / "shared" / "realdata"))
     parser.add_argument("--out", default=str(ROOT / "benchmarks" / "out" / "realdata"))
+    parser.add_argument("--docs", action="store_true", help="write the table into docs/realdata.md")
     args = parser.parse_args(argv)
     src, out = Path(args.realdata), Path(args.out)
     started = time.perf_counter()
     text = ["RMSE (m), 2-D, truth interpolated at each estimate's time; published values: reference only.", "",
             "Outdoor UWB (cucudasluv):", ""] + uwb_rows(src / "cucudasluv-uwb", out) + \
         ["", "BLE RSSI (philotuxo), donor = the next track:", ""] + ble_rows(src / "philotuxo-ble-rssi", out) + \
-        ["", f"({time.perf_counter() - started:.0f} s)"]
+        ["", f"Checks failed: {'; '.join(FAILED)}." if FAILED else "Every check passed.",
+         "", f"(`python benchmarks/realdata.py`, {time.strftime('%Y-%m-%d', time.gmtime())}, "
+             f"{time.perf_counter() - started:.0f} s)"]
     out.mkdir(parents=True, exist_ok=True)
     (out / "realdata.md").write_text("\n".join(text) + "\n")
     print("\n".join(text))
-    return 0
+    if args.docs:
+        docs = ROOT / "docs" / "realdata.md"
+        page = docs.read_text()
+        head, tail = page.split(BEGIN)[0], page.split(END)[1]
+        docs.write_text(head + BEGIN + "\n" + "\n".join(text) + "\n" + END + tail)
+    return 1 if FAILED else 0
 
 
 if __name__ == "__main__":

@@ -349,7 +349,7 @@ def bench_filters(repeats: int) -> list[tuple[str, float, float]]:
                             ("EKF, PV model, 8 ranges per update (papers A, C)", ours_ekf, fp_ekf)):
         rows.append((name, median_time(ours, repeats) / n * 1e6, median_time(ref, repeats) / n * 1e6, "<= 1"))
     batch = batched_ekf(anchors, ranges.reshape(BATCH_RUNS, n // BATCH_RUNS, 8), F, Q)
-    rows.append((f"batched EKF, {BATCH_RUNS} runs stepped together, per run-step (same {n} updates)",
+    rows.append((f"array EKF (filter bank), {BATCH_RUNS} runs stepped together, per run-step (same {n} updates)",
                  median_time(batch, repeats) / n * 1e6, median_time(fp_ekf, repeats) / n * 1e6, "<= 0.2"))
     return rows
 
@@ -400,12 +400,13 @@ BATCH_RUNS = 50
 
 
 def batched_ekf(anchors: np.ndarray, ranges: np.ndarray, F: np.ndarray, Q: np.ndarray):
-    """A function stepping estimators.batched's EKF over ranges (runs, steps, m) to `anchors`
-    (range sigma 0.3 m, start [5, 5, 0, 0], P0 = I, as the filterpy EKF above); it checks
-    once that run 0 ends where filterpy ends on the same ranges."""
+    """A function stepping the array EKF (estimators.array_ekf: the filter bank of core.epoch_loop
+    for the bare EKF) over ranges (runs, steps, m) to `anchors` (range sigma 0.3 m, start
+    [5, 5, 0, 0], P0 = I, as the filterpy EKF above); it checks once that run 0 ends where
+    filterpy ends on the same ranges."""
     from filterpy.kalman import ExtendedKalmanFilter as FpEKF
 
-    from wsnloc.estimators.batched import Measurements, predict, update
+    from wsnloc.estimators.array_ekf import Measurements, predict, update
     from wsnloc.filters.measurement_models import RangeModel
 
     runs, steps, m = ranges.shape

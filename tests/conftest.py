@@ -52,6 +52,8 @@ def small_workflow(target: Path, shards: int = 1) -> Path:
     experiments["paper_a"]["scenarios"] = ["newcom/constant"]
     experiments["paper_c"]["scenarios"] = ["cricket/speed_40"]
     experiments["paper_c"]["table_2_scenario"] = "cricket/speed_40"
+    experiments["paper_c"]["overrides"] = {key: layer for key, layer in (experiments["paper_c"].get("overrides") or {}).items()
+                                           if key in ("cricket", "cricket/speed_40")}   # its P sigma per speed
     config["ranging_validation"]["scenarios"] = ["newcom/constant"]
     workbench = config["studies"]["workbench"]
     workbench["scenarios"] = ["newcom/constant", "cricket/speed_40"]

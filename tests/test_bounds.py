@@ -49,7 +49,7 @@ def test_information_terms_match_numerical_jacobians():
     toa = bounds.toa_information_terms(points, SQUARE, sigma, dz)
     rss = bounds.rss_information_terms(points, SQUARE, 2.7, 5.0)
     range_model = RangeModel(SQUARE, sigma, dz)
-    rss_model = RssModel(SQUARE, -45.0, 2.7, 5.0)
+    rss_model = RssModel(SQUARE, -45.0 - 81.0, 2.7, 5.0, d0_m=1e-3)   # the same law, its near-field floor at 1 mm
     for p, t_toa, t_rss in zip(points, toa, rss):
         for model, terms in ((range_model, t_toa), (rss_model, t_rss)):
             H = numerical_jacobian(model.h, p)

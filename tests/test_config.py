@@ -164,6 +164,7 @@ def test_real_log_scenario_without_runs_is_named(config, tmp_path):
     for experiment in ("paper_a", "paper_b", "paper_d"):
         config["experiments"][experiment]["scenarios"] = ["newcom/constant"]
     config["experiments"]["paper_b"]["simulation_scenarios"] = []
+    config["experiments"]["paper_b"]["overrides"] = {"newcom/b_simulation": {"static_start_s": 0.0}}
     config["ranging_validation"]["scenarios"] = ["newcom/constant"]
     config["studies"] = {}
     with pytest.raises(ConfigError, match=r"'experiments.paper_b.overrides.newcom/b_simulation': not a dataset or "

@@ -28,7 +28,10 @@ def test_estimators_lists_the_registry_as_json(capsys):
     assert len(listed) >= 12 and {"name", "parameters"} <= set(listed[0])
     ekf = next(e for e in listed if e["name"] == "ekf")
     motion = next(p for p in ekf["parameters"] if p["name"] == "motion")
-    assert motion["default"] == "pv" and motion["choices"] == ["p", "pv", "pva"]
+    assert motion["default"] == "pv" and motion["choices"] == ["p", "pv", "pva", "odometry"]
+    dimensions = next(p for p in ekf["parameters"] if p["name"] == "dimensions")
+    assert dimensions["default"] == 2 and {"odometry_speed_sigma_mps", "odometry_yaw_rate_sigma_rps"} <= {
+        p["name"] for p in ekf["parameters"]}
     assert main(["estimators"]) == 0 and "tracker (default of `wsnloc estimate`)" in capsys.readouterr().out
 
 
@@ -101,7 +104,7 @@ def test_estimate_calibrates_ranges_on_a_donor_run(tmp_path):
         tables["ranges"]["range_m"] += tables["ranges"]["anchor_id"].map(offsets)
         runs[name] = write_generic(tmp_path / name / "run", tables)
     out = {}
-    for label, extra in (("plain", []), ("calibrated", ["--calibration", str(runs["donor"]),
+    for label, extra in (("plain", ["--set", "self_fit=none"]), ("calibrated", ["--calibration", str(runs["donor"]),
                                                         "--set", "range_calibration=other_run"])):
         assert main(["estimate", "--format", "generic", str(runs["run"]), "--out", str(tmp_path / label),
                      "--set", "range_sigma_m=0.1", *extra]) == 0

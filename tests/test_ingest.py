@@ -137,7 +137,7 @@ def test_truth_becomes_xy_on_the_rail(parsed):
     truth = result["truth"]
     assert truth["line"].tolist() == [3, 4, 8]
     assert (truth["x"].iloc[0], truth["y"].iloc[0]) == pytest.approx((2.5, 7.5))
-    assert (truth["x"].iloc[1], truth["y"].iloc[1]) == pytest.approx((22.5, 8.5), abs=1e-3)   # end of the arc
+    assert (truth["x"].iloc[1], truth["y"].iloc[1]) == pytest.approx((2.5 + 20.5708, 7.5), abs=1e-3)   # straight rail
     reasons = _reasons(result["quarantine"], "truth.log")
     assert "outside the path" in reasons[5]
     assert "time goes backwards" in reasons[6]

@@ -135,3 +135,15 @@ def test_real_runs_give_rows_per_case_class_and_bin():
     assert errors["error_m"].abs().median() < 0.3             # RTK truth, 3-D distances: a real UWB's centimetres
     rows = pd.DataFrame(rv.rows(errors[errors["link"] == "LOS"], rv.EXPERIMENT, "cucudasluv/los"))
     assert rows["runs"].max() == 3 and (rows["row"].str.startswith("LOS ")).all()
+
+
+def test_a_resting_cart_keeps_each_links_impulse_response(campaign, uwb, simulated_run):
+    """Spatial consistency: while the cart rests (first 5 s) every anchor's range error changes by
+    the timing noise only (its leading edge, NLOS bias included, is the same), not by the metres a
+    new impulse response per ranging would give an NLOS link."""
+    tables = ingest_run(simulated_run, campaign)[0]
+    errors = range_errors(tables["ranges"], tables["truth"], campaign)
+    rest = errors[errors["t"] < errors["t"].min() + 4.0]
+    spread = rest.groupby("anchor_id")["error_m"].std()
+    assert len(spread) >= 8 and spread.max() < 4 * uwb["timing_noise_ns"] * 1e-9 * C
+    assert (rest.groupby("anchor_id")["error_m"].mean() > 0.5).any()      # a constant NLOS bias among them

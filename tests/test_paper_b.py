@@ -241,9 +241,10 @@ def test_paper_b_on_a_simulated_run(campaign, simulated_run):
     assert all(c["verdict"] == "inconclusive" for c in claims)     # one run: no interval
 
 
-def test_the_simulation_scenario_takes_no_bias_estimate():
-    """config/config.yaml: paper B's simulation scenario overrides static_start_s to 0 for every
-    method that has it (its simulated accelerometer has no bias); the campaign scenarios keep 4 s."""
+def test_no_scenario_of_paper_b_takes_a_bias_estimate():
+    """config/config.yaml: paper B's cart is "continuously moving" (seed 001 V.A): no rest to take a
+    bias over on its real-data scenario, and its simulated accelerometer has no bias: static_start_s
+    is 0 for every method that has it, and the UWB preliminary filter is off (seed 001 has none)."""
     from wsnloc.config import read_yaml
     from wsnloc.experiments import cells
     from wsnloc.validation import validate_config
@@ -253,7 +254,8 @@ def test_the_simulation_scenario_takes_no_bias_estimate():
     spec = validate_config(read_yaml(ROOT / "config" / "config.yaml"), ROOT / "config" / "schema.yaml")["experiments"]["paper_b"]
     for method in ("imu", "sskf", "kf"):
         assert cells.params(spec, method, spec["simulation_scenarios"][0], "paper_b")["static_start_s"] == 0.0
-        assert cells.params(spec, method, spec["scenarios"][0], "paper_b")["static_start_s"] == 4.0
+        assert cells.params(spec, method, spec["scenarios"][0], "paper_b")["static_start_s"] == 0.0
+    assert cells.params(spec, "uwb", spec["scenarios"][0], "paper_b")["preliminary_filter"] is False
 
 
 def test_bias_estimate_adds_error_on_the_bias_free_simulated_accelerometer(campaign):

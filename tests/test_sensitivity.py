@@ -240,3 +240,16 @@ def test_ranging_severity_rows_and_sentence_carry_the_computed_rmse():
     [line] = explanations.ranging_severity(numbers, "B", {"Min-Max on UWB": "uwb"}, "; paper: 3.25 m")
     assert "newcom/constant" in line and "spec: Min-Max on UWB 0.90 m; era: Min-Max on UWB 3.20 m; paper: 3.25 m" in line
     assert explanations.ranging_severity(numbers, "D", {"Min-Max UWB": "minmax/uwb/raw"}, "") == []
+
+
+def test_a_sigma_set_per_scenario_is_scaled_where_the_overrides_set_it():
+    """Paper C's P sigma is set per speed (overrides): its sensitivity variants scale those values."""
+    from wsnloc.experiments.sensitivity import variants
+
+    spec = {"estimators": {"P": {"estimator": "ekf", "motion": "p"}},
+            "overrides": {"c/s20": {"P": {"p_sigma_m": 0.1}}, "c/s40": {"P": {"p_sigma_m": 0.2}}},
+            "sensitivity": {"runs": 2, "factors": [0.5, 2.0], "sigmas": ["P.p_sigma_m"]}}
+    (_, _, half), (_, _, double) = variants(spec, "experiments.paper_c")
+    assert [half["overrides"][k]["P"]["p_sigma_m"] for k in ("c/s20", "c/s40")] == [0.05, 0.1]
+    assert [double["overrides"][k]["P"]["p_sigma_m"] for k in ("c/s20", "c/s40")] == [0.2, 0.4]
+    assert "p_sigma_m" not in half["estimators"]["P"] and spec["overrides"]["c/s20"]["P"]["p_sigma_m"] == 0.1

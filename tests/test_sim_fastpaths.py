@@ -15,7 +15,7 @@ def _reference_variable_speed(length, rng, static_start_s, ramp_interval_s, spee
                               max_accel_mps2, stop_s, static_end_s):
     """The controller integrated one 1 ms step at a time (the simulator's former loop)."""
     low, high = speed_range_mps
-    stops = [length / 2.0, length]
+    stops = [length / 2.0, length] if stop_s > 0 else [length]      # stop_s 0: no stop half-way
     dt, a_max = trajectory.STEP_S, max_accel_mps2
     rest_start = int(round(static_start_s / dt))
     s_list, v_list, a_list = [0.0] * rest_start, [0.0] * rest_start, [0.0] * rest_start
@@ -54,7 +54,7 @@ def _reference_variable_speed(length, rng, static_start_s, ramp_interval_s, spee
 
 
 @pytest.mark.parametrize("params", [
-    (24.57, 5.0, 5.0, (0.1, 0.5), 0.3, 4.0, 5.0),        # newcom.yaml `variable`
+    (24.57, 5.0, 5.0, (0.1, 0.5), 0.3, 4.0, 5.0),        # a stop half-way
     (10.0, 1.0, 2.0, (0.2, 1.0), 0.5, 1.0, 0.5),
     (3.0, 0.0, 0.7, (0.05, 0.3), 0.1, 0.0, 0.0),
     (5.0, 0.0, 0.3, (0.3, 0.3), 2.0, 2.0, 0.0),          # one target speed

@@ -218,6 +218,68 @@ def test_registry_lists_tdoa_among_the_filters_measurements(capsys):
     assert listed == accepting
 
 
+def test_range_calibration_corrects_range_differences():
+    """Ranges r = s d + b_a (scale 1.07, per-anchor offsets up to 0.6 m) make differences with
+    pair bias b_a - b_ref and scale s; the donor's (here given) calibration removes both."""
+    scale, offsets = 1.07, {"A1": 0.3, "A2": -0.2, "A3": 0.6, "A4": 0.0}
+    data = tdoa_run(seed=4, noise=0.05)
+    tdoa = data.tables["tdoa"]
+    bias = tdoa["anchor_id"].map(offsets) - tdoa["ref_anchor_id"].map(offsets)
+    tdoa["tdoa_m"] = scale * tdoa["tdoa_m"] + bias
+    truth, p = data.table("truth"), {"measurements": "tdoa", "range_sigma_m": 0.05}
+    raw = np.nanmedian(score(registry.run("tracker", data, p), truth)["error_m"])
+    donor = RunData(data.tables, None, None, "tdoa-4-calibrated", {"scale": scale, "offsets_m": offsets, "source": "t"})
+    fitted = registry.run("tracker", donor, dict(p, range_calibration="other_run"))
+    calibrated = np.nanmedian(score(fitted, truth)["error_m"])
+    assert calibrated < 0.1 < raw and calibrated < raw / 4, (raw, calibrated)         # 0.03 m against 0.57 m
+    assert fitted.attrs["calibrated_scale"] == scale and fitted.attrs["calibrated_offsets_m"] == offsets
+
+
+def test_tdoa_bias_fit_recovers_scale_and_offset_differences():
+    from wsnloc.metrics.ranging import fit_tdoa_bias
+
+    rng = np.random.default_rng(2)
+    times = np.arange(0.1, 60.0, 0.1)
+    frame = tdoa_table(times, walk, SQUARE)                          # reference A1 (the gauge)
+    anchors = {a: np.array(xy) for a, xy in SQUARE.items()}
+    p = walk(frame["t"].to_numpy())
+    d_a = np.array([np.hypot(*(q - anchors[a])) for q, a in zip(p, frame["anchor_id"])])
+    d_r = np.array([np.hypot(*(q - anchors[a])) for q, a in zip(p, frame["ref_anchor_id"])])
+    offsets = {"A1": 0.3, "A2": -0.2, "A3": 0.6, "A4": 0.0}
+    z = 1.07 * (d_a - d_r) + frame["anchor_id"].map(offsets) - frame["ref_anchor_id"].map(offsets)
+    fit = fit_tdoa_bias(z, d_a, d_r, frame["anchor_id"], frame["ref_anchor_id"])
+    assert fit["scale"] == pytest.approx(1.07, abs=1e-9)
+    assert fit["offsets_m"] == pytest.approx({a: b - offsets["A1"] for a, b in offsets.items()}, abs=1e-9)
+    z = z + rng.normal(0.0, 0.05, len(z))
+    z[::23] += 3.0                                                   # NLOS-like outliers
+    fit = fit_tdoa_bias(z, d_a, d_r, frame["anchor_id"], frame["ref_anchor_id"])
+    assert fit["scale"] == pytest.approx(1.07, abs=0.01)
+    assert fit["offsets_m"] == pytest.approx({a: b - offsets["A1"] for a, b in offsets.items()}, abs=0.05)
+
+
+def test_estimate_calibrates_a_tdoa_run_on_a_tdoa_donor(tmp_path):
+    """`wsnloc estimate --calibration DONOR --set range_calibration=other_run` on TDOA runs made
+    from biased ranges (scale 1.07, per-anchor offsets): the donor's differences give the fit."""
+    offsets = {"A1": 0.3, "A2": -0.2, "A3": 0.6, "A4": 0.0}
+    runs = {}
+    for name, seed in (("donor", 1), ("target", 2)):
+        data = tdoa_run(seconds=40.0, noise=0.05, seed=seed)
+        tdoa = data.tables["tdoa"]
+        tdoa["tdoa_m"] = 1.07 * tdoa["tdoa_m"] + tdoa["anchor_id"].map(offsets) - tdoa["ref_anchor_id"].map(offsets)
+        run = runs[name] = tmp_path / name
+        run.mkdir()
+        data.tables["anchors"].drop(columns="z").to_csv(run / "anchors.csv", index=False)
+        tdoa[["t", "anchor_id", "ref_anchor_id", "tdoa_m"]].to_csv(run / "tdoa.csv", index=False)
+        data.tables["truth"][["t", "x", "y"]].to_csv(run / "truth.csv", index=False)
+    median = {}
+    for label, extra in (("raw", []), ("calibrated", ["--calibration", str(runs["donor"]),
+                                                      "--set", "range_calibration=other_run"])):
+        assert main(["estimate", "--format", "generic", str(runs["target"]), "--out", str(tmp_path / label)]
+                    + extra) == 0
+        median[label] = json.loads((tmp_path / label / "metrics.json").read_text())["median_m"]
+    assert median["calibrated"] < 0.1 < median["raw"], median
+
+
 # ---- TDOA made from two-way ranges ---------------------------------------------------------------------
 def test_ranges_to_tdoa_pairs_by_interpolation_within_the_window():
     from wsnloc.io.tdoa_from_ranges import ranges_to_tdoa
@@ -228,7 +290,7 @@ def test_ranges_to_tdoa_pairs_by_interpolation_within_the_window():
         "range_m": [5.0, 6.0, 7.0, 5.0, 6.2, 7.0, 5.5, 6.4, 5.0, 9.0],
         "status": [0, 0, 0, 0, 0, 1, 0, 0, 0, 0]})
     tdoa = ranges_to_tdoa(ranges, window_s=0.25)
-    assert set(tdoa["ref_anchor_id"]) == {"R"}                      # the anchor with the most ranges
+    assert set(tdoa["ref_anchor_id"]) == {"R"}                      # the anchor with the most ranges, C never alone
     got = {(round(t, 3), a): round(v, 9) for t, a, v in tdoa[["t", "anchor_id", "tdoa_m"]].itertuples(index=False)}
     # B at t_ref = 0.1: between (0.01, 6.0) and (0.11, 6.2) -> 6.18; C at 0.1: its 0.12 sample is flagged, so
     # (0.02, 7.0) and (2.01, 9.0) bracket it, too far apart -> no pair; R at 0.0 has no B sample before it
@@ -259,6 +321,59 @@ def test_convert_tdoa_cli_writes_a_tdoa_run_that_estimate_tracks(tmp_path):
     assert main(["estimate", "--format", "generic", str(converted), "--out", str(tmp_path / "est")]) == 0
     metrics = json.loads((tmp_path / "est" / "metrics.json").read_text())
     assert metrics["availability"] > 0.9 and metrics["median_m"] < 0.3, metrics
+
+
+EIGHT = {**SQUARE, "A5": (10.0, 0.0), "A6": (20.0, 10.0), "A7": (10.0, 20.0), "A8": (0.0, 10.0)}
+
+
+def test_ranges_to_tdoa_falls_back_to_another_reference_where_the_main_one_is_missing():
+    from wsnloc.io.tdoa_from_ranges import ranges_to_tdoa
+
+    times = np.arange(0.0, 3.0, 0.1)
+    ids = np.tile(np.array(["R", "B", "C"], dtype=object), len(times))
+    stamps = np.repeat(times, 3) + np.tile([0.0, 0.01, 0.02], len(times))
+    ranges = pd.DataFrame({"t": stamps, "anchor_id": ids, "range_m": 5.0 + np.tile([0.0, 1.0, 2.0], len(times))})
+    ranges = ranges[~((ranges["anchor_id"] == "R") & ranges["t"].between(0.95, 2.05))]   # R silent 1.0-2.0 s
+    tdoa = ranges_to_tdoa(ranges, reference="R", window_s=0.25)
+    by_ref = tdoa.groupby("ref_anchor_id")["t"]
+    assert set(by_ref.groups) == {"R", "B"}                         # B (first of the most ranged) stands in for R
+    assert np.round(by_ref.get_group("B"), 2).tolist() == [0.91, 1.01, 1.11, 1.21, 1.31, 1.41, 1.51, 1.61, 1.71,
+                                                           1.81, 1.91, 2.01, 2.91]   # only where R cannot be paired
+    inside = tdoa[tdoa["t"].between(1.1, 1.9)]
+    assert len(inside) and set(inside["ref_anchor_id"]) == {"B"} and set(inside["anchor_id"]) == {"C"}
+    assert np.allclose(inside["tdoa_m"], 1.0)
+    assert np.allclose(tdoa.loc[tdoa["ref_anchor_id"] == "R", "tdoa_m"], np.where(
+        tdoa.loc[tdoa["ref_anchor_id"] == "R", "anchor_id"] == "B", 1.0, 2.0))
+
+
+def test_tdoa_from_ranges_one_anchor_at_a_time_is_tracked(tmp_path):
+    """Eight anchors ranged one at a time (Poisson, 10 Hz in all: each anchor every ~0.8 s), the
+    most ranged one silent for 10 s: the window follows the round period and another anchor
+    stands in as reference, so the converted run is tracked all along."""
+    from synthetic import one_at_a_time
+
+    rng = np.random.default_rng(5)
+    times, ids = one_at_a_time(60.0, 10.0, rng, EIGHT)
+    tables = tables_for(times, ids, walk, EIGHT, noise_m=0.05, rng=rng)
+    ranges = tables["ranges"]
+    main_ref = ranges["anchor_id"].value_counts().sort_index().idxmax()
+    ranges = ranges[~((ranges["anchor_id"] == main_ref) & ranges["t"].between(20.0, 30.0))]
+    run = tmp_path / "src"
+    run.mkdir()
+    tables["anchors"].drop(columns="z").to_csv(run / "anchors.csv", index=False)
+    ranges[["t", "anchor_id", "range_m"]].to_csv(run / "ranges.csv", index=False)
+    tables["truth"][["t", "x", "y"]].to_csv(run / "truth.csv", index=False)
+    assert main(["convert", "tdoa", str(run), str(tmp_path / "out")]) == 0
+    tdoa = pd.read_csv(tmp_path / "out" / "tdoa.csv")
+    gap = tdoa[tdoa["t"].between(21.0, 29.0)]
+    assert len(gap) and main_ref not in set(gap["ref_anchor_id"]) | set(gap["anchor_id"])
+    assert len(tdoa) > 4 * len(ranges) / len(EIGHT)       # pairs in a 0.25 s window: 58 rows; in 1.5 rounds: 442
+    out = {}
+    for name, src in (("tdoa", tmp_path / "out"), ("ranges", run)):
+        assert main(["estimate", "--format", "generic", str(src), "--out", str(tmp_path / name)]) == 0
+        out[name] = json.loads((tmp_path / name / "metrics.json").read_text())
+    assert out["tdoa"]["availability"] > 0.9, out
+    assert out["tdoa"]["median_m"] < 1.5 * max(out["ranges"]["median_m"], 0.1), out
 
 
 # ---- simulator ---------------------------------------------------------------------------------------

@@ -1,6 +1,8 @@
 """Availability and per-cell metrics (metrics.tracking) against reference implementations:
 the interval loop availability was computed with, and a groupby over sub-frames."""
 
+import math
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -33,9 +35,26 @@ def loop_availability(estimates: pd.DataFrame, truth: pd.DataFrame, period: floa
 
 def groupby_cell_metrics(scored: pd.DataFrame, keys: list[str], truth: pd.DataFrame) -> pd.DataFrame:
     """Reference: one sub-frame per group of `keys`."""
-    rows = [{**dict(zip(keys, key)), **error_summary(group["error_m"]), "availability": loop_availability(group, truth)}
+    rows = [{**dict(zip(keys, key)), **error_summary(group["error_m"]), "availability": loop_availability(group, truth),
+             "rmse_moving": loop_rmse_moving(group)}
             for key, group in scored.groupby(keys, sort=False)]
-    return pd.DataFrame(rows, columns=keys + list(RUN_METRICS))
+    return pd.DataFrame(rows, columns=keys + list(RUN_METRICS) + ["rmse_moving"])
+
+
+def loop_rmse_moving(group: pd.DataFrame) -> float:
+    """Reference: RMSE over the estimates whose true speed from the previous estimate (time order;
+    the first takes the second's) is at least 1 cm/s."""
+    ordered = group.sort_values("t", kind="stable")
+    rows = list(ordered.itertuples())
+    if len(rows) < 2:
+        return float("nan")
+    speeds = []
+    for before, after in zip(rows, rows[1:]):
+        step = math.hypot(after.true_x - before.true_x, after.true_y - before.true_y)
+        speeds.append(step / (after.t - before.t) if after.t > before.t else float("nan"))
+    speeds = [speeds[0]] + speeds
+    errors = [r.error_m for r, v in zip(rows, speeds) if v >= 0.01 and math.isfinite(r.error_m)]
+    return math.sqrt(sum(e * e for e in errors) / len(errors)) if errors else float("nan")
 
 
 def random_estimates(rng, n: int, sort: bool, spread: float = 1.0) -> pd.DataFrame:
@@ -85,6 +104,8 @@ def test_availability_hand_computed_union():
 def scored_run(rng, n: int) -> pd.DataFrame:
     """Scored estimates of several cells (string, integer and missing keys), rows interleaved."""
     est = random_estimates(rng, n, sort=False)
+    est["true_x"] = np.where(rng.random(n) < 0.3, 0.0, rng.normal(size=n))   # some at one point: at rest
+    est["true_y"] = 0.0
     est["error_m"] = np.abs(rng.normal(size=n))
     est.loc[rng.random(n) < 0.05, "error_m"] = np.nan
     est["method"] = rng.choice(["minmax", "lls", "ekf"], n)
@@ -135,3 +156,15 @@ def test_score_equals_the_former_copy_assigned_column_by_column(scored_before):
     assert got.attrs == expected.attrs and got.attrs is not est.attrs
     got.attrs["nested"]["a"].append(2)
     assert est.attrs["nested"]["a"] == [1]
+
+
+def test_rmse_moving_leaves_out_the_epochs_at_rest():
+    """Speed claims compare moving epochs: an error made while standing still does not count."""
+    t = np.arange(8) * 0.5
+    true_x = np.array([0.0, 0.0, 0.0, 0.1, 0.2, 0.3, 0.3, 0.3])   # at rest, moving 0.2 m/s, at rest
+    scored = pd.DataFrame({"t": t, "x": true_x, "y": 0.0, "true_x": true_x, "true_y": 0.0,
+                           "error_m": [5.0, 5.0, 5.0, 1.0, 1.0, 1.0, 7.0, 7.0], "cell": "a"})
+    truth = pd.DataFrame({"t": t, "x": true_x, "y": 0.0})
+    metrics = cell_metrics(scored, ["cell"], truth).iloc[0]
+    assert metrics["rmse_moving"] == pytest.approx(1.0)          # epochs 3-5 (epoch 6 arrives: 0 m moved)
+    assert metrics["rmse"] > 4.0

@@ -171,7 +171,7 @@ def parser() -> argparse.ArgumentParser:
     conv = sub.add_parser("convert", help="convert a public dataset into the generic format")
     conv.add_argument("dataset", choices=["cucudasluv", "philotuxo", "tdoa"],
                       help="cucudasluv: outdoor UWB (OUT/<los|nlos>/<case>); philotuxo: BLE RSSI (OUT/tracks/<track>); "
-                           "tdoa: the generic run(s) below SRC with range differences to one anchor made from their "
+                           "tdoa: the generic run(s) below SRC with range differences to a reference anchor made from their "
                            "ranges (wsnloc.io.tdoa_from_ranges)")
     conv.add_argument("src", help="the dataset's folder (e.g. realdata/cucudasluv-uwb, realdata/philotuxo-ble-rssi)")
     conv.add_argument("out", help="output folder; runs go to OUT/<scenario>/<run>")

@@ -5,6 +5,8 @@ measurements, so that it works on any user run.
 Values (`diagnose_run`, all optional, NaN where the estimator or run has none):
   gated_share       measurements rejected by the innovation gate / offered (attrs)
   restarts          track dropped and restarted (attrs `resets`)
+  widenings         the gate rejected most recent measurements and the covariance was widened
+                    (attrs `gate_widenings`, filter_options.ConfiguredFilter.widen)
   nis_mean          mean normalised innovation squared per measurement dof over the updates,
   nis_low/high      with its two-sided 95% chi-square band (metrics.consistency.chi2_band;
                     sequential updates: 1 dof per update, the last update of each output
@@ -56,15 +58,23 @@ def _nis(estimates: pd.DataFrame, p: dict) -> dict:
     return {"nis_mean": mean_per_dof, "nis_low": float(low), "nis_high": float(high)}
 
 
-def _range_fit(data: RunData, estimates: pd.DataFrame, p: dict) -> dict:
+def track_distances(data: RunData, estimates: pd.DataFrame, p: dict) -> pd.DataFrame | None:
+    """The run's usable ranges (range_m, anchor_id) with the distance from the estimated track
+    interpolated at their times (true_distance_m, 3-D where the anchor has z); None when too few."""
     ranges = data.usable_ranges(p.get("preliminary_filter", True), p.get("max_range_m", np.inf))
     track = estimates.loc[np.isfinite(estimates["x"]) & np.isfinite(estimates["y"]), ["t", "x", "y"]]
     if len(ranges) < MIN_RANGES or len(track) < 2:
-        return {}
+        return None
     site = data.campaign or Campaign(name="generic", format="generic", spec={}, source="(no campaign file)")
     anchors = data.table("anchors") if len(data.table("anchors")) else site.anchors
     samples = range_errors(ranges, track.reset_index(drop=True), site, anchors)
-    if len(samples) < MIN_RANGES:
+    return samples if len(samples) >= MIN_RANGES else None
+
+
+def range_fit(data: RunData, estimates: pd.DataFrame, p: dict) -> dict:
+    """{range_scale, range_offsets_m} of the run's ranges against the estimated track ({} when too few)."""
+    samples = track_distances(data, estimates, p)
+    if samples is None:
         return {}
     try:
         fit = fit_range_bias(samples["range_m"], samples["true_distance_m"], samples["anchor_id"])
@@ -77,8 +87,8 @@ def diagnose_run(data: RunData, estimates: pd.DataFrame, p: dict) -> dict:
     """The diagnosis values of one run (module docstring)."""
     a = estimates.attrs
     out = {"gated_share": float(a["gated_share"]) if "gated_share" in a else np.nan,
-           "restarts": int(a.get("resets", 0)),
-           **_nis(estimates, p), **_range_fit(data, estimates, p)}
+           "restarts": int(a.get("resets", 0)), "widenings": int(a.get("gate_widenings", 0)),
+           **_nis(estimates, p), **range_fit(data, estimates, p)}
     if "range_scale" in a:
         out["self_scale"] = float(a["range_scale"])
     if "range_offset_m" in a:
@@ -103,6 +113,10 @@ def findings(d: dict, p: dict) -> list[str]:
                       f"(now {p.get('range_sigma_m', '?')}), or calibrate the ranges (--calibration DONOR_RUN)")
         out.append(f"the gate rejected {d['gated_share']:.0%} of the measurements: the model is wrong more often "
                    f"than outliers explain ({remedy})")
+    if d.get("widenings", 0) > 0:
+        out.append(f"the gate rejected most measurements {d['widenings']} time(s) and the position covariance "
+                   f"was widened to take them back: turns livelier than the process noise, a bias or a gap; "
+                   f"raise accel_sigma_mps2 or range_sigma_m if it recurs")
     if d.get("restarts", 0) > 0:
         out.append(f"the track was dropped and restarted {d['restarts']} time(s): gaps longer than max_coast_s "
                    f"({p.get('max_coast_s', '?')} s) or a gate that lost the track; check the gaps, raise "
@@ -151,7 +165,7 @@ def report(d: dict, p: dict) -> str:
     """Lines for `wsnloc estimate`: the values, then each finding (or that the model fits)."""
     values = [f"{d['update']} updates" if "update" in d else None,
               f"gated {d['gated_share']:.1%}" if np.isfinite(d.get("gated_share", np.nan)) else None,
-              f"restarts {d.get('restarts', 0)}",
+              f"restarts {d.get('restarts', 0)}", f"widened {d.get('widenings', 0)}",
               f"NIS {d['nis_mean']:.2f} per dof (95% band {d['nis_low']:.2f}-{d['nis_high']:.2f})"
               if "nis_mean" in d else None,
               f"range scale vs track {d['range_scale']:.3f}" if "range_scale" in d else None,

@@ -2,7 +2,8 @@
 
 raw run -> canonical tables (OUT/tables, with quarantine) -> 5 Hz IMU when the estimator
 reads it -> estimates (OUT/estimates.parquet) -> metrics against the run's truth
-(OUT/metrics.json: rmse_m, mean_m, median_m, p75_m, p90_m, p95_m, max_m, n, availability; the gated share
+(OUT/metrics.json: rmse_m, mean_m, median_m, p75_m, p90_m, p95_m, max_m, n, availability, and rmse_3d_m
+with a 3-D state and truth with z; the gated share
 and the range calibration applied, with its fitted values; see studies.calibration_metrics; the
 diagnosis values diag_*, see wsnloc.diagnosis; without truth only the estimator and diagnosis).
 """
@@ -19,9 +20,9 @@ from wsnloc.campaign import Campaign
 from wsnloc.errors import WsnlocError
 from wsnloc.diagnosis import diagnose_run, metrics_of as diagnosis_metrics, report as diagnosis_report
 from wsnloc.estimators import registry
-from wsnloc.estimators.auto import measurements_for
+from wsnloc.estimators.auto import measurements_for, motion_for
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments.calibration import calibrate, calibrate_ranges
+from wsnloc.experiments.calibration import calibrate, calibrate_ranges, calibrate_tdoa
 from wsnloc.io import tables
 from wsnloc.io.convert import QUARANTINE_FILE
 from wsnloc.io.ingest import ingest_one
@@ -32,7 +33,7 @@ from wsnloc.studies import calibration_metrics, diagnose, reads_rss
 
 RESAMPLE = {"rate_hz": 5.0, "grid_rate_hz": 500.0, "max_gap_s": 0.1, "kaiser_beta": 8.0}   # config/schema.yaml defaults
 METRIC_KEYS = {"rmse": "rmse_m", "mean": "mean_m", "median": "median_m", "p75": "p75_m", "p90": "p90_m",
-               "p95": "p95_m", "max": "max_m", "n": "n", "availability": "availability"}
+               "p95": "p95_m", "max": "max_m", "n": "n", "availability": "availability", "rmse_3d": "rmse_3d_m"}
 
 
 def load_run(fmt: str, run_dir: Path, campaign: Campaign | None, out_dir: Path) -> dict[str, pd.DataFrame]:
@@ -74,7 +75,8 @@ def donor_models(fmt: str, donor_dir: Path, campaign: Campaign | None, out_dir: 
                  reads_rss: bool) -> tuple[dict | None, dict | None]:
     """(RSS model, range calibration) fitted on a donor run with truth (same site): the RSS
     model P0, n, sigma when the estimator reads RSS; the range scale and per-anchor offsets
-    when it asks for `range_calibration=other_run`."""
+    when it asks for `range_calibration=other_run` (fitted on the donor's ranges, or on its
+    range differences when it has none: offsets relative to its main reference anchor)."""
     wants_ranges = p.get("range_calibration") == "other_run"
     if not (reads_rss or wants_ranges):
         raise WsnlocError(f"--calibration {donor_dir}: this estimator calibrates nothing on a donor (it reads no "
@@ -82,15 +84,16 @@ def donor_models(fmt: str, donor_dir: Path, campaign: Campaign | None, out_dir: 
     donor = load_run(fmt, donor_dir, campaign, out_dir)
     if len(donor["truth"]) == 0:
         raise WsnlocError(f"{donor_dir}: a calibration donor needs truth")
-    for table, wanted in (("rss", reads_rss), ("ranges", wants_ranges)):
+    for table, wanted in (("rss", reads_rss), ("ranges", wants_ranges and not len(donor["tdoa"]))):
         if wanted and len(donor[table]) == 0:
             raise WsnlocError(f"{donor_dir}: a calibration donor needs the {table} it calibrates, and has none")
     site = campaign or Campaign(name="generic", format="generic", spec={}, source="(no campaign file)")
     source = f"fitted on {donor_dir}"
     rss = dict(calibrate(donor["rss"], donor["truth"], site, p.get("d0_m", 1.0), donor["anchors"]),
                source=source) if reads_rss else None
-    ranges = dict(calibrate_ranges(donor["ranges"], donor["truth"], site, donor["anchors"]),
-                  source=source) if wants_ranges else None
+    fit_ranges = calibrate_ranges if len(donor["ranges"]) else calibrate_tdoa
+    ranges = dict(fit_ranges(donor["ranges" if len(donor["ranges"]) else "tdoa"], donor["truth"], site,
+                             donor["anchors"]), source=source) if wants_ranges else None
     return rss, ranges
 
 
@@ -113,6 +116,8 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
                               {param.name: param.choices for param in estimator.params})
     notes += [f"{k}={v}: the run has {'range differences' if v == 'tdoa' else 'RSS'} and no usable range"
               for k, v in chosen.items() if p[k] != v]
+    p, chosen = chosen, motion_for(run_tables, chosen, set(overrides))
+    notes += [f"{k}={v}: the run has odometry" for k, v in chosen.items() if p[k] != v]
     p = chosen
     if calibration_dir is not None and "range_calibration" in p and "range_calibration" not in overrides \
             and len(run_tables["ranges"]) and p.get("measurements", "toa") != "rss":

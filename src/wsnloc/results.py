@@ -6,17 +6,21 @@ tooling read this file, never internal objects.
 
 ci95_low / ci95_high: the 95% interval of a mean over Monte Carlo runs (metrics.stats.mean_interval,
 inside the metric's range, empty with fewer than MIN_INTERVAL_RUNS runs). band_low / band_high:
-the 95% acceptance band of a test statistic (ANEES, ANIS: chi-square, metrics.consistency), not
-an interval of the value.
+the 95% band one realisation falls in, not an interval of the mean: for a test statistic (ANEES,
+ANIS) its chi-square acceptance band (metrics.consistency); for a Monte Carlo row whose paper value
+is one published run (a single real experiment), the 2.5 and 97.5 percentiles of our per-run values
+(run_band). A paper value is compared with the band when the row has one, else with the mean's
+interval (a published mean, e.g. paper B's average over 20 simulations): verdicts.paper_value_inside.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
-from wsnloc.metrics.stats import mean_interval
+from wsnloc.metrics.stats import MIN_INTERVAL_RUNS, mean_interval
 
 COLUMNS = ["experiment", "table", "row", "column", "scenario", "metric",
            "value", "ci95_low", "ci95_high", "band_low", "band_high", "runs", "paper_value"]
@@ -39,18 +43,36 @@ def metric_domain(metric: str) -> str:
 
 
 def row_over_runs(per_run_values, *, experiment: str, table: str, row: str, column: str,
-                  scenario: str, metric: str, paper_value: float | None = None) -> dict:
+                  scenario: str, metric: str, paper_value: float | None = None,
+                  paper_is_mean: bool = False) -> dict:
     """A results row whose value is the mean over runs with its 95% interval (mean_interval
-    on the metric's domain, metric_domain)."""
+    on the metric's domain, metric_domain). With a paper value from one published run (not
+    `paper_is_mean`), band_low / band_high hold the per-run band (run_band) it is compared with."""
     values = [v for v in per_run_values if pd.notna(v)]
     try:
         mean, low, high = mean_interval(values, metric_domain(metric))
     except ValueError as exc:
         raise ValueError(f"results row {experiment}/{table}/{row}/{column} ({metric}): {exc}") from None
+    band = run_band(values) if paper_value is not None and not paper_is_mean else (None, None)
     return {"experiment": experiment, "table": table, "row": row, "column": column,
             "scenario": scenario, "metric": metric, "value": mean, "ci95_low": low,
-            "ci95_high": high, "band_low": None, "band_high": None, "runs": len(values),
+            "ci95_high": high, "band_low": band[0], "band_high": band[1], "runs": len(values),
             "paper_value": paper_value}
+
+
+RUN_BAND_PERCENTILES = (2.5, 97.5)
+
+
+def run_band(values, min_runs: int = MIN_INTERVAL_RUNS) -> tuple[float | None, float | None]:
+    """The interval one run falls in with 95% probability, estimated by the 2.5 and 97.5
+    percentiles (numpy's linear interpolation) of the per-run values; (None, None) with fewer than
+    `min_runs` finite values. A single published run is compared with this, not with the interval
+    of our mean (which shrinks as 1 / sqrt(runs) and would refuse a typical run)."""
+    values = np.asarray([v for v in values if np.isfinite(v)], dtype=float)
+    if len(values) < min_runs:
+        return None, None
+    low, high = np.percentile(values, RUN_BAND_PERCENTILES)
+    return float(low), float(high)
 
 
 def single_row(value, *, experiment: str, table: str, row: str, column: str, scenario: str,

@@ -19,7 +19,7 @@ from wsnloc.analysis.paper_bounds import PAPER_A_KEYS, paper_a_main, paper_a_par
 from wsnloc.campaign import Campaign
 from wsnloc.config import read_yaml
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments import calibration, cells, claims as claims_of, paper_a, sensitivity
+from wsnloc.experiments import calibration, cells, claims as claims_of, paper_a, sensitivity, why
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import bound_figures, figures
@@ -73,7 +73,8 @@ def summarize(motions: dict[str, str]) -> None:
     per_run, estimates = files["metrics"], files["estimates"]
     rows = [row for label in labels
             for row in paper_a.results_rows(per_run[label], label, motions[label], spec, paper)]
-    decided = paper_a.claims(per_run, motions, spec)
+    decided = why.explain_a(paper_a.claims(per_run, motions, spec), per_run,
+                            [paper_a.row_label(r) for r in spec["rows"]])
     rows += sensitivity.results_rows(paper_a.EXPERIMENT, files["sensitivity"],
                                      lambda m: paper_a.claims(m, motions, spec))
     rows += paper_a.setup_rows(estimates, spec)

@@ -14,7 +14,7 @@ from wsnloc.analysis import imu_snr, nlos_severity
 from wsnloc.campaign import Campaign
 from wsnloc.config import read_yaml
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments import cells, claims as claims_of, paper_b, sensitivity
+from wsnloc.experiments import cells, claims as claims_of, paper_b, sensitivity, why
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import figures
@@ -56,7 +56,8 @@ def summarize() -> None:
     files = read_scenario_files(sm.output, labels)
     per_run, grids, estimates = files["metrics"], files["sensitivity"], files["estimates"]
     rows = [row for label in labels for row in paper_b.results_rows(per_run[label], label, paper, label in simulated)]
-    decided = paper_b.claims(per_run)
+    decided = why.explain_b(paper_b.claims(per_run), per_run,
+                            {label: cells.params(spec, "imu", label, "paper_b")["static_start_s"] for label in labels})
     curve = None
     if sm.params.snr_curve["runs"] and sm.params.snr_scenario:
         dataset, scenario = sm.params.snr_scenario.split("/", 1)

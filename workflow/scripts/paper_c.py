@@ -17,7 +17,7 @@ from wsnloc.analysis.paper_bounds import PAPER_C_KEYS, paper_bound_outputs, pape
 from wsnloc.campaign import Campaign
 from wsnloc.config import read_yaml
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments import cells, claims as claims_of, paper_c, sensitivity
+from wsnloc.experiments import cells, claims as claims_of, paper_c, sensitivity, why
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import bound_figures, figures
@@ -71,7 +71,10 @@ def summarize(speeds: dict[str, str]) -> None:
     per_run, grids, estimates = files["metrics"], files["sensitivity"], files["estimates"]
     rows = [row for label in labels
             for row in paper_c.results_rows(per_run[label], label, speeds[label], spec, paper)]
-    decided = paper_c.claims(per_run, speeds, spec)
+    decided = why.explain_c(paper_c.claims(per_run, speeds, spec), per_run, speeds, spec["table_1_subset"],
+                            spec["table_2_subsets"], spec["table_2_scenario"],
+                            Campaign.load(sm.input.campaigns[0]).spec["path"].get("corner_radius_m", 0.0),
+                            cells.params(spec, "PV", labels[0], "paper_c")["accel_sigma_mps2"])
     rows += sensitivity.results_rows(paper_c.EXPERIMENT, grids, lambda m: paper_c.claims(m, speeds, spec))
     rows += paper_c.setup_rows(estimates, spec)
     bound_rows, bound_panels, consistency_panels = paper_bound_outputs("C", files["quality"], PAPER_C_KEYS,

@@ -15,7 +15,7 @@ from wsnloc.analysis import nlos_severity
 from wsnloc.campaign import Campaign
 from wsnloc.config import read_yaml
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments import cells, claims as claims_of, paper_d, sensitivity
+from wsnloc.experiments import cells, claims as claims_of, paper_d, sensitivity, why
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import figures
@@ -65,7 +65,9 @@ def summarize() -> None:
     rows = [row for label in labels for row in paper_d.results_rows(per_run[label], label)]
     paper_cost_ms = read_yaml(sm.input.papers)["D"]["cost_ms_per_step"]
     counts = paper_d.operation_counts(spec, labels[0])
-    decided = paper_d.claims(per_run) + [paper_d.cost_claim(counts, paper_cost_ms)]
+    shared = cells.params(spec, "velocity", labels[0], "paper_d")
+    decided = why.explain_d(paper_d.claims(per_run) + [paper_d.cost_claim(counts, paper_cost_ms)], per_run,
+                            shared["pmix_toa_weight"], shared["k_smallest"])
     cost = paper_d.measure_cost(spec, labels[0])
     rows += paper_d.cost_rows(cost, paper_cost_ms) + paper_d.operation_rows(counts, paper_cost_ms)
     rows += nlos_severity.claim_rows(   # claims against NLOS ranging severity (opt-in)

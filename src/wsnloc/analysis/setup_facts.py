@@ -1,7 +1,7 @@
 """Facts about a scenario's set-up measured on the estimates, to explain differences from a paper.
 
 - static share: the share of one cell's estimate epochs at which the target stands still,
-  i.e. the true speed ||p(t_k) - p(t_{k-1})|| / (t_k - t_{k-1}) is below STATIC_SPEED_MPS
+  i.e. the true speed ||p(t_k) - p(t_{k-1})|| / (t_k - t_{k-1}) is below metrics.tracking.STATIC_SPEED_MPS
   (the first epoch of a run takes the speed of the second);
 - measurements per epoch: the mean number of measurements an estimator used per epoch
   (its `n_meas`, e.g. anchors heard), over the epochs of one run.
@@ -15,8 +15,8 @@ import numpy as np
 import pandas as pd
 
 from wsnloc import results
+from wsnloc.metrics.tracking import moving_mask
 
-STATIC_SPEED_MPS = 0.01      # the cart's slowest motion is 0.1 m/s; 1 cm/s is standing still
 SETUP_TABLE = "Set-up"
 
 
@@ -24,13 +24,10 @@ def static_share(cell: pd.DataFrame) -> pd.Series:
     """Per run: share of the cell's epochs with true speed below STATIC_SPEED_MPS (columns
     run, t, true_x, true_y of one cell's scored estimates)."""
     def one(run: pd.DataFrame) -> float:
-        run = run.sort_values("t")
         t = run["t"].to_numpy(float)
         if len(t) < 2:
             return float("nan")
-        speed = np.hypot(np.diff(run["true_x"].to_numpy(float)), np.diff(run["true_y"].to_numpy(float))) / np.diff(t)
-        speed = np.concatenate([speed[:1], speed])
-        return float(np.mean(speed < STATIC_SPEED_MPS))
+        return float(np.mean(~moving_mask(t, run["true_x"].to_numpy(float), run["true_y"].to_numpy(float))))
     return cell.groupby("run", sort=True).apply(one, include_groups=False)
 
 

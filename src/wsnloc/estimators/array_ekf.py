@@ -76,8 +76,9 @@ def update(x: np.ndarray, P: np.ndarray, m: Measurements):
     h, gain = slant, 1.0 / np.maximum(slant, MIN_DISTANCE)
     is_rss = m.kind == RSS
     if is_rss.any():                          # the RSS model's rows (range-only epochs skip it)
-        h = np.where(is_rss, m.p0 - 10.0 * m.exponent * np.log10(d / m.d0), h)
-        gain = np.where(is_rss, -10.0 * m.exponent / np.log(10.0) / d**2, gain)
+        D = np.maximum(slant, m.d0)
+        h = np.where(is_rss, m.p0 - 10.0 * m.exponent * np.log10(D / m.d0), h)
+        gain = np.where(is_rss, np.where(slant >= m.d0, -10.0 * m.exponent / np.log(10.0) / D**2, 0.0), gain)
     real = np.arange(width)[None, :] < m.count[:, None]
     H = np.where(real[..., None], diff * gain[..., None], 0.0)
     y = np.where(real, m.z - h, 0.0)
@@ -143,8 +144,8 @@ def _flatten(run: RunInputs, period: float) -> tuple[np.ndarray, np.ndarray, tup
     is_rss = np.concatenate([np.full(len(m.epoch), kind == 1) for kind, m in enumerate(parts)])
     ids = [source.anchor_ids(kind) for kind in range(2)]
     xy = np.concatenate([data.positions(ids[kind])[m.code] for kind, m in enumerate(parts)])
-    dz = np.concatenate([data.height_offsets(ids[0])[parts[0].code] if data.three_d else np.zeros(len(parts[0].code)),
-                         np.zeros(len(parts[1].code))])
+    dz = np.concatenate([data.height_offsets(ids[kind])[m.code] if data.three_d else np.zeros(len(m.code))
+                         for kind, m in enumerate(parts)])
     value = np.concatenate([m.mean for m in parts])
     order = np.argsort(epoch, kind="stable")
     counts = np.bincount(epoch, minlength=len(run.times))
@@ -171,18 +172,24 @@ def _fill(out: Measurements, i: int, run: RunInputs, epoch: np.ndarray, counts: 
 def supports(p: dict) -> bool:
     """Whether the resolved parameters `p` are the epoch-mode EKF this module steps: the bare
     filter (no gate, robust loss, self-calibration, per-wall noise) on uncorrected ranges or RSS
-    (TDOA runs as a filter bank: its noise is not diagonal)."""
+    (TDOA runs as a filter bank: its noise is not diagonal), with a 2-D state and a motion model
+    whose F does not depend on an input (not odometry)."""
     bare = all(p.get(k, off) == off for k, off in filter_options.OFF.items())
     return p.get("filter") == "ekf" and p.get("update") == "epoch" and bare \
-        and p.get("range_calibration", "none") == "none" and p.get("measurements") != "tdoa"
+        and p.get("range_calibration", "none") == "none" and p.get("measurements") != "tdoa" \
+        and p.get("dimensions", 2) == 2 and p.get("motion") != "odometry"
 
 
 class ArrayEKF:
     """The bare EKF of several runs as a filter bank (estimators.core): state x (runs, n),
     covariance P (runs, n, n), the runs' epochs packed (pack)."""
 
-    def __init__(self, runs: list[RunInputs], period: float, dim: int):
+    def __init__(self, runs: list[RunInputs], period: float, dim: int, bounds: list | None = None):
         self.measurements, self.row_of = pack(runs, period)
+        bounds = bounds or [None] * len(runs)
+        self.bounded = np.array([b is not None for b in bounds])
+        self.low = np.array([b[0] if b is not None else [-np.inf, -np.inf] for b in bounds]).reshape(-1, 2)
+        self.high = np.array([b[1] if b is not None else [np.inf, np.inf] for b in bounds]).reshape(-1, 2)
         self.count = self.measurements.count[self.row_of]          # (runs, epochs)
         self.x, self.P = np.zeros((len(runs), dim)), np.zeros((len(runs), dim, dim))
 
@@ -209,6 +216,8 @@ class ArrayEKF:
         if len(measured):
             self.x[measured], self.P[measured], nis[used > 0] = update(
                 self.x[measured], self.P[measured], self.measurements.at(k, self.row_of[measured]))
+            if self.bounded.any():
+                self.x[measured, :2] = np.clip(self.x[measured, :2], self.low[measured], self.high[measured])
         return used, nis, np.zeros(len(rows), bool)
 
     def estimates(self, rows) -> np.ndarray:

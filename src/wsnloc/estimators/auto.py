@@ -6,6 +6,8 @@ range differences (`measurements: tdoa`, a TDOA run) where the estimator accepts
 its RSS (e.g. a BLE RSSI campaign). Runs that have ranges keep them (RSS needs a path-loss
 model that ranges do not; TDOA gives less of the geometry than the ranges it may be made of).
 Applied by `wsnloc estimate` to parameters not given with --set.
+`motion_for`: a filter with the default constant-velocity model (`motion: pv`, 2-D) on a run
+with an odometry table uses it (`motion: odometry`, the unicycle model it drives).
 
 `update_mode`: the Bayesian filters' `update: auto` (their default, bayes.run_filters) is
 `epoch` on synchronous rounds and `sequential` on asynchronous measurements.
@@ -90,3 +92,13 @@ def fix_window_epochs(anchors_per_epoch: np.ndarray, period: float) -> int:
     if len(heard) == 0 or np.mean(heard >= FIX_ANCHORS) >= 0.5:
         return 1
     return max(1, int(np.ceil(FIX_WINDOW_S / period - 1e-9)))
+
+
+def motion_for(run_tables: dict, p: dict, explicit: set[str]) -> dict:
+    """The parameters with `motion: odometry` where the run has odometry rows, the estimator's
+    motion is the default pv in 2-D and neither key was set explicitly; else p unchanged."""
+    odometry = run_tables.get("odometry")
+    if odometry is None or not len(odometry) or p.get("motion") != "pv" or p.get("dimensions", 2) != 2 \
+            or explicit & {"motion", "dimensions"}:
+        return p
+    return dict(p, motion="odometry")

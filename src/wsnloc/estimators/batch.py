@@ -66,7 +66,7 @@ def _differences(source: TdoaSource, a: int, b: int) -> tuple:
 def sliding_window(data: RunData, p: dict) -> pd.DataFrame:
     """Estimates (core.COLUMNS; n_meas = ranges or range differences in the window, nis NaN) of one run."""
     tdoa = p["measurements"] == "tdoa"
-    source = TdoaSource(data, p["anchors"], p["range_sigma_m"], p["max_range_m"], "none") if tdoa else \
+    source = TdoaSource(data, p["anchors"], p["range_sigma_m"], p["max_range_m"]) if tdoa else \
         MeasurementSource(data, "toa", p["anchors"], p["range_sigma_m"], p["preliminary_filter"], p["max_range_m"],
                           None)
     records = source.records()

@@ -28,11 +28,12 @@ __all__ = ["Track", "cell_tracks", "kalman_tracks", "run_cells", "run_many", "st
 
 
 def stacked(tracks: list[Track], labels: dict[str, list[str]], columns=tuple(COLUMNS)) -> pd.DataFrame:
-    """The tracks one after the other, their `columns` (of COLUMNS, floats) then each
+    """The tracks one after the other, their `columns` (of COLUMNS, floats; a 3-D track's height
+    is not among them) then each
     label column (labels[name][c] on the rows of track c, strings): pd.concat of the tracks'
     finished frames, each with its labels assigned, built at once from the arrays. attrs:
     the tracks' attrs when they all agree (as pd.concat)."""
-    rows = np.concatenate([track.rows for track in tracks])
+    rows = np.concatenate([track.rows[:, :len(COLUMNS)] for track in tracks])     # 3-D tracks: z, p_zz left out
     track = np.repeat(np.arange(len(tracks)), [len(t.rows) for t in tracks])
     frame = pd.DataFrame({**{name: rows[:, COLUMNS.index(name)] for name in columns},
                           **{name: pd.array(values, dtype="str")[track] for name, values in labels.items()}})
@@ -62,7 +63,11 @@ def cell_tracks(name: str, cells: list[tuple[RunData, dict]], where: str = "") -
     estimator = registry.get(name)
     params = [estimator.resolve(overrides, where) for _, overrides in cells]
     if estimator.function is bayes.run_filter:
-        return bayes.run_filters([(data, p) for (data, _), p in zip(cells, params)])
+        fitted = [bayes.self_fitted(p) for p in params]       # several passes each (estimators.self_fit)
+        plain = [i for i, f in enumerate(fitted) if not f]
+        tracks = dict(zip(plain, bayes.run_filters([(cells[i][0], params[i]) for i in plain])))
+        return [tracks[i] if i in tracks else Track.of(bayes.run_filter(cells[i][0], params[i]))
+                for i in range(len(cells))]
     if name == "kf_tracker":
         return [Track.of(frame) for frame in _kalman_cells([data for data, _ in cells], params)]
     return [Track.of(estimator.function(data, p)) for (data, _), p in zip(cells, params)]

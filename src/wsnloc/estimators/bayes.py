@@ -46,12 +46,13 @@ import numpy as np
 import pandas as pd
 
 from wsnloc.errors import ConfigError
-from wsnloc.estimators import array_ekf, range_calibration
+from wsnloc.estimators import array_ekf, range_calibration, self_fit
 from wsnloc.estimators.auto import update_mode
 from wsnloc.estimators.core import CoastingDeleter, FilterBank, RunInputs, Track, WindowInitiator, \
     epoch_loop, sequential_loop
-from wsnloc.estimators.filter_options import UpdateCounts, configured_factory
-from wsnloc.estimators.inertial import epoch_inputs, floor_input
+from wsnloc.estimators.filter_options import UpdateCounts, configured_factory, site_bounds
+from wsnloc.estimators.fixes import epoch_fixes
+from wsnloc.estimators.inertial import epoch_inputs, floor_input, heading_from_fixes
 from wsnloc.estimators.measurements import MeasurementSource, rss_params
 from wsnloc.estimators.motion import MotionModel
 from wsnloc.estimators.run_data import RunData
@@ -63,6 +64,9 @@ from wsnloc.filters.particle import ParticleFilter
 from wsnloc.filters.reference import FilterpyEKF
 from wsnloc.filters.ukf import UnscentedKalmanFilter
 from wsnloc.inertial.motion_detection import static_epochs
+
+ODOMETRY_INPUTS = ("v_mps", "yaw_rate_rps")     # the odometry table's columns, the odometry model's u
+
 
 def ekf_factory(p: dict, data: RunData, guards: Guards):
     def make(x0: np.ndarray, P0: np.ndarray, motion: MotionModel):
@@ -104,19 +108,27 @@ FILTERS = {"ekf": ekf_factory, "ukf": ukf_factory, "pf": pf_factory, "filterpy":
 
 
 def motion_model(p: dict) -> MotionModel:
-    return MotionModel(p["motion"], p["epoch_s"], p["p_sigma_m"], p["accel_sigma_mps2"], p["bias_walk_sigma"],
-                       p["initial_sigma_m"], p["initial_speed_sigma_mps"], p["initial_bias_sigma_mps2"])
+    """The motion model of parameters p; ConfigError for a state it has not (3-D PVA or odometry)."""
+    try:
+        return MotionModel(p["motion"], p["epoch_s"], p["p_sigma_m"], p["accel_sigma_mps2"], p["bias_walk_sigma"],
+                           p["initial_sigma_m"], p["initial_speed_sigma_mps"], p["initial_bias_sigma_mps2"],
+                           p.get("dimensions", 2), p.get("odometry_speed_sigma_mps", 0.0),
+                           p.get("odometry_yaw_rate_sigma_rps", 0.0))
+    except ValueError as exc:
+        raise ConfigError(f"config keys 'motion' / 'dimensions': {exc}") from None
 
 
 def measurement_source(data: RunData, p: dict) -> MeasurementSource:
     """The measurements (and their models) a filter with parameters p reads from the run, the
-    ranges corrected by the configured range calibration (range_calibration.correction); TDOA
-    (`measurements: tdoa`) through estimators.tdoa.TdoaSource."""
+    ranges (or TDOA, `measurements: tdoa`, through estimators.tdoa.TdoaSource) corrected by the
+    configured range calibration (range_calibration.correction)."""
     if p["measurements"] == "tdoa":
-        return data.cached(("tdoa_source", p["anchors"], p["range_sigma_m"], p["max_range_m"]), lambda: TdoaSource(
-            data, p["anchors"], p["range_sigma_m"], p["max_range_m"], p["range_calibration"]))
+        args = (p["anchors"], p["range_sigma_m"], p["max_range_m"], range_calibration.correction(data, p),
+                p.get("dimensions", 2))
+        return data.cached(("tdoa_source",) + args, lambda: TdoaSource(data, *args))
     args = (p["measurements"], p["anchors"], p["range_sigma_m"], p["preliminary_filter"], p["max_range_m"],
-            rss_params(data, p) if p["measurements"] != "toa" else None, range_calibration.correction(data, p))
+            rss_params(data, p) if p["measurements"] != "toa" else None, range_calibration.correction(data, p),
+            p.get("dimensions", 2))
     return data.cached(("measurement_source",) + args, lambda: MeasurementSource(data, *args))
 
 
@@ -130,26 +142,59 @@ def static_flags(data: RunData, p: dict, times: np.ndarray) -> np.ndarray:
                                              p["motion_threshold_mps2"], p["static_start_s"]))
 
 
+def pva_heading(data: RunData, p: dict) -> float | None:
+    """Start heading (rad) of the PVA input's gyro integration: None (the campaign path's, a known
+    start pose) for initial_heading 'path'; for 'fixes' measured from the run's first
+    multilateration fixes (inertial.heading_from_fixes), the path's when they never move 1 m."""
+    if p["initial_heading"] == "path":
+        return None
+    fixes = epoch_fixes(data, dict(p, solver="multilateration", k_smallest=0, refine=True), "toa")
+    return heading_from_fixes(fixes)
+
+
 def run_inputs(data: RunData, p: dict, motion: MotionModel) -> RunInputs:
     """What a filter with parameters p reads from the run: measurement source, epoch end
-    times, static flags and PVA inputs (None without)."""
+    times, static flags and inputs per epoch (PVA: mean floor acceleration; odometry: mean
+    speed and yaw rate; None without)."""
     source = measurement_source(data, p)
     times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
-    inputs = epoch_inputs(floor_input(data, p["static_start_s"]), times) if motion.kind == "pva" else None
+    inputs = None
+    if motion.kind == "pva":
+        inputs = epoch_inputs(floor_input(data, p["static_start_s"], pva_heading(data, p)), times)
+    elif motion.kind == "odometry":
+        inputs = epoch_inputs(data.require("odometry", "the odometry motion model"), times, ODOMETRY_INPUTS)
     return RunInputs(times, source, static_flags(data, p, times), inputs)
 
 
 def run_filter(data: RunData, p: dict) -> pd.DataFrame:
     """Estimates (core.COLUMNS) of one run; `attrs`: resets (coasting-limit resets), gated / offered
     measurements and gated_share (filter_options), the self-calibration states range_scale /
-    range_offset_m, and the range calibration applied (range_calibration.RangeCorrection.describe)."""
+    range_offset_m, and the range calibration applied (range_calibration.RangeCorrection.describe).
+    With self_fit=two_pass on a run with ranges: the self-fitted estimates (estimators.self_fit)."""
+    if self_fitted(p):
+        return self_fit.two_pass(data, p, _pass_with_innovations)
     return run_filters([(data, p)])[0].frame()
+
+
+def self_fitted(p: dict) -> bool:
+    """Whether parameters p ask for the self-fit (estimators.self_fit): a filter reading ranges."""
+    return p.get("self_fit", "none") != "none" and p["measurements"] != "rss"
+
+
+def _pass_with_innovations(data: RunData, p: dict) -> tuple[pd.DataFrame, tuple[np.ndarray, np.ndarray]]:
+    """One pass of run_filter (no self-fit) and the innovations (y, S_ii) it recorded."""
+    counts: list[UpdateCounts] = []
+    frame = run_filters([(data, dict(p, self_fit="none"))], counts_out=counts)[0].frame()
+    return frame, counts[0].innovation_arrays()
 
 
 def run_smoother(data: RunData, p: dict) -> pd.DataFrame:
     """The fixed-interval RTS-smoothed estimates of one run (same rows as the forward pass;
     n_meas and nis are the forward pass's). In sequential mode the recorded forward pass
     steps the filter to every output time (see smoothing.py)."""
+    if p.get("self_fit", "none") != "none":
+        raise ConfigError("self_fit: the RTS smoothers run one pass; use the tracker's self-fit values "
+                          "(self_fit_* in its metrics) as range_sigma_m / accel_sigma_mps2 / range_calibration")
     if p.get("range_self_calibration", "none") != "none":
         raise ConfigError("range_self_calibration: the RTS smoothers do not smooth the calibration states; "
                           "use range_calibration (donor or configured) with a smoother")
@@ -161,6 +206,8 @@ def run_smoother(data: RunData, p: dict) -> pd.DataFrame:
         Ps = np.array([P for _, P in smoothed])
         out["x"], out["y"] = xs[:, 0], xs[:, 1]
         out["p_xx"], out["p_xy"], out["p_yy"] = Ps[:, 0, 0], Ps[:, 0, 1], Ps[:, 1, 1]
+        if "z" in out:
+            out["z"], out["p_zz"] = xs[:, 2], Ps[:, 2, 2]
     return out
 
 
@@ -188,13 +235,15 @@ def resolve_update(data: RunData, p: dict) -> dict:
     return dict(p, update=mode)
 
 
-def run_filters(cells: list[tuple[RunData, dict]], forward: ForwardPass | None = None) -> list[Track]:
+def run_filters(cells: list[tuple[RunData, dict]], forward: ForwardPass | None = None,
+                counts_out: list | None = None) -> list[Track]:
     """run_filter of every (run, resolved parameters) cell, as Tracks. Epoch-mode cells sharing
     a motion model, period, initiator, deleter and bank kind run through one core.epoch_loop
     (the bare EKF of ARRAY_MIN_CELLS cells or more as array_ekf.ArrayEKF, other filters and
     smaller groups as a core.FilterBank, the same numbers to round-off); sequential cells
     through core.sequential_loop one at a time (`update: auto` resolved per run: resolve_update).
-    forward (smoothing): one cell. attrs `update`: the mode used."""
+    forward (smoothing): one cell. attrs `update`: the mode used. counts_out: a list that receives
+    each cell's filter_options.UpdateCounts (innovations), in cell order."""
     cells = [(data, resolve_update(data, p)) for data, p in cells]
     groups: dict[tuple, list[int]] = {}
     for i, (_, p) in enumerate(cells):
@@ -204,21 +253,28 @@ def run_filters(cells: list[tuple[RunData, dict]], forward: ForwardPass | None =
         else:
             groups[("sequential", i)] = [i]
     tracks: list[Track | None] = [None] * len(cells)
+    all_counts: list = [None] * len(cells)
     for key, members in groups.items():
         p = cells[members[0]][1]
         motion, (initiator, deleter) = motion_model(p), components(p)
         runs = [run_inputs(data, q, motion) for data, q in (cells[i] for i in members)]
         counts = [UpdateCounts() for _ in members]
         guards = [Guards() for _ in members]
-        makes = [configured_factory(FILTERS[q["filter"]](q, data, g), q, c, data.campaign)
-                 for (data, q), c, g in zip((cells[i] for i in members), counts, guards)]
+        bounds = [site_bounds(data.positions(sorted(data.members(q["anchors"]))), q)
+                  for data, q in (cells[i] for i in members)]
+        makes = [configured_factory(FILTERS[q["filter"]](q, data, g), q, c, data.campaign, bounds=b)
+                 for (data, q), c, g, b in zip((cells[i] for i in members), counts, guards, bounds)]
         if key[0] == "sequential":
             out = [sequential_loop(makes[0], runs[0], motion, initiator, deleter, forward)]
         else:
-            bank = array_ekf.ArrayEKF(runs, p["epoch_s"], motion.dim) if key[0] and len(runs) >= ARRAY_MIN_CELLS \
+            bank = array_ekf.ArrayEKF(runs, p["epoch_s"], motion.dim, bounds) \
+                if key[0] and len(runs) >= ARRAY_MIN_CELLS \
                 else FilterBank(makes, [r.source.epoch_models(r.times, p["epoch_s"]) for r in runs])
             out = epoch_loop(bank, runs, motion, p["epoch_s"], initiator, deleter, forward)
         for i, run, c, g, (rows, resets) in zip(members, runs, counts, guards, out):
             tracks[i] = Track(rows, {"resets": resets, "update": cells[i][1]["update"], **c.attrs(), **g.attrs(),
                                      **run.source.correction.describe()})
+            all_counts[i] = c
+    if counts_out is not None:
+        counts_out.extend(all_counts)
     return tracks

@@ -10,7 +10,8 @@ As in Stone Soup's trackers, the loop only sequences; what it does at each step 
   update are themselves a pluggable `updater`) or the array EKF (estimators.array_ekf: the bare
   EKF of many runs in a few array operations per epoch). A bank has
   start(i, x0, P0, motion), predict(rows, F, Q, B, u), update(rows, k) -> (used, nis, lost),
-  estimates(rows) -> (rows, 5) [x, y, p_xx, p_xy, p_yy] and track(i) (an object with x, P).
+  estimates(rows) -> (rows, 5) [x, y, p_xx, p_xy, p_yy] (+ [z, p_zz] with a 3-D state: (rows, 7))
+  and track(i) (an object with x, P).
 
 Update modes
 - `epoch_loop`: runs on a leading run axis (a single run is a batch of one). Run r's k-th
@@ -18,12 +19,16 @@ Update modes
   as the estimate of that epoch, n_meas 0), predict the others over the period T (skipped in
   static epochs: motion detection, paper A), update them with the epoch's measurements, set
   their last update time when a measurement was used and drop those the deleter deletes;
-  output the rest at t_k.
+  output the rest at t_k. An input-dependent motion model (odometry) is predicted run by run
+  with its own F(u).
 - `sequential_loop` (one run): predicts to each measurement group's own time and updates with
   it (records sharing a time stamp update together); before each group and at each output
   time t_k the deleter is asked; output at t_k predicted from the last update
-  (x(t_k) = F(t_k - t) x (+ B u), P(t_k) = F P F^T + Q(t_k - t), not stored).
-Both return a `Track` per run: rows of COLUMNS and the number of resets.
+  (x(t_k) = F(t_k - t) x (+ B u), P(t_k) = F P F^T + Q(t_k - t), not stored). With an
+  input-dependent motion model (odometry) the filter is instead predicted to every t_k with
+  that epoch's input (stored), so a gap is bridged epoch by epoch with each epoch's odometry.
+Both return a `Track` per run: rows of COLUMNS (COLUMNS_3D with a 3-D state) and the number of
+resets.
 """
 
 from __future__ import annotations
@@ -34,6 +39,12 @@ import numpy as np
 import pandas as pd
 
 COLUMNS = ["t", "x", "y", "p_xx", "p_xy", "p_yy", "n_meas", "nis"]
+COLUMNS_3D = COLUMNS + ["z", "p_zz"]        # a 3-D state's estimates: height (m) and its variance (m^2)
+
+
+def columns(dimensions: int) -> list[str]:
+    """The estimate columns of a state with 2 or 3 position axes."""
+    return COLUMNS_3D if dimensions == 3 else COLUMNS
 
 
 # ---- components ----------------------------------------------------------------------------
@@ -41,16 +52,17 @@ COLUMNS = ["t", "x", "y", "p_xx", "p_xy", "p_yy", "n_meas", "nis"]
 class WindowInitiator:
     """Starts a track the first time the measurements of the last `window_s` seconds
     (per-anchor means, MeasurementSource.window_fix) give a multilateration fix: x0 = [fix, 0...]
-    (speed and bias 0), P0 = the motion model's initial covariance."""
+    (speed and bias 0; the fix in the motion model's 2 or 3 axes), P0 = the motion model's
+    initial covariance."""
 
     window_s: float
 
     def initiate(self, source, t: float, motion) -> tuple[np.ndarray, np.ndarray] | None:
-        fix = source.window_fix(t, self.window_s)
+        fix = source.window_fix(t, self.window_s, motion.dimensions)
         if fix is None:
             return None
         x0 = np.zeros(motion.dim)
-        x0[:2] = fix
+        x0[:len(fix)] = fix
         return x0, motion.initial_covariance()
 
 
@@ -107,13 +119,18 @@ class Track:
     rows: np.ndarray
     attrs: dict
 
+    @property
+    def columns(self) -> list[str]:
+        """COLUMNS, or COLUMNS_3D for the rows of a 3-D state."""
+        return COLUMNS_3D if self.rows.shape[1] == len(COLUMNS_3D) else COLUMNS
+
     @classmethod
     def of(cls, estimates: pd.DataFrame) -> "Track":
         """The Track of an estimator's frame, as registry.finish would leave it: the columns
-        it lacks NaN, rows sorted by time (stable) when they are not."""
+        it lacks NaN (COLUMNS_3D for a frame with z), rows sorted by time (stable) when they are not."""
         n = len(estimates)
         rows = np.column_stack([estimates[c].to_numpy(float) if c in estimates else np.full(n, np.nan)
-                                for c in COLUMNS])
+                                for c in (COLUMNS_3D if "z" in estimates else COLUMNS)])
         if not estimates["t"].is_monotonic_increasing:
             rows = rows[np.argsort(rows[:, 0], kind="stable")]
         return cls(rows, dict(estimates.attrs))
@@ -122,13 +139,13 @@ class Track:
         """The filter's frame: COLUMNS, n_meas as int (column by column: a frame of one float
         block cast afterwards costs several times more), attrs."""
         frame = pd.DataFrame({name: self.rows[:, j].astype(int) if name == "n_meas" else self.rows[:, j]
-                              for j, name in enumerate(COLUMNS)})
+                              for j, name in enumerate(self.columns)})
         frame.attrs.update(self.attrs)
         return frame
 
     def finished(self) -> pd.DataFrame:
         """registry.finish(self.frame()) built at once: every column float, in time order already."""
-        frame = pd.DataFrame({name: self.rows[:, j] for j, name in enumerate(COLUMNS)})
+        frame = pd.DataFrame({name: self.rows[:, j] for j, name in enumerate(self.columns)})
         frame.attrs = dict(self.attrs)
         return frame
 
@@ -140,9 +157,10 @@ class FilterBank:
     def __init__(self, makes: list, models: list[list]):
         self.makes, self.models = makes, models
         self.filters: list = [None] * len(makes)
+        self.axes = 2
 
     def start(self, i: int, x0: np.ndarray, P0: np.ndarray, motion) -> None:
-        self.filters[i] = self.makes[i](x0, P0, motion)
+        self.filters[i], self.axes = self.makes[i](x0, P0, motion), motion.dimensions
 
     def track(self, i: int):
         return self.filters[i]
@@ -158,11 +176,22 @@ class FilterBank:
         return np.asarray(used, dtype=int), np.asarray(nis, dtype=float), np.asarray(lost, dtype=bool)
 
     def estimates(self, rows: np.ndarray) -> np.ndarray:
-        return np.array([_position(self.filters[i].x, self.filters[i].P) for i in rows]).reshape(len(rows), 5)
+        width = 5 if self.axes == 2 else 7
+        return np.array([_position(self.filters[i].x, self.filters[i].P, self.axes)
+                         for i in rows]).reshape(len(rows), width)
 
 
-def _position(x: np.ndarray, P: np.ndarray) -> tuple:
-    return x[0], x[1], P[0, 0], P[0, 1], P[1, 1]
+def _position(x: np.ndarray, P: np.ndarray, axes: int = 2) -> tuple:
+    """(x, y, p_xx, p_xy, p_yy), with (z, p_zz) after them for a 3-D state (axes 3)."""
+    return (x[0], x[1], P[0, 0], P[0, 1], P[1, 1]) + ((x[2], P[2, 2]) if axes == 3 else ())
+
+
+def _put(out: np.ndarray, rows, k: int, t, estimates: np.ndarray, used, nis) -> None:
+    """Write the estimate rows (columns(axes)) of `rows` at epoch k: t, the bank's estimates
+    (rows, 5 or 7: x, y, p_xx, p_xy, p_yy [, z, p_zz]), n_meas and nis."""
+    out[rows, k, 0], out[rows, k, 1:6], out[rows, k, 6], out[rows, k, 7] = t, estimates[:, :5], used, nis
+    if estimates.shape[1] > 5:
+        out[rows, k, 8:] = estimates[:, 5:]
 
 
 # ---- the loops -----------------------------------------------------------------------------------
@@ -185,7 +214,7 @@ def epoch_loop(bank, runs: list[RunInputs], motion, period: float, initiator, de
     F, Q, B = motion.matrices(period)
     here = np.arange(n_epochs)[None, :] < lengths[:, None]
     live, last_update, resets = np.zeros(n_runs, bool), np.full(n_runs, -np.inf), np.zeros(n_runs, int)
-    out = np.full((n_runs, n_epochs, len(COLUMNS)), np.nan)
+    out = np.full((n_runs, n_epochs, len(columns(motion.dimensions))), np.nan)
     emitted = np.zeros((n_runs, n_epochs), bool)
     for k in range(n_epochs):
         t, tracking = times[:, k], here[:, k] & live
@@ -197,7 +226,7 @@ def epoch_loop(bank, runs: list[RunInputs], motion, period: float, initiator, de
                     continue
                 bank.start(i, *prior, motion)
                 live[i], last_update[i], emitted[i, k] = True, t[i], True
-                out[i, k, :7] = (t[i], *bank.estimates([i])[0], 0)
+                _put(out, i, k, t[i], bank.estimates([i]), 0, np.nan)
                 if forward is not None:
                     forward.start(bank.track(i))
                     forward.output()
@@ -205,7 +234,11 @@ def epoch_loop(bank, runs: list[RunInputs], motion, period: float, initiator, de
         if not len(rows):
             continue
         moving = rows[~static[rows, k]]
-        steps = bank.predict(moving, F, Q, B, None if inputs is None else inputs[moving, k])
+        if motion.input_dependent:      # F(u) of each run's own input
+            steps = [bank.predict(moving[j:j + 1], *motion.matrices(period, inputs[i, k]), inputs[i:i + 1, k])[0]
+                     for j, i in enumerate(moving)]
+        else:
+            steps = bank.predict(moving, F, Q, B, None if inputs is None else inputs[moving, k])
         used, nis, lost = bank.update(rows, k)
         updated = rows[used > 0]
         last_update[updated] = t[updated]
@@ -215,7 +248,7 @@ def epoch_loop(bank, runs: list[RunInputs], motion, period: float, initiator, de
             resets[rows[drop]] += 1
             rows, used, nis = rows[~drop], used[~drop], nis[~drop]
         emitted[rows, k] = True
-        out[rows, k, 0], out[rows, k, 1:6], out[rows, k, 6], out[rows, k, 7] = t[rows], bank.estimates(rows), used, nis
+        _put(out, rows, k, t[rows], bank.estimates(rows), used, nis)
         if forward is not None and len(rows):
             forward.node(bank.track(0), steps[0] if len(moving) else None)
             forward.output()
@@ -248,8 +281,9 @@ def sequential_loop(make, run: RunInputs, motion, initiator, deleter, forward=No
                 continue
             step = None
             if t > t_filter and not static[epoch_of[a]]:
-                F, Q, B = motion.matrices(t - t_filter)
-                step = predict_step(filt, F, Q, B, None if inputs is None else inputs[epoch_of[a]])
+                u = None if inputs is None else inputs[epoch_of[a]]
+                F, Q, B = motion.matrices(t - t_filter, u)
+                step = predict_step(filt, F, Q, B, u)
             t_filter = max(t, t_filter)
             used, group_nis, lost = update_step(filt, source.model(*records.split(a, b)))
             if used:
@@ -265,17 +299,23 @@ def sequential_loop(make, run: RunInputs, motion, initiator, deleter, forward=No
             filt, resets = None, resets + 1
             continue
         u = None if inputs is None else inputs[k]
-        if forward is not None:       # smoothing: the output time becomes a node of the recorded chain
+        if forward is not None or motion.input_dependent:
+            # smoothing: the output time becomes a node of the recorded chain; odometry: the
+            # filter follows every epoch's input (module docstring)
             if t_k > t_filter and not static[k]:
-                F, Q, B = motion.matrices(t_k - t_filter)
-                forward.node(filt, predict_step(filt, F, Q, B, u))
+                F, Q, B = motion.matrices(t_k - t_filter, u)
+                step = predict_step(filt, F, Q, B, u)
+                if forward is not None:
+                    forward.node(filt, step)
                 t_filter = t_k
-            forward.output()
+            if forward is not None:
+                forward.output()
         x, P = filt.x[:motion.dim], filt.P[:motion.dim, :motion.dim]      # without calibration states
         if t_k > t_filter and not static[k]:
-            F, Q, B = motion.matrices(t_k - t_filter)
+            F, Q, B = motion.matrices(t_k - t_filter, u)
             x, P = F @ x, F @ P @ F.T + Q
             if B is not None and u is not None and np.all(np.isfinite(u)):
                 x = x + B @ u
-        rows.append((t_k, *_position(x, P), n_meas, nis))
-    return np.array(rows, dtype=float).reshape(len(rows), len(COLUMNS)), resets
+        position = _position(x, P, motion.dimensions)
+        rows.append((t_k, *position[:5], n_meas, nis, *position[5:]))
+    return np.array(rows, dtype=float).reshape(len(rows), len(columns(motion.dimensions))), resets

@@ -6,7 +6,12 @@ with the KalmanFilter interface (x, P, predict(F, Q, u, B), update(z, H, R, hx))
   (estimators.self_calibration);
 - NLOS-aware range noise: sigma_i = range_sigma_m + n_i range_sigma_per_wall_m, with n_i
   the campaign walls crossed by the straight line from the current position estimate to
-  anchor i (so links through walls, which carry excess path and multipath, weigh less).
+  anchor i (so links through walls, which carry excess path and multipath, weigh less);
+- site bound on RSS alone (`rss_site_margin_m`): after each update the position is projected
+  onto the receivers' bounding box enlarged by the margin (estimate projection, Simon 2010,
+  "Kalman filtering with state constraints", IET Control Theory Appl. 4(8)); RSS barely
+  changes with position outside the receivers' hull, where a filter drifts unopposed, and a
+  tag that every receiver hears is among them.
 
 The gate and the robust update are one pluggable component, the **updater**
 (`default_updater(p)`): a callable updater(filt, z, H, R, hx) -> bool mask of the measurements
@@ -46,14 +51,17 @@ PARAMS = (
     Param("robust_c", 0.0, "sigma", "loss tuning constant in units of the range sigma (0: the loss's 95% "
           "Gaussian-efficiency default, huber 1.345, cauchy 2.385)", minimum=0.0),
     Param("gate_loss_share", 0.5, "1", "gate: when it rejected more than this share of the measurements of the "
-          f"last {LOSS_WINDOW} updates the track is lost: dropped (a reset) and restarted by the initiator "
-          "(1: never)", minimum=0.0),
+          f"last {LOSS_WINDOW} updates the position covariance is widened to cover the rejected innovations (a "
+          "widening); when it does so again right after a widening the track is lost: dropped (a reset) and "
+          "restarted by the initiator (1: never)", minimum=0.0),
     Param("range_self_calibration", "none", "", "augment the state with a common range scale and/or offset "
           "(needs >= 4 anchors and a moving target; no truth)", str, self_calibration.MODES),
     Param("range_scale_sigma", 0.1, "1", "self-calibration: prior sigma of the range scale (around 1)",
           minimum=1e-9),
     Param("range_offset_sigma_m", 0.5, "m", "self-calibration: prior sigma of the range offset (around 0)",
           minimum=1e-9),
+    Param("rss_site_margin_m", 2.0, "m", "RSS only: keep the position inside the receivers' bounding box "
+          "enlarged by this margin (projection after each update; a large value: off)", minimum=0.0),
     Param("range_sigma_per_wall_m", 0.0, "m", "NLOS-aware noise: add this to the range sigma per campaign wall "
           "crossed by the line from the position estimate to the anchor (0: off)", minimum=0.0),
 )
@@ -67,14 +75,23 @@ class UpdateCounts:
     offered: int = 0
     gated: int = 0
     track_losses: int = 0
+    widenings: int = 0
     calibration: dict = field(default_factory=dict)
+    innovations: list = field(default_factory=list)     # per update: (y, S_ii) arrays, gated ones included
 
     def attrs(self) -> dict:
-        """Counters for the estimates' attrs: gated, offered, gated_share, gate_track_losses and the
-        self-calibration states."""
+        """Counters for the estimates' attrs: gated, offered, gated_share, gate_widenings,
+        gate_track_losses and the self-calibration states."""
         share = self.gated / self.offered if self.offered else 0.0
-        return {"gated": self.gated, "offered": self.offered, "gated_share": share,
+        return {"gated": self.gated, "offered": self.offered, "gated_share": share, "gate_widenings": self.widenings,
                 "gate_track_losses": self.track_losses, **self.calibration}
+
+    def innovation_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """(y, S_ii) of every measurement offered over the run (m or dB, and its square)."""
+        if not self.innovations:
+            return np.zeros(0), np.zeros(0)
+        y, S = zip(*self.innovations)
+        return np.concatenate(y), np.concatenate(S)
 
 
 def default_updater(p: dict) -> Callable:
@@ -89,11 +106,14 @@ class ConfiguredFilter:
     """A filter with the configured update options (see the module docstring); `updater`: the
     gate and robust update (default default_updater(p))."""
 
-    def __init__(self, filt, p: dict, counts: UpdateCounts, campaign=None, updater: Callable | None = None):
-        self.filt, self.counts, self.campaign = filt, counts, campaign
+    def __init__(self, filt, p: dict, counts: UpdateCounts, campaign=None, updater: Callable | None = None,
+                 bounds: np.ndarray | None = None):
+        self.filt, self.counts, self.campaign, self.bounds = filt, counts, campaign, bounds
         self.loss_share = p["gate_loss_share"]
-        self.recent: deque = deque(maxlen=LOSS_WINDOW)          # (offered, gated) of the last updates
-        self.lost = False
+        self.recent: deque = deque(maxlen=LOSS_WINDOW)   # (offered, gated, max y^2 / S) of the last updates
+        self.lost = self.widened = False
+        self.gate_probability = p["gate_probability"] or 0.999
+        self.gated_filter = any(p[k] != off for k, off in OFF.items())
         self.mode = p["range_self_calibration"]
         self.extra = len(self_calibration.extra_states(self.mode))
         self.updater = updater or default_updater(p)
@@ -121,24 +141,51 @@ class ConfiguredFilter:
     def update_model(self, model) -> None:
         """Linearise at the prior (calibration states applied), set the per-link noise, then
         the gated / robust update; `used` = measurements kept; `lost` when the gate rejected
-        more than gate_loss_share of the last LOSS_WINDOW updates' measurements (a gate that
-        rejects most measurements is guarding a track that has left the target)."""
+        more than gate_loss_share of the last LOSS_WINDOW updates' measurements again right after
+        a widening (widen: the first time, the covariance is widened instead). The innovations
+        y = z - h(x-) and their variances S_ii = (H P- H' + R)_ii are recorded (counts) for the
+        maximum-likelihood noise fit (estimators.self_fit)."""
         R = self.noise(model)
         if hasattr(self.filt, "linearise"):     # the UKF: statistical linear regression over its sigma points
             hx, H, omega = self.filt.linearise(lambda x: self_calibration.linearise(model, x, self.mode)[0])
             R = R + omega
         else:
             hx, H = self_calibration.linearise(model, self.filt.x, self.mode)
+        y = model.z - hx
+        S = np.einsum("ij,jk,ik->i", H, self.filt.P, H) + np.diag(R)
+        self.counts.innovations.append((y, S))
         keep = self.updater(self.filt, model.z, H, R, hx)
+        if self.bounds is not None:         # estimate projection onto the site box
+            self.filt.x[:2] = np.clip(self.filt.x[:2], self.bounds[0], self.bounds[1])
         self.used = int(keep.sum())
-        self.counts.offered += len(keep)
-        self.counts.gated += len(keep) - self.used
+        if self.gated_filter:            # offered / gated count what a gate saw (the bare array EKF has none)
+            self.counts.offered += len(keep)
+            self.counts.gated += len(keep) - self.used
         self.counts.calibration = self.calibration()
-        self.recent.append((len(keep), len(keep) - self.used))
-        offered, gated = (sum(column) for column in zip(*self.recent))
+        self.recent.append((len(keep), len(keep) - self.used, float(np.max(y**2 / S, initial=0.0))))
+        offered, gated, _ = (sum(column) for column in zip(*self.recent))
         if len(self.recent) == LOSS_WINDOW and gated > self.loss_share * offered:
-            self.lost = True            # the deleter drops the track (core.update_step, CoastingDeleter)
-            self.counts.track_losses += 1
+            if self.widened:
+                self.lost = True        # the deleter drops the track (core.update_step, CoastingDeleter)
+                self.counts.track_losses += 1
+            else:
+                self.widen()
+        elif len(self.recent) == LOSS_WINDOW:
+            self.widened = False
+
+    def widen(self) -> None:
+        """The gate rejected most recent measurements: the model, not the data, is wrong (a turn the
+        motion model did not expect, a bias, a gap). The position covariance is scaled by the largest
+        recent normalised innovation squared y^2 / S over the gate's threshold (at least 4), so the
+        rejected measurements fall inside the gate again and the track is pulled back instead of
+        dropped; the window starts afresh."""
+        worst = max(d2 for _, _, d2 in self.recent)
+        factor = max(worst / robust.gate_threshold(self.gate_probability), 4.0)
+        self.filt.P[:2, :] *= np.sqrt(factor)
+        self.filt.P[:, :2] *= np.sqrt(factor)
+        self.widened = True
+        self.recent.clear()
+        self.counts.widenings += 1
 
     def noise(self, model) -> np.ndarray:
         """R of the model; with range_sigma_per_wall_m the range rows get sigma + n_walls * per_wall."""
@@ -167,11 +214,21 @@ OFF = {"gate_probability": 0.0, "robust_loss": "none", "range_self_calibration":
        "range_sigma_per_wall_m": 0.0}
 
 
-def configured_factory(make, p: dict, counts: UpdateCounts, campaign=None, updater: Callable | None = None):
+def site_bounds(anchor_xy: np.ndarray, p: dict) -> np.ndarray | None:
+    """[[x_min, y_min], [x_max, y_max]] (m) of the RSS site bound (module docstring): the
+    anchors' bounding box enlarged by rss_site_margin_m; None when the filter reads ranges."""
+    if p.get("measurements") != "rss" or not len(anchor_xy) or p.get("filter") == "pf":
+        return None                     # (a particle filter has no linearised update to project)
+    margin = p["rss_site_margin_m"]
+    return np.array([anchor_xy.min(0) - margin, anchor_xy.max(0) + margin])
+
+
+def configured_factory(make, p: dict, counts: UpdateCounts, campaign=None, updater: Callable | None = None,
+                       bounds: np.ndarray | None = None):
     """Wrap a filter factory make(x0, P0, motion) so that its filters have the update options
-    (updater: the gate and robust update, default default_updater(p)); with every option off,
-    the factory itself (any filter, linearised or not)."""
-    active = [k for k, off in OFF.items() if p[k] != off]
+    (updater: the gate and robust update, default default_updater(p); bounds: site_bounds); with
+    every option off, the factory itself (any filter, linearised or not)."""
+    active = [k for k, off in OFF.items() if p[k] != off] + (["rss_site_margin_m"] if bounds is not None else [])
     if not active:
         return make
     if p["range_sigma_per_wall_m"] and (campaign is None or campaign.walls.size == 0):
@@ -185,7 +242,7 @@ def configured_factory(make, p: dict, counts: UpdateCounts, campaign=None, updat
         if not hasattr(filt, "update"):
             raise ConfigError(f"config key '{active[0]}': the update options need a linearised filter with "
                               f"update(z, H, R, hx) (filter {p['filter']!r} has none)")
-        return ConfiguredFilter(filt, p, counts, campaign, updater)
+        return ConfiguredFilter(filt, p, counts, campaign, updater, bounds)
     return factory
 
 

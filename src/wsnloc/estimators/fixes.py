@@ -28,15 +28,21 @@ TECHNIQUES = ("toa", "rss", "pmix", "fmix")
 def epoch_fixes(data: RunData, p: dict, technique: str) -> pd.DataFrame:
     """(t, x, y) at every epoch of the run grid; x, y NaN where the technique has no fix.
 
-    p: solver, anchors, epoch_s, k_smallest, preliminary_filter, max_range_m, the RSS model
-    (measurements.rss_params) and pmix_toa_weight (w; the rss fix gets 1 - w).
+    p: solver (with refine for multilateration), anchors, epoch_s, k_smallest, preliminary_filter,
+    max_range_m, the RSS model (measurements.rss_params) and pmix_toa_weight (w; the rss fix gets 1 - w).
     """
     if technique == "pmix":
         return _pmix(epoch_fixes(data, p, "toa"), epoch_fixes(data, p, "rss"), p["pmix_toa_weight"])
     rss = rss_params(data, p) if technique != "toa" else None
     key = ("fixes", technique, p["solver"], p["anchors"], p["epoch_s"], p["k_smallest"], p["preliminary_filter"],
-           p["max_range_m"], rss)
+           p["max_range_m"], rss, tuple(solver_options(p).items()))
     return data.cached(key, lambda: _epoch_fixes(data, p, technique, rss))
+
+
+def solver_options(p: dict) -> dict:
+    """Keyword options of the solver: multilateration's `refine` (Gauss-Newton after the linear
+    least squares); Min-Max has none."""
+    return {"refine": p["refine"]} if p["solver"] == "multilateration" else {}
 
 
 def _pmix(toa: pd.DataFrame, rss: pd.DataFrame, w: float) -> pd.DataFrame:
@@ -99,6 +105,6 @@ def _epoch_fixes(data: RunData, p: dict, technique: str, rss) -> pd.DataFrame:
     index, xy, distances = (np.concatenate(column) for column in zip(*parts))
     order = np.argsort(index, kind="stable")
     padded = _padded(index[order], xy[order], distances[order], len(times))
-    out = LOCALIZERS[p["solver"]](*smallest_per_epoch(*padded, p["k_smallest"]))
+    out = LOCALIZERS[p["solver"]](*smallest_per_epoch(*padded, p["k_smallest"]), **solver_options(p))
     out[~np.all(np.isfinite(out), axis=1)] = np.nan
     return pd.DataFrame({"t": times, "x": out[:, 0], "y": out[:, 1]})

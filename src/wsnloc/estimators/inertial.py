@@ -64,24 +64,48 @@ def fused(data: RunData, fixes: pd.DataFrame, p: dict, steady_state: bool) -> pd
     return pd.DataFrame({"t": t, "x": positions[:, 0], "y": positions[:, 1]})
 
 
-def floor_input(data: RunData, static_start_s: float) -> pd.DataFrame:
+def floor_input(data: RunData, static_start_s: float, heading0: float | None = None) -> pd.DataFrame:
     """Floor-frame acceleration (t, ax, ay; m/s^2) of the 5 Hz IMU: bias measured at rest
-    removed, rotated with the gyro heading from the start pose (the PVA model's input).
-    Built once per run and static_start_s: every PVA cell of the run reads it."""
+    removed, rotated with the gyro heading from heading0 (rad; None: the campaign path's start
+    heading, a known start pose) (the PVA model's input). Built once per run, static_start_s and
+    heading0: every PVA cell of the run reads it."""
     def build():
         imu = data.require("imu_5hz", "the PVA model's acceleration input")
-        heading0 = start_pose(data, "the PVA model's acceleration input")[2]
-        return floor_acceleration(imu, heading0, static_bias(imu, static_start_s))
-    return data.cached(("floor_input", static_start_s), build)
+        start = start_pose(data, "the PVA model's acceleration input")[2] if heading0 is None else heading0
+        return floor_acceleration(imu, start, static_bias(imu, static_start_s))
+    return data.cached(("floor_input", static_start_s, heading0), build)
 
 
-def epoch_inputs(acc: pd.DataFrame, times: np.ndarray) -> np.ndarray:
-    """(len(times), 2) mean floor-frame acceleration over each period; NaN without IMU samples."""
+HEADING_BASELINE_M = 1.0    # ~30x a Cricket fix's error, ~1x a UWB fix's: the direction is known to a few degrees
+                            # (Cricket) or a few tens (UWB); shorter baselines are dominated by the fix noise
+
+
+def heading_from_fixes(fixes: pd.DataFrame, baseline_m: float = HEADING_BASELINE_M) -> float | None:
+    """Initial heading (rad, atan2 convention) measured from the run's first position fixes: from
+    the start point m_0 (median of the first 3 fixes) to the first running median of 3 consecutive
+    fixes at least baseline_m from m_0 (medians: one reflected range does not set the heading).
+    None when the fixes never move that far. The mobile is assumed to drive forward (body x along
+    its motion) over that first stretch."""
+    xy = fixes[["x", "y"]].to_numpy(float)
+    xy = xy[np.all(np.isfinite(xy), axis=1)]
+    if len(xy) < 4:
+        return None
+    medians = np.stack([np.median(xy[k:k + 3], axis=0) for k in range(len(xy) - 2)])
+    away = np.hypot(*(medians - medians[0]).T) >= baseline_m
+    if not away.any():
+        return None
+    dx, dy = medians[int(np.argmax(away))] - medians[0]
+    return float(np.arctan2(dy, dx))
+
+
+def epoch_inputs(acc: pd.DataFrame, times: np.ndarray, columns: tuple[str, str] = ("ax", "ay")) -> np.ndarray:
+    """(len(times), 2) mean of two input columns over each period (t_k-1, t_k]: the floor-frame
+    acceleration (ax, ay) by default, or the odometry's (v_mps, yaw_rate_rps); NaN without samples."""
     index = np.searchsorted(times, acc["t"].to_numpy(), side="left")
     valid = index < len(times)
     out = np.full((len(times), 2), np.nan)
     counts = np.bincount(index[valid], minlength=len(times))
-    for j, column in enumerate(("ax", "ay")):
+    for j, column in enumerate(columns):
         sums = np.bincount(index[valid], weights=acc[column].to_numpy()[valid], minlength=len(times))
         with np.errstate(invalid="ignore", divide="ignore"):
             out[:, j] = sums / counts

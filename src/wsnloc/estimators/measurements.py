@@ -7,6 +7,8 @@ RSS samples of one anchor averaged in dB; in sequential use every record is its 
 measurement and records that share a time stamp form one group (one update).
 Measurement models (filters.measurement_models): TOA ranges, 3-D when anchors have a
 height (h = sqrt(d^2 + dz^2)); RSS by the log-distance model P0 - 10 n log10(d / d0).
+With a 3-D state (`dimensions` 3) the models take the anchors' (x, y, z) and the tag's height
+from the state (h = ||p - a_i||); initiator fixes are then 3-D (lateration.multilateration_3d).
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from wsnloc.estimators.epochs import AnchorMeans, Epoch, anchor_means, per_epoch
 from wsnloc.estimators.range_calibration import RangeCorrection
 from wsnloc.estimators.run_data import RunData
 from wsnloc.filters.measurement_models import RangeModel, RssModel, Stacked
-from wsnloc.geometry.lateration import multilateration
+from wsnloc.geometry.lateration import multilateration, multilateration_3d, weighted_centroid
 from wsnloc.geometry.selection import rss_to_distance
 
 KINDS = {"toa": ("ranges",), "rss": ("rss",), "hybrid": ("ranges", "rss"), "tdoa": ("tdoa",)}   # tdoa: estimators.tdoa
@@ -82,8 +84,10 @@ class MeasurementSource:
     settings share them."""
 
     def __init__(self, data: RunData, kinds: str, anchors: str, range_sigma_m: float, apply_filter: bool,
-                 max_range_m: float, rss: RssParams | None, correction: RangeCorrection = RangeCorrection()):
+                 max_range_m: float, rss: RssParams | None, correction: RangeCorrection = RangeCorrection(),
+                 dimensions: int = 2):
         self.data, self.kinds, self.range_sigma_m, self.rss_params = data, KINDS[kinds], range_sigma_m, rss
+        self.dimensions = dimensions
         self.correction = correction
         if "rss" in self.kinds and rss is None:
             raise ValueError("RSS measurements need an RSS model")
@@ -92,7 +96,7 @@ class MeasurementSource:
                         "rss": (("rss",), data.usable_rss, "rss_dbm")}
         self._members = data.members(anchors)
         self._data_key = (kinds, anchors, apply_filter, max_range_m, correction)
-        self._key = (kinds, anchors, range_sigma_m, apply_filter, max_range_m, rss, correction)
+        self._key = (kinds, anchors, range_sigma_m, apply_filter, max_range_m, rss, correction, dimensions)
 
     def _coded(self, kind: str) -> Coded:
         """The run's usable measurements of `kind` ("ranges" or "rss"), coded (once per run)."""
@@ -123,13 +127,21 @@ class MeasurementSource:
     def model(self, range_ids, ranges, rss_ids, rss) -> Stacked | None:
         """Stacked range and RSS models with the measured vector z; None when empty."""
         parts, z = [], []
+        spatial = self.dimensions == 3
         if len(ranges):
-            parts.append(RangeModel(self.data.positions(range_ids), np.full(len(ranges), self.range_sigma_m),
+            sigma = np.full(len(ranges), self.range_sigma_m)
+            parts.append(RangeModel(self.data.positions_3d(range_ids), sigma) if spatial else
+                         RangeModel(self.data.positions(range_ids), sigma,
                                     self.data.height_offsets(range_ids) if self.data.three_d else None))
             z.append(np.asarray(ranges, dtype=float))
         if len(rss):
             p = self.rss_params
-            parts.append(RssModel(self.data.positions(rss_ids), p.p0_dbm, p.path_loss_exponent, p.sigma_db, p.d0_m))
+            if spatial:
+                parts.append(RssModel(self.data.positions_3d(rss_ids), p.p0_dbm, p.path_loss_exponent, p.sigma_db,
+                                      p.d0_m))
+            else:
+                parts.append(RssModel(self.data.positions(rss_ids), p.p0_dbm, p.path_loss_exponent, p.sigma_db,
+                                      p.d0_m, self.data.height_offsets(rss_ids) if self.data.three_d else None))
             z.append(np.asarray(rss, dtype=float))
         return Stacked(parts, np.concatenate(z)) if parts else None
 
@@ -149,6 +161,16 @@ class MeasurementSource:
     def fix(self, range_ids, ranges, rss_ids, rss) -> np.ndarray | None:
         """Multilateration fix (m) from the given measurements, None with < 3 or collinear anchors."""
         return multilateration(*self.horizontal_distances(range_ids, ranges, rss_ids, rss))
+
+    def fix_3d(self, range_ids, ranges, rss_ids, rss) -> np.ndarray | None:
+        """(x, y, z) fix (m): 3-D multilateration on the ranges (lateration.multilateration_3d,
+        >= 4 anchors not in one plane); where that has none, the 2-D fix at the fixed tag
+        height (RunData.tag_height_m); None without either."""
+        fix = multilateration_3d(self.data.positions_3d(range_ids), ranges) if len(ranges) else None
+        if fix is not None:
+            return fix
+        flat = self.fix(range_ids, ranges, rss_ids, rss)
+        return None if flat is None else np.append(flat, self.data.tag_height_m)
 
     # ---- epochs ------------------------------------------------------------------------
     def epoch_means(self, times: np.ndarray, period: float) -> tuple[AnchorMeans, AnchorMeans]:
@@ -185,15 +207,24 @@ class MeasurementSource:
         return self.data.cached(("records", self._data_key), lambda: Records.of(
             *[(self._coded(kind), self._rows(kind)) for kind in ("ranges", "rss")]))
 
-    def window_fix(self, t: float, window: float) -> np.ndarray | None:
-        """Multilateration (fix) on the per-anchor means of the records in (t - window, t]
-        (Records.window_means); None with fewer than 3 records. Cached per run: sources that
-        share the measurement set and RSS model share it."""
+    def window_fix(self, t: float, window: float, axes: int = 2) -> np.ndarray | None:
+        """Multilateration (fix, or fix_3d with axes 3) on the per-anchor means of the records in
+        (t - window, t] (Records.window_means), on RSS alone the weighted centroid of the receivers
+        nearest by the path-loss model (geometry.lateration.weighted_centroid; with axes 3 at the
+        fixed tag height); None with fewer than 3 records. Cached per run: sources that share the
+        measurement set and RSS model share it."""
         def build():
             records = self.records()
             a, b = np.searchsorted(records.t, [t - window, t], side="right")
-            return None if b - a < 3 else self.fix(*records.window_means(a, b))
-        return self.data.cached(("window_fix", self._data_key, self.rss_params, t, window), build)
+            if b - a < 3:
+                return None
+            means = records.window_means(a, b)
+            if len(means[1]) == 0:          # RSS only: the weighted centroid of the 3 nearest receivers
+                full = t - window >= records.t[0]      # over a full window: a few samples say little
+                fix = weighted_centroid(*self.horizontal_distances(*means)) if full else None
+                return fix if fix is None or axes == 2 else np.append(fix, self.data.tag_height_m)
+            return self.fix_3d(*means) if axes == 3 else self.fix(*means)
+        return self.data.cached(("window_fix", self._data_key, self.rss_params, t, window, axes), build)
 
 
 @dataclass

@@ -5,7 +5,8 @@ parameters (default, unit, meaning) and one entry point.
 
 returns a DataFrame sorted by time with columns t (s), x, y (m) and, where the estimator
 has one, the position covariance p_xx, p_xy, p_yy (m^2); Bayesian filters add n_meas
-(measurements in the last update) and nis. `estimates.attrs` carries counters (resets).
+(measurements in the last update) and nis, and with a 3-D state (`dimensions: 3`) z (m)
+and p_zz (m^2). `estimates.attrs` carries counters (resets).
 Estimators are compositions of the parts in this package: position solvers and fusions
 (fixes), trackers over fixes (trackers), Bayesian filters (bayes, motion, measurements)
 and the inertial pipelines (inertial).
@@ -20,7 +21,8 @@ import numpy as np
 import pandas as pd
 
 from wsnloc.errors import ConfigError, did_you_mean
-from wsnloc.estimators import batch, bayes, core, filter_options, fixes, inertial, range_calibration, trackers
+from wsnloc.estimators import batch, bayes, core, filter_options, fixes, inertial, range_calibration, self_fit, \
+    trackers
 from wsnloc.estimators.motion import MOTIONS
 from wsnloc.estimators.parameters import Param, resolve
 from wsnloc.estimators.run_data import RunData
@@ -48,9 +50,12 @@ RSS = (
     Param("sigma_db", 4.0, "dB", "configured shadowing standard deviation", minimum=1e-3),
     Param("d0_m", 1.0, "m", "reference distance of the path-loss model", minimum=1e-3),
 )
+REFINE = Param("refine", True, "", "multilateration: Gauss-Newton refinement of the closed-form linear least "
+               "squares (false: the linear solution alone, paper D's 'simple geometric technique')", bool)
 SOLVER = (
     Param("solver", "minmax", "", "position solver", str, fixes.SOLVERS),
     Param("k_smallest", 0, "1", "use only the k smallest distances of an epoch (0: all; paper D: 6)", int, minimum=0),
+    REFINE,
     Param("pmix_toa_weight", 0.5, "1", "P-mix: weight w of the range fix (the RSS fix gets 1 - w)", minimum=0.0),
 )
 VELOCITY = (
@@ -62,13 +67,24 @@ KALMAN_FIXES = (
     Param("accel_sigma_mps2", 0.5, "m/s^2", "white acceleration of the PV model"),
     Param("position_sigma_m", 1.5, "m", "fix noise (R = sigma^2 I) and initial position sigma"),
     Param("initial_speed_sigma_mps", 0.5, "m/s", "initial speed sigma"),
+    Param("speed_input", False, "", "also update with the velocity algorithm's speed estimate (window, speed_from) "
+          "as a measurement of ||v|| (paper D §4.2)", bool),
+    Param("speed_sigma_mps", 0.5, "m/s", "speed_input: standard deviation of the speed estimate in R", minimum=1e-6),
 )
 FILTER = (
     Param("filter", "ekf", "", "Bayesian filter (ukf, pf and filterpy have their own estimators)", str, ("ekf",)),
     Param("measurements", "toa", "", "toa: ranges; rss: RSS; hybrid: both stacked; tdoa: range differences "
           "(tdoa table, correlated noise of pairs sharing an anchor)", str, tuple(KINDS)),
-    Param("motion", "pv", "", "p: random walk; pv: constant velocity; pva: measured acceleration input + bias",
+    Param("motion", "pv", "", "p: random walk; pv: constant velocity; pva: measured acceleration input + bias; "
+          "odometry: unicycle driven by the run's odometry table (speed, yaw rate; heading in the state)",
           str, MOTIONS),
+    Param("dimensions", 2, "1", "position axes of the state: 2 (x, y; the tag at the campaign's fixed "
+          "tag_height_m, the default for planar data) or 3 (x, y, z; motion p or pv; needs anchors at varied "
+          "heights for z to be observable)", int, minimum=2),
+    Param("odometry_speed_sigma_mps", 0.1, "m/s", "odometry: speed error held over a step (wheel odometry: a few "
+          "% scale error and slip at speeds up to ~2 m/s)", minimum=1e-6),
+    Param("odometry_yaw_rate_sigma_rps", 0.05, "rad/s", "odometry: yaw-rate error held over a step (~3 deg/s: "
+          "wheel-base uncertainty and slip of differential-drive odometry)", minimum=1e-6),
     Param("update", "auto", "", "epoch: one update per period; sequential: at each measurement's time; auto: "
           "epoch on synchronous ranging rounds and on RSS alone, sequential on asynchronous ranges (one anchor at a "
           "time, or each anchor at its own time stamp), decided from the run's data (estimators.auto)", str,
@@ -82,6 +98,9 @@ FILTER = (
     Param("initial_sigma_m", 1.0, "m", "initial position sigma (around the initiator's fix)", minimum=1e-6),
     Param("initial_speed_sigma_mps", 0.5, "m/s", "initial speed sigma", minimum=1e-6),
     Param("initial_bias_sigma_mps2", 0.05, "m/s^2", "PVA: initial accelerometer bias sigma", minimum=1e-6),
+    Param("initial_heading", "fixes", "", "PVA: heading the gyro is integrated from: fixes = measured from the "
+          "first multilateration fixes 1 m apart, path = the campaign path's start heading (a known start pose)",
+          str, ("fixes", "path")),
     Param("init_window_s", 0.0, "s", "initiator: multilateration on the last W seconds of measurements "
           "(0: one period)", minimum=0.0),
     Param("max_coast_s", 10.0, "s", "drop the track after this long without an update; restart by the initiator",
@@ -94,6 +113,9 @@ FILTER = (
     Param("range_calibration", "none", "", "correct the ranges before filtering: other_run = scale and per-anchor "
           "offsets fitted on a donor run with truth of the same dataset (configured values without one), "
           "configured = the campaign file's range_calibration, none = as measured", str, range_calibration.SOURCES),
+    Param("self_fit", "none", "", "two_pass: fit the range noise and process noise by maximum likelihood of the "
+          "innovations, then the range scale and per-anchor offsets against the track, and run again with them "
+          "(offline, no truth; 3 passes; estimators.self_fit); none: the configured values", str, self_fit.MODES),
 ) + filter_options.PARAMS
 UKF = (
     Param("alpha", 1.0, "1", "UKF sigma-point spread; 1 with kappa = 0 gives lambda = 0: non-negative weights, "
@@ -199,7 +221,8 @@ def _velocity_run(data: RunData, p: dict) -> pd.DataFrame:
 def _kalman_run(data: RunData, p: dict) -> pd.DataFrame:
     matrices = trackers.kalman_matrices(p["epoch_s"], p["accel_sigma_mps2"], p["position_sigma_m"],
                                         p["initial_speed_sigma_mps"])
-    return trackers.kalman_track(fixes.epoch_fixes(data, p, p["fixes"]), matrices)
+    speed = (p["window"], p["speed_from"], p["speed_sigma_mps"]) if p["speed_input"] else None
+    return trackers.kalman_track(fixes.epoch_fixes(data, p, p["fixes"]), matrices, speed)
 
 
 def _minmax_fixes(p: dict) -> dict:
@@ -218,15 +241,17 @@ def _fused_run(steady_state: bool):
 
 
 def _filter_inputs(p: dict) -> tuple[str, ...]:
-    return (("imu",) if p["motion_detection"] else ()) + (("imu_5hz",) if p["motion"] == "pva" else ())
+    return (("imu",) if p["motion_detection"] else ()) + (("imu_5hz",) if p["motion"] == "pva" else ()) \
+        + (("odometry",) if p["motion"] == "odometry" else ())
 
 
-K_SMALLEST = _drop(SOLVER, "solver", "pmix_toa_weight")
+K_SMALLEST = _drop(SOLVER, "solver", "pmix_toa_weight", "refine")
 SOLVER_MEASUREMENTS = K_SMALLEST + (Param("measurements", "toa", "", "toa: ranges; rss: RSS distances", str,
                                           ("toa", "rss")),)
 FIX_SOURCE = COMMON + RSS + SOLVER + (Param("fixes", "toa", "", "fixes tracked: toa, rss, pmix or fmix", str,
                                             fixes.TECHNIQUES),)
-TRACKER_DEFAULTS = dict(update="sequential", init_window_s=4.0, initial_sigma_m=2.0, gate_probability=0.999)
+TRACKER_DEFAULTS = dict(update="sequential", init_window_s=4.0, initial_sigma_m=2.0, gate_probability=0.999,
+                        self_fit="two_pass")
 # The general filters and smoothers gate as the tracker does: real ranges carry NLOS outliers
 GATED = {"gate_probability": TRACKER_DEFAULTS["gate_probability"]}
 GATED_FILTER = _with(FILTER, **GATED)
@@ -234,8 +259,9 @@ GATED_FILTER = _with(FILTER, **GATED)
 ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
     Estimator("minmax", "Min-Max: centre of the intersection of the range boxes, per epoch (paper D)",
               COMMON + RSS + SOLVER_MEASUREMENTS, _solver_run("minmax", None)),
-    Estimator("multilateration", "Linearised least squares + Gauss-Newton on the ranges, per epoch (paper D)",
-              COMMON + RSS + SOLVER_MEASUREMENTS, _solver_run("multilateration", None)),
+    Estimator("multilateration", "Linearised least squares (+ Gauss-Newton with refine) on the ranges, per epoch "
+              "(paper D)", COMMON + RSS + SOLVER_MEASUREMENTS + (REFINE,),
+              _solver_run("multilateration", None)),
     Estimator("pmix", "P-mix: weighted barycentre of the range fix and the RSS fix (paper D)",
               COMMON + RSS + SOLVER, _solver_run(None, "pmix")),
     Estimator("fmix", "F-mix: one solver on ranges and RSS distances together (paper D)",
@@ -243,7 +269,7 @@ ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
     Estimator("velocity_tracker", "Velocity-bounded tracker over per-epoch fixes (paper D)",
               FIX_SOURCE + VELOCITY, _velocity_run),
     Estimator("kf_tracker", "Constant-velocity Kalman filter over per-epoch fixes (paper D's comparison)",
-              FIX_SOURCE + KALMAN_FIXES, _kalman_run),
+              FIX_SOURCE + KALMAN_FIXES + VELOCITY, _kalman_run),
     Estimator("ekf", "EKF: motion model p / pv / pva, toa / rss / hybrid measurements, epoch or sequential "
               "updates, optional motion detection, innovation gate at 0.999 (papers A and C: their cells have no gate)",
               COMMON + RSS + GATED_FILTER, bayes.run_filter, _filter_inputs),

@@ -51,9 +51,10 @@ class RunData:
             anchors = self.campaign.anchors
         self._xy = {a: (float(x), float(y)) for a, x, y in zip(anchors["anchor_id"], anchors["x"], anchors["y"])}
         tag = self.campaign.tag_height_m if self.campaign is not None else None
+        self.tag_height_m = float(tag or 0.0)
         heights = anchors["z"] if "z" in anchors else pd.Series(np.nan, index=anchors.index)
         # 3-D ranges where the anchor has a height: dz = z_anchor - h_tag (h_tag 0 without a campaign value)
-        self._dz = {a: (float(z) - (tag or 0.0)) if np.isfinite(z) else 0.0
+        self._dz = {a: (float(z) - self.tag_height_m) if np.isfinite(z) else 0.0
                     for a, z in zip(anchors["anchor_id"], heights.astype(float))}
 
     def table(self, name: str) -> pd.DataFrame:
@@ -71,6 +72,11 @@ class RunData:
     def positions(self, ids) -> np.ndarray:
         """(m, 2) anchor coordinates (m) of the anchor ids."""
         return np.array([self._xy[a] for a in ids], dtype=float).reshape(-1, 2)
+
+    def positions_3d(self, ids) -> np.ndarray:
+        """(m, 3) anchor coordinates (m); an anchor without a height is at the tag height
+        (tag_height_m: the campaign's fixed tag height, 0 without one), as in 2-D."""
+        return np.column_stack([self.positions(ids), self.tag_height_m + self.height_offsets(ids)])
 
     def height_offsets(self, ids) -> np.ndarray:
         """(m,) anchor height minus tag height (m); 0 for 2-D anchors."""

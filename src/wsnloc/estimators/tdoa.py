@@ -13,7 +13,8 @@ Gauss-Newton) on the per-pair means of the initiator window.
 
 `TdoaSource` offers the interface the filter loops use of a measurement source
 (estimators.core, bayes): records(), model(*records.split(a, b)), window_fix(t, window),
-epoch_models(times, period) and `correction` (none: range calibrations apply to ranges).
+epoch_models(times, period) and `correction`, the range calibration (range_calibration:
+scale and per-anchor offsets, donor-fitted or configured) applied to the differences.
 """
 
 from __future__ import annotations
@@ -21,7 +22,6 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from wsnloc.errors import ConfigError
 from wsnloc.estimators.epochs import anchor_means, per_epoch, sorted_codes
 from wsnloc.estimators.measurements import Records
 from wsnloc.estimators.range_calibration import RangeCorrection
@@ -52,63 +52,79 @@ def independent_pairs(pairs: np.ndarray) -> np.ndarray:
     return keep
 
 
-def model_of(data: RunData, anchor_ids, ref_ids, values, sigma_m: float) -> Stacked | None:
+def model_of(data: RunData, anchor_ids, ref_ids, values, sigma_m: float, dimensions: int = 2) -> Stacked | None:
     """TdoaModel of the pairs (anchor_ids[i], ref_ids[i]) with measured differences `values` (m),
-    redundant pairs left out (independent_pairs); None without a pair."""
+    redundant pairs left out (independent_pairs); None without a pair. dimensions 3: the
+    receivers' (x, y, z) for a 3-D state (RunData.positions_3d)."""
     if len(values) == 0:
         return None
     receivers, index = np.unique(np.concatenate([np.asarray(anchor_ids, dtype=str), np.asarray(ref_ids, dtype=str)]),
                                  return_inverse=True)
     pairs = index.reshape(2, -1).T
     keep = independent_pairs(pairs)
-    dz = data.height_offsets(receivers) if data.three_d else None
-    model = TdoaModel(data.positions(receivers), pairs[keep], sigma_m, dz)
+    if dimensions == 3:
+        model = TdoaModel(data.positions_3d(receivers), pairs[keep], sigma_m)
+    else:
+        dz = data.height_offsets(receivers) if data.three_d else None
+        model = TdoaModel(data.positions(receivers), pairs[keep], sigma_m, dz)
     return Stacked([model], np.asarray(values, dtype=float)[keep])
+
+
+def corrected(frame: pd.DataFrame, correction: RangeCorrection) -> np.ndarray:
+    """The range differences (m) of the rows (anchor_id, ref_anchor_id, tdoa_m) under a range
+    calibration r = s d + b + b_a (range_calibration): d_a - d_ref = (tdoa - (b_a - b_ref)) / s;
+    the common offset b cancels, the pair bias is the difference of the anchors' offsets."""
+    offsets = dict(correction.offsets_m)
+    bias = (frame["anchor_id"].map(offsets).fillna(0.0).to_numpy(float)
+            - frame["ref_anchor_id"].map(offsets).fillna(0.0).to_numpy(float))
+    return (frame["tdoa_m"].to_numpy(float) - bias) / correction.scale
 
 
 class TdoaSource:
     """The range differences of the pairs whose two anchors are in the subset `anchors`."""
 
-    correction = RangeCorrection()
-
-    def __init__(self, data: RunData, anchors: str, sigma_m: float, max_range_m: float, range_calibration: str):
-        if range_calibration != "none":
-            raise ConfigError(f"config key 'range_calibration': {range_calibration!r} corrects ranges; "
-                              "TDOA measurements (measurements: tdoa) take 'none' (a common range offset "
-                              "cancels in a difference)")
+    def __init__(self, data: RunData, anchors: str, sigma_m: float, max_range_m: float,
+                 correction: RangeCorrection = RangeCorrection(), dimensions: int = 2):
         self.data, self.sigma_m, self.max_range_m = data, sigma_m, max_range_m
+        self.correction, self.dimensions = correction, dimensions
         members = data.members(anchors)
         frame = data.usable_tdoa()
         frame = frame[frame["anchor_id"].isin(members) & frame["ref_anchor_id"].isin(members)]
         keys = (frame["anchor_id"] + PAIR + frame["ref_anchor_id"]).to_numpy(dtype=object)
-        self._key = ("tdoa", anchors)
+        self._key = ("tdoa", anchors, dimensions)
         self._records = Records(frame["t"].to_numpy(float), np.zeros(len(frame), dtype=np.int8), keys,
-                                frame["tdoa_m"].to_numpy(float))
+                                corrected(frame, correction))
 
     # ---- models ------------------------------------------------------------------------
     def model(self, keys, values, *_rss) -> Stacked | None:
         """The TdoaModel of the pairs named by their keys, with the measured vector z (m)."""
         if len(values) == 0:
             return None
+        return self._model(keys, values, self.dimensions)
+
+    def _model(self, keys, values, dimensions: int) -> Stacked | None:
         anchor_ids, ref_ids = zip(*(str(k).split(PAIR) for k in keys))
-        return model_of(self.data, anchor_ids, ref_ids, values, self.sigma_m)
+        return model_of(self.data, anchor_ids, ref_ids, values, self.sigma_m, dimensions)
 
     def fix(self, keys, values, *_rss) -> np.ndarray | None:
-        """Hyperbolic fix (m) from the given pairs; None with fewer than 2 independent pairs."""
-        model = self.model(keys, values)
+        """Hyperbolic fix (m) from the given pairs (in the plane, with the tag height's range
+        differences); None with fewer than 2 independent pairs."""
+        model = self._model(keys, values, 2) if len(values) else None
         return None if model is None else tdoa_fix(model.parts[0], model.z, self.max_range_m)
 
     # ---- time-ordered records ----------------------------------------------------------
     def records(self) -> Records:
         return self._records
 
-    def window_fix(self, t: float, window: float) -> np.ndarray | None:
+    def window_fix(self, t: float, window: float, axes: int = 2) -> np.ndarray | None:
         """Hyperbolic fix on the per-pair means of the records in (t - window, t]; None with
-        fewer than 2 pairs."""
+        fewer than 2 pairs. axes 3: the fix at the fixed tag height (RunData.tag_height_m),
+        where a 3-D state starts."""
         def build():
             a, b = np.searchsorted(self._records.t, [t - window, t], side="right")
             return None if b - a < 2 else self.fix(*self._records.window_means(a, b)[:2])
-        return self.data.cached(("tdoa_window_fix",) + self._key + (self.sigma_m, self.max_range_m, t, window), build)
+        fix = self.data.cached(("tdoa_window_fix",) + self._key + (self.sigma_m, self.max_range_m, t, window), build)
+        return fix if fix is None or axes == 2 else np.append(fix, self.data.tag_height_m)
 
     # ---- epochs ------------------------------------------------------------------------
     def epoch_models(self, times: np.ndarray, period: float) -> list[Stacked | None]:

@@ -40,9 +40,23 @@ def _value(spec: dict, sigma: str):
     return own.get(name, (spec.get("parameters") or {}).get(name))
 
 
+def _override_targets(spec: dict, sigma: str) -> list[dict]:
+    """The per-dataset/scenario override entries that set the sigma (a number): `cell.parameter` in
+    a layer's cell entry, a shared key in the layer itself."""
+    cell, _, name = sigma.rpartition(".")
+    out = []
+    for layer in (spec.get("overrides") or {}).values():
+        target = (layer or {}).get(cell) if cell else layer
+        if isinstance(target, dict) and isinstance(target.get(name), (int, float)):
+            out.append(target)
+    return out
+
+
 def variants(spec: dict, where: str) -> list[tuple[str, str, dict]]:
     """(setting label, sigma, the paper's config with that sigma scaled) for every sigma and factor:
-    a shared key scaled in `parameters`, `cell.parameter` set in that cell's entry.
+    a shared key scaled in `parameters`, `cell.parameter` set in that cell's entry; the values the
+    paper's `overrides` set for it per dataset or scenario (e.g. paper C's P sigma per speed) are
+    scaled by the same factor.
 
     `where` is the paper's config key (e.g. "experiments.paper_a"), for error messages.
     """
@@ -53,16 +67,22 @@ def variants(spec: dict, where: str) -> list[tuple[str, str, dict]]:
     for i, sigma in enumerate(grid.get("sigmas", [])):
         value = _value(spec, sigma)
         cell, _, name = sigma.rpartition(".")
-        if not isinstance(value, (int, float)) or isinstance(value, bool) or (cell and cell not in spec["estimators"]):
+        overridden = _override_targets(spec, sigma)
+        if value is None and overridden and (not cell or cell in spec["estimators"]):
+            value = None                       # set per scenario only: scaled there below
+        elif not isinstance(value, (int, float)) or isinstance(value, bool) or (cell and cell not in spec["estimators"]):
             raise ConfigError(f"config key '{where}.sensitivity.sigmas.{i}': {sigma!r} is neither a number in "
                               f"{where}.parameters nor 'cell.parameter' of a cell with that number set (in its "
                               f"entry or in parameters)")
         for factor in grid["factors"]:
             scaled = copy.deepcopy(spec)
-            target = scaled.setdefault("estimators", {})[cell] if cell else scaled.setdefault("parameters", {})
-            if cell and target is None:
-                target = scaled["estimators"][cell] = {}
-            target[name] = value * factor
+            if value is not None:
+                target = scaled.setdefault("estimators", {})[cell] if cell else scaled.setdefault("parameters", {})
+                if cell and target is None:
+                    target = scaled["estimators"][cell] = {}
+                target[name] = value * factor
+            for target in _override_targets(scaled, sigma):
+                target[name] = target[name] * factor
             out.append((setting_label(sigma, factor), sigma, scaled))
     return out
 

@@ -1,12 +1,18 @@
 """Measurement models h(x) and their Jacobians H = dh/dx for range and RSS observations.
 
-Anchors a_i = (x_i, y_i); the position occupies the first two state entries;
+Anchors a_i = (x_i, y_i) (m, 2), or (x_i, y_i, z_i) (m, 3) for a 3-D state: the position p
+occupies the first 2 or 3 state entries, as many as the anchors have coordinates;
 d_i = ||p - a_i|| (floored at 1 mm to keep the Jacobian finite).
 - TOA range (paper A eq. for h_TOA):   h_i = d_i,  H_i = [(x - x_i)/d_i, (y - y_i)/d_i, 0 ...]
+  (3-D state: H_i = [(x - x_i)/d_i, (y - y_i)/d_i, (z - z_i)/d_i, 0 ...])
   with a known height difference dz_i between anchor and tag (3-D ranges, 2-D state):
   h_i = sqrt(d_i^2 + dz_i^2),  H_i = [(x - x_i)/h_i, (y - y_i)/h_i, 0 ...]
-- RSS (log-normal shadowing):          h_i = P0 - 10 n log10(d_i / d0)
-                                       H_i = [-10 n / ln10 (x - x_i)/d_i^2, -10 n / ln10 (y - y_i)/d_i^2, 0 ...]
+- RSS (log-normal shadowing):          h_i = P0 - 10 n log10(D_i / d0),  D_i = max(sqrt(d_i^2 + dz_i^2), d0)
+                                       H_i = [-10 n / ln10 (x - x_i)/D_i^2, -10 n / ln10 (y - y_i)/D_i^2, 0 ...]
+  (0 where the distance is below d0): the log-distance model holds from the reference distance
+  d0 on (Rappaport, Wireless Communications, sec. 4.9); below it, the 1/d^2 Jacobian of a
+  horizontal distance near a receiver would throw the state far away on one sample. dz_i:
+  receiver height - tag height (3-D distance), 0 in 2-D.
 - hybrid: the two stacked, R = blockdiag(R_TOA, R_RSS).
 - TDOA range difference of pair i = (receiver a_i, reference receiver b_i), with r_j the
   (3-D when dz_j is known) distance to receiver j:
@@ -28,23 +34,32 @@ import numpy as np
 MIN_DISTANCE = 1e-3
 
 
+def _norm(diff):
+    """||diff|| over the last axis of (..., 2) or (..., 3) offsets (np.hypot in 2-D)."""
+    if diff.shape[-1] == 2:
+        return np.hypot(diff[..., 0], diff[..., 1])
+    return np.sqrt(np.sum(diff**2, axis=-1))
+
+
 def _geometry(x, anchors):
-    diff = np.asarray(x, dtype=float)[None, :2] - anchors
-    d = np.maximum(np.hypot(diff[:, 0], diff[:, 1]), MIN_DISTANCE)
-    return diff, d
+    """(p - a_i (m, k), d_i (m,)) with k = 2 or 3, the anchors' coordinates."""
+    diff = np.asarray(x, dtype=float)[None, :anchors.shape[1]] - anchors
+    d = np.hypot(diff[:, 0], diff[:, 1]) if anchors.shape[1] == 2 else np.sqrt(np.sum(diff**2, axis=1))
+    return diff, np.maximum(d, MIN_DISTANCE)
 
 
 def _distances_many(X, anchors):
-    """Horizontal distances (N, m) from N states X (N, n) to the anchors, floored like _geometry."""
+    """Distances (N, m) from N states X (N, n) to the anchors (in the anchors' 2 or 3
+    coordinates; horizontal ones for 2-D anchors), floored like _geometry."""
     X = np.asarray(X, dtype=float)
-    return np.maximum(np.hypot(X[:, 0, None] - anchors[:, 0], X[:, 1, None] - anchors[:, 1]), MIN_DISTANCE)
+    return np.maximum(_norm(X[:, None, :anchors.shape[1]] - anchors[None]), MIN_DISTANCE)
 
 
 @dataclass
 class RangeModel:
-    anchors: np.ndarray        # (m, 2)
+    anchors: np.ndarray        # (m, 2), or (m, 3) with a 3-D state
     sigma_m: np.ndarray        # (m,) range noise std
-    dz_m: np.ndarray | None = None   # (m,) anchor height - tag height; None: 2-D ranges
+    dz_m: np.ndarray | None = None   # (m,) anchor height - tag height with 2-D anchors; None: no offset
 
     def h(self, x) -> np.ndarray:
         d = _geometry(x, self.anchors)[1]
@@ -59,7 +74,7 @@ class RangeModel:
         diff, d = _geometry(x, self.anchors)
         h = d if self.dz_m is None else np.sqrt(d**2 + self.dz_m**2)
         H = np.zeros((len(self.anchors), len(x)))
-        H[:, :2] = diff / np.maximum(h, MIN_DISTANCE)[:, None]
+        H[:, :diff.shape[1]] = diff / np.maximum(h, MIN_DISTANCE)[:, None]
         return H
 
     def R(self) -> np.ndarray:
@@ -68,23 +83,32 @@ class RangeModel:
 
 @dataclass
 class RssModel:
-    anchors: np.ndarray        # (m, 2)
+    anchors: np.ndarray        # (m, 2), or (m, 3) with a 3-D state
     p0_dbm: float
     exponent: float
     sigma_db: float
     d0_m: float = 1.0
+    dz_m: np.ndarray | None = None   # (m,) receiver height - tag height; None: 2-D
+
+    def _distance(self, d: np.ndarray) -> np.ndarray:
+        """D = max(sqrt(d^2 + dz^2), d0) of horizontal distances d (m)."""
+        return np.maximum(d if self.dz_m is None else np.sqrt(d**2 + self.dz_m**2), self.d0_m)
 
     def h(self, x) -> np.ndarray:
-        return self.p0_dbm - 10.0 * self.exponent * np.log10(_geometry(x, self.anchors)[1] / self.d0_m)
+        return self.p0_dbm - 10.0 * self.exponent * np.log10(self._distance(_geometry(x, self.anchors)[1]) / self.d0_m)
 
     def h_many(self, X) -> np.ndarray:
         """h at every row of X (N, n): (N, m) RSS in dBm."""
-        return self.p0_dbm - 10.0 * self.exponent * np.log10(_distances_many(X, self.anchors) / self.d0_m)
+        return self.p0_dbm - 10.0 * self.exponent * np.log10(self._distance(_distances_many(X, self.anchors))
+                                                              / self.d0_m)
 
     def jacobian(self, x) -> np.ndarray:
         diff, d = _geometry(x, self.anchors)
+        full = d if self.dz_m is None else np.sqrt(d**2 + self.dz_m**2)
+        D = self._distance(d)
         H = np.zeros((len(self.anchors), len(x)))
-        H[:, :2] = -10.0 * self.exponent / np.log(10.0) * diff / (d**2)[:, None]
+        H[:, :diff.shape[1]] = np.where((full >= self.d0_m)[:, None],
+                            -10.0 * self.exponent / np.log(10.0) * diff / (D**2)[:, None], 0.0)
         return H
 
     def R(self) -> np.ndarray:
@@ -94,9 +118,9 @@ class RssModel:
 @dataclass
 class TdoaModel:
     """Range differences of receiver pairs (module docstring). The position is the state's first
-    two entries; a height state would add (z - z_j) / r_j to H in the same way as x and y."""
+    two entries, or three with 3-D receivers (k, 3): H then has (z - z_j) / r_j as for x and y."""
 
-    receivers: np.ndarray      # (k, 2) receiver (anchor) positions
+    receivers: np.ndarray      # (k, 2) receiver (anchor) positions, or (k, 3) with a 3-D state
     pairs: np.ndarray          # (m, 2) int: (receiver, reference receiver) of each range difference
     sigma_m: np.ndarray        # (k,) or scalar: arrival-time noise std of each receiver, in m
     dz_m: np.ndarray | None = None   # (k,) receiver height - tag height; None: 2-D distances
@@ -118,7 +142,7 @@ class TdoaModel:
         diff, d = _geometry(x, self.receivers)
         unit = diff / np.maximum(self._ranges(d), MIN_DISTANCE)[:, None]
         H = np.zeros((len(self.pairs), len(x)))
-        H[:, :2] = unit[self.pairs[:, 0]] - unit[self.pairs[:, 1]]
+        H[:, :diff.shape[1]] = unit[self.pairs[:, 0]] - unit[self.pairs[:, 1]]
         return H
 
     def incidence(self) -> np.ndarray:

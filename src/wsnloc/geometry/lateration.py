@@ -66,7 +66,8 @@ def min_max(anchors, ranges) -> np.ndarray | None:
 def _linear_solution(a: np.ndarray, d: np.ndarray) -> np.ndarray:
     """Least squares on the circles linearised by subtracting the last equation, per epoch.
 
-    a (epochs, n, 2), d (epochs, n) [m], all usable -> (epochs, 2) [m], NaN rows where the
+    a (epochs, n, k), d (epochs, n) [m], all usable -> (epochs, k) [m] (k = 2, or 3 in space:
+    the same equations with z), NaN rows where the
     system's condition number s_max / s_min exceeds MAX_CONDITION (anchors (nearly) collinear).
     (x - x_i)^2 + (y - y_i)^2 = d_i^2 minus the same for anchor L = n gives
     2 (x_L - x_i) x + 2 (y_L - y_i) y = d_i^2 - d_L^2 - |a_i|^2 + |a_L|^2, i < L, solved as
@@ -78,7 +79,7 @@ def _linear_solution(a: np.ndarray, d: np.ndarray) -> np.ndarray:
     u, s, vt = np.linalg.svd(matrix, full_matrices=False)
     ok = (s[:, -1] > 0) & (s[:, -1] * MAX_CONDITION >= s[:, 0])        # s_max / s_min <= MAX_CONDITION
     projected = np.einsum("eij,ei->ej", u[ok], rhs[ok]) / s[ok]
-    solution = np.full((len(a), 2), np.nan)
+    solution = np.full((len(a), a.shape[-1]), np.nan)
     solution[ok] = np.einsum("eji,ej->ei", vt[ok], projected)
     return solution
 
@@ -170,4 +171,43 @@ def multilateration(anchors, ranges, refine: bool = True) -> np.ndarray | None:
     return _one_epoch(multilateration_batch, anchors, ranges, refine=refine)
 
 
+def multilateration_3d(anchors, ranges) -> np.ndarray | None:
+    """3-D multilateration on one epoch: anchors (m, 3), ranges (m,) [m] -> (3,) [m].
+
+    The linearised least squares of _linear_solution in 3-D, refined by Gauss-Newton
+    (Levenberg-Marquardt, scipy.optimize.least_squares) on sum_i (||p - a_i|| - d_i)^2.
+    None with fewer than 4 usable ranges or anchors (nearly) in one plane (the height is
+    then not observable from the linear system)."""
+    from scipy.optimize import least_squares
+
+    a, d = np.asarray(anchors, dtype=float).reshape(-1, 3), np.asarray(ranges, dtype=float).ravel()
+    keep = _usable(a, d)
+    a, d = a[keep], d[keep]
+    if len(d) < MIN_RANGES + 1:
+        return None
+    p = _linear_solution(a[None], d[None])[0]
+    if not np.all(np.isfinite(p)):
+        return None
+    refined = least_squares(lambda q: np.sqrt(np.sum((q - a) ** 2, axis=1)) - d, p, method="lm",
+                            xtol=MIN_STEP_M)
+    return refined.x if np.all(np.isfinite(refined.x)) else p
+
+
 LOCALIZERS = {"minmax": min_max_batch, "multilateration": multilateration_batch}
+
+
+CENTROID_NEAREST = 3
+
+
+def weighted_centroid(anchors, distances, k: int = CENTROID_NEAREST) -> np.ndarray | None:
+    """Weighted centroid of the k nearest anchors, weights 1 / d (Blumenthal et al. 2007, degree 1):
+    sum_i a_i / d_i / sum_i 1 / d_i over the k smallest finite distances d_i (m); None without one.
+    Always inside the anchors' hull: a bounded start where multilateration on distances as
+    uncertain as RSS-inverted ones (a factor of 2 at 6 dB shadowing) can land tens of metres off."""
+    a, d = np.asarray(anchors, dtype=float).reshape(-1, 2), np.asarray(distances, dtype=float)
+    usable = np.flatnonzero(np.isfinite(d) & (d >= 0))
+    if not len(usable):
+        return None
+    nearest = usable[np.argsort(d[usable], kind="stable")][:k]
+    w = 1.0 / np.maximum(d[nearest], MIN_DISTANCE_M)
+    return (a[nearest] * w[:, None]).sum(0) / w.sum()

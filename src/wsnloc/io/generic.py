@@ -7,7 +7,9 @@ Files (CSV or Parquet, by name; `anchors` and one of `ranges` / `rss` / `tdoa` r
   tdoa:    t, anchor_id, ref_anchor_id, tdoa_m (s, m: range difference d(anchor) - d(ref), one
            row per pair; pairs of one time stamp are one measurement, see docs/raw-formats.md)
   imu:     t, ax, ay, az, gz                  (s, m/s^2 body frame, rad/s)
-  truth:   t, x, y                            (s, m)
+  truth:   t, x, y [, z]                      (s, m; z: the tag's height, for 3-D metrics)
+  odometry: t, v_mps, yaw_rate_rps            (s, m/s forward speed, rad/s counter-clockwise;
+                                               body frame: the odometry motion model's input)
   meta.yaml (optional): tag_height_m          (m: the mobile's antenna height, for 3-D
                                                ranges to anchors with z; see run_campaign)
 Rows that cannot be used go to the quarantine with file, line and a reason naming the
@@ -44,7 +46,8 @@ COLUMNS = {
     "rss": (["t", "anchor_id", "rss_dbm"], []),
     "tdoa": (["t", "anchor_id", "ref_anchor_id", "tdoa_m"], []),
     "imu": (["t", "ax", "ay", "az", "gz"], []),
-    "truth": (["t", "x", "y"], []),
+    "truth": (["t", "x", "y"], ["z"]),
+    "odometry": (["t", "v_mps", "yaw_rate_rps"], []),
 }
 TEXT_COLUMNS = {"anchor_id", "ref_anchor_id", "tech"}
 NON_NEGATIVE_COLUMNS = {"range_m"}
@@ -208,7 +211,7 @@ def ingest_run(run_dir: str | Path, campaign: Campaign | None = None) -> tuple[d
     unknown = {name: parsed[name].known_anchors(set(anchors["anchor_id"]), paths["anchors"].name)
                for name in ("ranges", "rss", "tdoa") if name in parsed}
     result = {name: (parsed[name].usable() if name in parsed else tables.empty(name))
-              for name in ("ranges", "rss", "tdoa", "imu", "truth")}
+              for name in ("ranges", "rss", "tdoa", "imu", "truth", "odometry")}
     if "status" not in result["ranges"]:
         result["ranges"]["status"] = 0
     result["ranges"]["status"] = result["ranges"]["status"].astype(np.int32)

@@ -12,9 +12,17 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 
-def _field(name: str, kind: pa.DataType, unit: str, description: str, nullable: bool = False) -> pa.Field:
-    """A column with its unit; `nullable` where a value may be missing (NaN: no estimate)."""
-    return pa.field(name, kind, nullable=nullable, metadata={"unit": unit, "description": description})
+def _field(name: str, kind: pa.DataType, unit: str, description: str, nullable: bool = False,
+           optional: bool = False) -> pa.Field:
+    """A column with its unit; `nullable` where a value may be missing (NaN: no estimate);
+    `optional` where a frame may lack the whole column (3-D values of planar data): the table
+    is then written without it (to_arrow), so planar tables stay as they were."""
+    metadata = {"unit": unit, "description": description, **({"optional": "1"} if optional else {})}
+    return pa.field(name, kind, nullable=nullable or optional, metadata=metadata)
+
+
+def _optional(field: pa.Field) -> bool:
+    return (field.metadata or {}).get(b"optional") == b"1"
 
 
 _LINE = _field("line", pa.int32(), "1", "line number in the raw file (1-based), for traceability")
@@ -32,6 +40,9 @@ _ESTIMATE = [   # position estimate and its error, shared by the estimate tables
     _field("true_x", pa.float64(), "m", "truth at t", nullable=True),
     _field("true_y", pa.float64(), "m", "truth at t", nullable=True),
     _field("error_m", pa.float64(), "m", "Euclidean position error", nullable=True),
+    _field("z", pa.float64(), "m", "estimated height (3-D state only)", optional=True),
+    _field("true_z", pa.float64(), "m", "true height at t (truth with z only)", optional=True),
+    _field("error_3d_m", pa.float64(), "m", "3-D position error (estimate and truth with z only)", optional=True),
 ]
 
 _COVARIANCE = [   # position block of the estimator's state covariance (NaN where it has none)
@@ -82,6 +93,13 @@ SCHEMAS: dict[str, pa.Schema] = {
         _field("s", pa.float64(), "m", "position along the campaign path (rail)"),
         _field("x", pa.float64(), "m", "east coordinate"),
         _field("y", pa.float64(), "m", "north coordinate"),
+        _field("z", pa.float64(), "m", "height (a 3-D truth only; NaN: not given)", optional=True),
+        _LINE,
+    ]),
+    "odometry": pa.schema([
+        _field("t", pa.float64(), "s", "sample time on the logger clock"),
+        _field("v_mps", pa.float64(), "m/s", "forward speed, body frame (negative: reversing)"),
+        _field("yaw_rate_rps", pa.float64(), "rad/s", "yaw rate about the vertical, counter-clockwise positive"),
         _LINE,
     ]),
     "anchors": pa.schema([
@@ -136,11 +154,12 @@ SCHEMAS: dict[str, pa.Schema] = {
     ]),
 }
 
-RAW_TABLES = ("ranges", "rss", "tdoa", "imu", "truth", "anchors", "quarantine")
+RAW_TABLES = ("ranges", "rss", "tdoa", "imu", "truth", "odometry", "anchors", "quarantine")
 
 
 def empty(table: str) -> pd.DataFrame:
-    return SCHEMAS[table].empty_table().to_pandas()
+    """The table with no rows: its columns (without the optional ones) and types."""
+    return pa.schema([f for f in SCHEMAS[table] if not _optional(f)]).empty_table().to_pandas()
 
 
 def _column(frame: pd.DataFrame, field: pa.Field) -> pa.Array:
@@ -152,13 +171,18 @@ def _column(frame: pd.DataFrame, field: pa.Field) -> pa.Array:
     return array
 
 
+def schema_for(table: str, frame: pd.DataFrame) -> pa.Schema:
+    """The schema `frame` is written with: SCHEMAS[table] without the optional columns it lacks."""
+    return pa.schema([f for f in SCHEMAS[table] if f.name in frame or not _optional(f)])
+
+
 def to_arrow(table: str, frame: pd.DataFrame, extra_metadata: dict[str, str] | None = None) -> pa.Table:
     """Cast a DataFrame to the table's schema (columns in schema order); raises on mismatch.
 
     Column by column, on the calling thread: pa.Table.from_pandas would give the same table
     but copies the frame's columns first and starts a thread pool for every table.
     """
-    schema = SCHEMAS[table]
+    schema = schema_for(table, frame)
     meta = {b"table": table.encode(), **{k.encode(): str(v).encode() for k, v in (extra_metadata or {}).items()}}
     return pa.Table.from_arrays([_column(frame, field) for field in schema], schema=schema).replace_schema_metadata(meta)
 

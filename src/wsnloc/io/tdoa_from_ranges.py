@@ -1,15 +1,21 @@
 """TDOA made from two-way ranges: `wsnloc convert tdoa SRC OUT`.
 
-Range differences to one reference anchor, d(anchor) - d(ref), from the ranges of a generic
+Range differences d(anchor) - d(ref) to a reference anchor, from the ranges of a generic
 run. Ranges of different anchors are asynchronous (a round of two-way ranging visits the
 anchors one after the other, and an anchor may be missed), so they are paired in time: at
 each range of the reference anchor (time t_ref) every other anchor's range is interpolated
-linearly between its two samples bracketing t_ref, when both lie within `window_s` of t_ref
+linearly between its two samples bracketing t_ref, when both lie within the window of t_ref
 (an anchor sampled exactly at t_ref is used as is); otherwise that pair is left out of the
-group. The pairs of one reference range share its time and its noise, as TDOA pairs of one
-transmission share the reference's arrival (the TDOA model's correlated noise). The
-reference anchor is the one with the most ranges (ties: the first id in sorted order) unless
-one is given. Ranges with a non-zero status or not finite are not used.
+group. The window is `window_s` or 1.5 ranging round periods, whichever is longer (the
+round period: the median over anchors of each anchor's median spacing; with anchors ranged
+one at a time a round lasts several tenths of a second). The pairs of one reference range
+share its time and its noise, as TDOA pairs of one transmission share the reference's
+arrival (the TDOA model's correlated noise). The reference is chosen per time group: the
+anchor with the most ranges (ties: the first id in sorted order; or the one given) wherever
+it can be paired (it has a sample at t or two bracketing ones within the window); where it
+cannot (out of range, a gap), the next anchor by number of ranges at its own range times,
+and so on, so a missing reference anchor does not drop the other anchors' ranges. Ranges
+with a non-zero status or not finite are not used.
 
 A converted run is the source run with `tdoa.csv` (t, anchor_id, ref_anchor_id, tdoa_m) in
 place of `ranges.csv` and without `rss.csv`; every other file (anchors, truth, meta.yaml,
@@ -31,43 +37,71 @@ from wsnloc.io import generic
 from wsnloc.io.convert import QUARANTINE_FILE, Converted
 
 WINDOW_S = 0.25      # pairing window: a bracketing sample at most this far from t_ref (s); ~2.5 rounds at 10 Hz
+ROUND_WINDOWS = 1.5  # ... and at least 1.5 ranging round periods (anchors ranged one after the other, jitter)
 
 
-def reference_anchor(ranges: pd.DataFrame) -> str:
-    """The anchor with the most ranges (ties: the first id in sorted order)."""
+def reference_order(ranges: pd.DataFrame) -> list[str]:
+    """Anchor ids by number of ranges, most first (ties: sorted id order)."""
     counts = ranges["anchor_id"].value_counts()
-    return sorted(counts.index[counts == counts.max()])[0]
+    return sorted(counts.index, key=lambda a: (-counts[a], a))
+
+
+def round_period(ranges: pd.DataFrame) -> float:
+    """The ranging round period P (s): the median over anchors of each anchor's median spacing
+    between its ranges (NaN with no anchor ranged twice). Gaps and missed rounds are outliers of
+    an anchor's spacings and leave its median alone."""
+    spacings = [np.median(np.diff(np.sort(rows.to_numpy(float)))) for _, rows in ranges.groupby("anchor_id")["t"]
+                if len(rows) > 1]
+    return float(np.median(spacings)) if spacings else float("nan")
+
+
+def _at(t_query: np.ndarray, t: np.ndarray, r: np.ndarray, window_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """One anchor's range at the times t_query (s) from its samples (t sorted, r): the sample at
+    exactly t_query, else the linear interpolation between the two samples bracketing t_query
+    when both lie within window_s of it; (values, usable) with values undefined where not usable."""
+    after = np.searchsorted(t, t_query, side="left")              # first sample at or after t_query
+    before = np.clip(after - 1, 0, len(t) - 1)
+    after_c = np.clip(after, 0, len(t) - 1)
+    exact = (after < len(t)) & (t[after_c] == t_query)
+    bracketed = ((after > 0) & (after < len(t)) & (t_query - t[before] <= window_s)
+                 & (t[after_c] - t_query <= window_s))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        share = np.where(t[after_c] > t[before], (t_query - t[before]) / (t[after_c] - t[before]), 0.0)
+    return np.where(exact, r[after_c], r[before] + share * (r[after_c] - r[before])), exact | bracketed
 
 
 def ranges_to_tdoa(ranges: pd.DataFrame, reference: str | None = None, window_s: float = WINDOW_S) -> pd.DataFrame:
     """Range differences (t, anchor_id, ref_anchor_id, tdoa_m) from ranges (t, anchor_id, range_m
     [, status]) (module docstring), sorted by t then anchor."""
+    columns = ["t", "anchor_id", "ref_anchor_id", "tdoa_m"]
     ok = np.isfinite(ranges["range_m"]) & np.isfinite(ranges["t"])
     if "status" in ranges:
         ok &= ranges["status"].fillna(0) == 0
     ranges = ranges[ok]
     if not len(ranges):
-        return pd.DataFrame(columns=["t", "anchor_id", "ref_anchor_id", "tdoa_m"])
-    reference = reference or reference_anchor(ranges)
-    ref = ranges[ranges["anchor_id"] == reference].sort_values("t", kind="stable")
-    t_ref, r_ref = ref["t"].to_numpy(float), ref["range_m"].to_numpy(float)
-    out = []
-    for anchor, rows in ranges[ranges["anchor_id"] != reference].groupby("anchor_id", sort=True):
-        rows = rows.sort_values("t", kind="stable")
-        t, r = rows["t"].to_numpy(float), rows["range_m"].to_numpy(float)
-        after = np.searchsorted(t, t_ref, side="left")            # first sample at or after t_ref
-        before = np.clip(after - 1, 0, len(t) - 1)
-        after_c = np.clip(after, 0, len(t) - 1)
-        exact = (after < len(t)) & (t[after_c] == t_ref)
-        bracketed = (after > 0) & (after < len(t)) & (t_ref - t[before] <= window_s) & (t[after_c] - t_ref <= window_s)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            share = np.where(t[after_c] > t[before], (t_ref - t[before]) / (t[after_c] - t[before]), 0.0)
-        value = np.where(exact, r[after_c], r[before] + share * (r[after_c] - r[before]))
-        use = exact | bracketed
-        out.append(pd.DataFrame({"t": t_ref[use], "anchor_id": anchor, "ref_anchor_id": reference,
-                                 "tdoa_m": value[use] - r_ref[use]}))
-    frame = pd.concat(out, ignore_index=True) if out else pd.DataFrame(columns=["t", "anchor_id", "ref_anchor_id",
-                                                                              "tdoa_m"])
+        return pd.DataFrame(columns=columns)
+    period = round_period(ranges)
+    window_s = max(window_s, ROUND_WINDOWS * period) if np.isfinite(period) else window_s
+    samples = {anchor: (rows["t"].to_numpy(float), rows["range_m"].to_numpy(float))
+               for anchor, rows in ranges.sort_values("t", kind="stable").groupby("anchor_id", sort=True)}
+    order = reference_order(ranges)
+    if reference is not None:
+        order = [reference] + [a for a in order if a != reference]
+    out, earlier = [], []
+    for ref in order:                                            # each reference at the times no earlier one serves
+        t_ref, r_ref = samples[ref]
+        free = np.ones(len(t_ref), dtype=bool)
+        for other in earlier:
+            free &= ~_at(t_ref, *samples[other], window_s)[1]
+        earlier.append(ref)
+        t_ref, r_ref = t_ref[free], r_ref[free]
+        for anchor in sorted(samples):
+            if anchor == ref or not len(t_ref):
+                continue
+            value, use = _at(t_ref, *samples[anchor], window_s)
+            out.append(pd.DataFrame({"t": t_ref[use], "anchor_id": anchor, "ref_anchor_id": ref,
+                                     "tdoa_m": value[use] - r_ref[use]}))
+    frame = pd.concat(out, ignore_index=True) if out else pd.DataFrame(columns=columns)
     return frame.sort_values(["t", "anchor_id"], kind="stable").reset_index(drop=True)
 
 

@@ -198,7 +198,8 @@ def pcrb(P0, F, Q, information) -> np.ndarray:
     return bounds
 
 
-def position_rmse_bound(bounds) -> np.ndarray:
-    """sqrt(P_xx + P_yy) (m) of bound covariances (..., n, n): the position RMSE bound."""
+def position_rmse_bound(bounds, axes: int = 2) -> np.ndarray:
+    """sqrt(P_xx + P_yy) (m) of bound covariances (..., n, n): the position RMSE bound; with
+    axes = 3 (a 3-D state [x, y, z, ...]) sqrt(P_xx + P_yy + P_zz), the 3-D RMSE bound."""
     bounds = np.asarray(bounds)
-    return np.sqrt(bounds[..., 0, 0] + bounds[..., 1, 1])
+    return np.sqrt(sum(bounds[..., i, i] for i in range(axes)))

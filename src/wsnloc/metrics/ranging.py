@@ -149,6 +149,45 @@ def fit_range_bias(range_m, true_distance_m, anchor_id) -> dict:
             "sigma_m": float(1.4826 * np.median(np.abs(residual - np.median(residual)))), "samples": int(len(r))}
 
 
+def fit_tdoa_bias(tdoa_m, true_anchor_m, true_ref_m, anchor_id, ref_id) -> dict:
+    """Robust fit of the range calibration r = s d + b_a seen through range differences:
+    tdoa_i = s (d_a(i) - d_ref(i)) + b_a(i) - b_ref(i) + e_i, a common scale s and one offset
+    b_a (m) per anchor. Only offset differences are observable: the most frequent reference
+    is the gauge (b = 0) and the others are relative to it (a common offset cancels when the
+    calibration is applied). Linear in (s, b): the soft-L1 cost of fit_range_bias (its scale f
+    the normalised MAD of the ordinary least-squares residual, at least 1 mm) minimised by
+    scipy.optimize.least_squares from the ordinary fit; sigma_m is the normalised MAD of the
+    robust residual (the noise of a difference)."""
+    from scipy.optimize import least_squares
+
+    z = np.asarray(tdoa_m, dtype=float)
+    delta = np.asarray(true_anchor_m, dtype=float) - np.asarray(true_ref_m, dtype=float)
+    a, b = np.asarray(anchor_id, dtype=object), np.asarray(ref_id, dtype=object)
+    keep = np.isfinite(z) & np.isfinite(delta)
+    z, delta, a, b = z[keep], delta[keep], a[keep], b[keep]
+    if not len(z):
+        raise ValueError("TDOA calibration needs range differences with truth")
+    refs, counts = np.unique(b, return_counts=True)
+    gauge = refs[np.argmax(counts)]
+    anchors = sorted((set(a) | set(b)) - {gauge})
+    design = np.zeros((len(z), 1 + len(anchors)))
+    design[:, 0] = delta
+    column = {anchor: k + 1 for k, anchor in enumerate(anchors)}
+    for ids, sign in ((a, 1.0), (b, -1.0)):
+        for anchor, k in column.items():
+            design[ids == anchor, k] += sign
+    if len(z) < design.shape[1] + 2 or np.linalg.matrix_rank(design) < design.shape[1]:
+        raise ValueError(f"TDOA calibration: {len(z)} differences do not determine the scale and "
+                         f"{len(anchors)} offsets (distinct distance differences needed)")
+    start = np.linalg.lstsq(design, z, rcond=None)[0]
+    f_scale = max(1.4826 * np.median(np.abs(z - design @ start)), 1e-3)
+    theta = least_squares(lambda th: design @ th - z, start, loss="soft_l1", f_scale=f_scale).x
+    residual = z - design @ theta
+    offsets = {str(gauge): 0.0, **{str(anchor): float(theta[k]) for anchor, k in column.items()}}
+    return {"scale": float(theta[0]), "offsets_m": offsets,
+            "sigma_m": float(1.4826 * np.median(np.abs(residual - np.median(residual)))), "samples": int(len(z))}
+
+
 def _weighted_line(r: np.ndarray, d: np.ndarray, column: np.ndarray, w: np.ndarray) -> tuple[float, np.ndarray]:
     """Weighted least squares of r = s d + b_a (a = column, weights w): the scale from the
     per-anchor centred samples, s = sum w (d - dbar_a)(r - rbar_a) / sum w (d - dbar_a)^2, and

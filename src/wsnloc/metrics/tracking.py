@@ -6,7 +6,12 @@ Applied the same way to every estimator, study and paper.
   finite estimate at t covering the output period before it, (t - T, t]; T is the
   estimator's output period (the median spacing of its output times);
 - per-run metrics: RMSE, mean, median, p75 (EvAAL's third quartile), p90, p95, max (m),
-  number of estimates n and availability.
+  number of estimates n and availability; per cell also rmse_moving, the RMSE over the
+  estimates at which the target moves (true speed at least STATIC_SPEED_MPS, moving_mask):
+  claims about speed compare moving epochs only, so the rests' share does not decide them.
+- 3-D: where the truth has a height z and the estimates a z (a 3-D state), also
+  error_3d_m = ||(x, y, z) estimate - truth|| and its RMSE rmse_3d (m); errors are
+  horizontal (2-D) otherwise.
 """
 
 from __future__ import annotations
@@ -20,6 +25,29 @@ from wsnloc.metrics.ranging import truth_at
 from wsnloc.metrics.stats import ERROR_STATS, error_summary
 
 RUN_METRICS = ERROR_STATS + ("availability",)
+STATIC_SPEED_MPS = 0.01      # the carts' slowest motion is 0.1 m/s; 1 cm/s is standing still
+
+
+def true_speeds(t: np.ndarray, true_x: np.ndarray, true_y: np.ndarray) -> np.ndarray:
+    """True speed (m/s) at each estimate of one cell: ||p(t_k) - p(t_{k-1})|| / (t_k - t_{k-1})
+    over the estimates in time order (the first takes the second's; NaN with fewer than 2 and
+    where t_k = t_{k-1})."""
+    order = np.argsort(t, kind="stable")
+    speed = np.full(len(t), np.nan)
+    if len(t) < 2:
+        return speed
+    ts, xs, ys = t[order], true_x[order], true_y[order]
+    dt = np.diff(ts)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        step = np.where(dt > 0, np.hypot(np.diff(xs), np.diff(ys)) / np.where(dt > 0, dt, 1.0), np.nan)
+    speed[order] = np.concatenate([step[:1], step])
+    return speed
+
+
+def moving_mask(t: np.ndarray, true_x: np.ndarray, true_y: np.ndarray) -> np.ndarray:
+    """True where the target moves at the estimate (true_speeds >= STATIC_SPEED_MPS)."""
+    speed = true_speeds(t, true_x, true_y)
+    return np.isfinite(speed) & (speed >= STATIC_SPEED_MPS)
 
 
 def score(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
@@ -28,8 +56,15 @@ def score(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
     three (replacing any of those names in place), not a copy assigned column by column."""
     position = truth_at(truth, estimates["t"].to_numpy(float))
     error = np.hypot(estimates["x"].to_numpy(float) - position[:, 0], estimates["y"].to_numpy(float) - position[:, 1])
+    spatial = {}
+    if "z" in estimates and "z" in truth and np.isfinite(truth["z"].to_numpy(float)).any():
+        given = np.isfinite(truth["z"].to_numpy(float))           # rows with a height (z may be left empty)
+        true_z = np.interp(estimates["t"].to_numpy(float), truth["t"][given], truth["z"][given],
+                           left=np.nan, right=np.nan)
+        spatial = {"true_z": true_z, "error_3d_m": np.hypot(error, estimates["z"].to_numpy(float) - true_z)}
     out = pd.DataFrame({**{name: estimates[name].array for name in estimates.columns},
-                        "true_x": position[:, 0], "true_y": position[:, 1], "error_m": error}, index=estimates.index)
+                        "true_x": position[:, 0], "true_y": position[:, 1], "error_m": error, **spatial},
+                       index=estimates.index)
     out.attrs = copy.deepcopy(estimates.attrs)
     return out
 
@@ -83,9 +118,11 @@ def covered_share(t: np.ndarray, finite: np.ndarray, span: tuple[float, float] |
 
 
 def run_metrics(scored: pd.DataFrame, truth: pd.DataFrame, period: float | None = None) -> dict[str, float]:
-    """The per-run metrics (RUN_METRICS) of one run's scored estimates."""
+    """The per-run metrics (RUN_METRICS) of one run's scored estimates, and rmse_3d (m) where
+    they have 3-D errors (score)."""
     stats = error_summary(scored["error_m"]) if len(scored) else error_summary([])
-    return {**stats, "availability": availability(scored, truth, period)}
+    spatial = {"rmse_3d": error_summary(scored["error_3d_m"])["rmse"]} if "error_3d_m" in scored else {}
+    return {**stats, "availability": availability(scored, truth, period), **spatial}
 
 
 def cell_metrics(scored: pd.DataFrame, keys: list[str], truth: pd.DataFrame) -> pd.DataFrame:
@@ -93,11 +130,13 @@ def cell_metrics(scored: pd.DataFrame, keys: list[str], truth: pd.DataFrame) -> 
     missing key are left out) of one run's scored estimates. The cells are index arrays into
     the columns (no sub-frame per cell); the truth span is read once."""
     span, (names, cells) = truth_span(truth), _cell_rows(scored, keys)
-    t, x, y, error = (scored[c].to_numpy(float) for c in ("t", "x", "y", "error_m"))
+    t, x, y, error, true_x, true_y = (scored[c].to_numpy(float) for c in ("t", "x", "y", "error_m", "true_x", "true_y"))
     finite = np.isfinite(x) & np.isfinite(y)
     records = [{**dict(zip(keys, name)), **error_summary(error[rows]),
-                "availability": covered_share(t[rows], finite[rows], span)} for name, rows in zip(names, cells)]
-    return pd.DataFrame(records, columns=keys + list(RUN_METRICS))
+                "availability": covered_share(t[rows], finite[rows], span),
+                "rmse_moving": error_summary(error[rows][moving_mask(t[rows], true_x[rows], true_y[rows])])["rmse"]}
+               for name, rows in zip(names, cells)]
+    return pd.DataFrame(records, columns=keys + list(RUN_METRICS) + ["rmse_moving"])
 
 
 def _cell_rows(frame: pd.DataFrame, keys: list[str]) -> tuple[list[tuple], list[np.ndarray]]:

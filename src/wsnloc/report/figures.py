@@ -20,6 +20,7 @@ import pandas as pd  # noqa: E402
 from matplotlib.axes import Axes  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 from matplotlib.layout_engine import TightLayoutEngine  # noqa: E402
+from matplotlib.ticker import NullFormatter  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.spines import Spine  # noqa: E402
 from matplotlib.transforms import Bbox  # noqa: E402
@@ -320,6 +321,11 @@ def rss_vs_distance(rss: pd.DataFrame, fit: dict, configured: dict, title: str, 
         ax.plot(d, configured["p0_dbm"] - 10 * configured["path_loss_exponent"] * np.log10(d), "k--", lw=1.5,
                 label=f"configured (no walls): P0={configured['p0_dbm']:.1f}, n={configured['path_loss_exponent']:.2f}")
     ax.set_xscale("log")
+    # plain labels on 1-2-3-5 ticks: less than a decade of distances would get labelled minor ticks
+    # (2x10^0, 3x10^0, 4x10^0 ...) that overlap
+    ticks = [t for t in (0.3, 0.5, 1, 2, 3, 5, 10, 20, 30, 50, 100) if d[0] <= t <= d[-1]]
+    ax.set_xticks(ticks, [f"{t:g}" for t in ticks])
+    ax.xaxis.set_minor_formatter(NullFormatter())
     ax.set_xlabel("true distance [m]")
     ax.set_ylabel("RSS [dBm]")
     ax.set_title(title)

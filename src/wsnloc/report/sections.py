@@ -20,15 +20,20 @@ def cell_of(results: pd.DataFrame, **keys) -> dict:
     rows = claims_of.cell_rows(results, tuple(keys)).get(tuple(keys.values()))
     if rows is None:
         return {"value": None, "low": None, "high": None, "band_low": None, "band_high": None, "runs": None,
-                "paper": None, "delta": None, "inside": False}
+                "paper": None, "delta": None, "inside": False, "basis": "mean"}
     paper, value, low, high, band_low, band_high, runs = (
         _present(results, column, int(rows[0]))
         for column in ("paper_value", "value", "ci95_low", "ci95_high", "band_low", "band_high", "runs"))
-    inside = paper_value_inside(paper, np.nan if low is None else low, np.nan if high is None else high)
-    # The red/green difference only where the paper's value lies outside our 95% interval.
+    # A single published run against our per-run band, a published mean against our mean's interval
+    # (results module docstring).
+    basis = "run" if band_low is not None and paper is not None else "mean"
+    ref_low, ref_high = (band_low, band_high) if basis == "run" else (low, high)
+    inside = paper_value_inside(paper, np.nan if ref_low is None else ref_low, np.nan if ref_high is None else ref_high)
+    # The red/green difference only where the paper's value lies outside the interval it is compared with.
     delta = value - paper if value is not None and paper is not None and not inside else None
     return {"value": value, "low": low, "high": high, "band_low": band_low, "band_high": band_high,
-            "runs": int(runs) if runs is not None else None, "paper": paper, "delta": delta, "inside": inside}
+            "runs": int(runs) if runs is not None else None, "paper": paper, "delta": delta, "inside": inside,
+            "basis": basis}
 
 
 def _present(results: pd.DataFrame, column: str, row: int):

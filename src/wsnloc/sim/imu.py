@@ -6,7 +6,13 @@ at speed v with tangential acceleration a and path curvature kappa (1/m, left > 
   yaw rate        w_z = v kappa            (rad/s)
 Sensor model (`noise_model: mems`): f + per-run bias + white noise (density * sqrt(fs/2))
 + drive vibration (tones whose total RMS grows linearly with speed); gyro likewise with
-bias and white noise.
+bias and white noise. Optional tilt (`tilt_leakage`, keys mount_tilt_sigma_deg,
+floor_slope_sigma_deg, floor_slope_correlation_m; absent = a level sensor): the sensor's
+pitch theta and roll phi are a per-run mounting tilt plus the floor's slope under the cart
+along the path, so gravity leaks into the horizontal axes,
+  f_x += g sin(theta),  f_y -= g cos(theta) sin(phi),  f_z = g cos(theta) cos(phi);
+the slope term varies at v / correlation length (0.2-2 Hz for a cart at 0.2-0.6 m/s on a
+floor undulating over ~0.3 m), inside the 5 Hz output's band: no low-pass removes it.
 
 `noise_model: snr` is paper B's simulated unit: "accelerometers afflicted by a measurement
 additive gaussian noise N and a sampling rate equal to 5 Hz", with "an SNR of 60dB"
@@ -84,6 +90,42 @@ def vibration(t, v, spec: dict, rng: np.random.Generator) -> np.ndarray:
     return out
 
 
+def tilt_angles(s, spec: dict, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Pitch and roll (rad) of the sensor at arc lengths s (m, non-decreasing along the run).
+
+    angle(s) = mount + slope(s): mount ~ N(0, mount_tilt_sigma) once per run; slope a Gaussian
+    process along the path with autocorrelation sigma^2 exp(-|ds| / ell) (floor_slope_sigma_deg,
+    floor_slope_correlation_m), drawn on a 1 cm grid of the path as the exact AR(1) recursion
+    x_k = rho x_{k-1} + sqrt(1 - rho^2) sigma e_k, rho = exp(-0.01 / ell) (scipy.signal.lfilter)
+    and interpolated at s; independent for pitch and roll. Zero angles without the keys.
+    """
+    from scipy.signal import lfilter
+
+    s = np.asarray(s, dtype=float)
+    mount_sigma = np.deg2rad(spec.get("mount_tilt_sigma_deg", 0.0))
+    slope_sigma = np.deg2rad(spec.get("floor_slope_sigma_deg", 0.0))
+    if mount_sigma == 0.0 and slope_sigma == 0.0:
+        return np.zeros_like(s), np.zeros_like(s)
+    mount = rng.normal(0.0, mount_sigma, 2)
+    grid_step = 0.01
+    grid = np.arange(0.0, (s.max(initial=0.0) if len(s) else 0.0) + 2 * grid_step, grid_step)
+    rho = np.exp(-grid_step / spec["floor_slope_correlation_m"])
+    shocks = rng.normal(0.0, slope_sigma, (2, len(grid)))
+    shocks[:, 1:] *= np.sqrt(1.0 - rho**2)
+    slope = lfilter([1.0], [1.0, -rho], shocks, axis=1)         # x_0 = e_0 (stationary start)
+    return mount[0] + np.interp(s, grid, slope[0]), mount[1] + np.interp(s, grid, slope[1])
+
+
+def tilt_leakage(force: np.ndarray, pitch: np.ndarray, roll: np.ndarray, gravity: float) -> np.ndarray:
+    """Specific force (N, 3) of a sensor tilted by pitch, roll (rad): gravity leaks into x and y
+    (module docstring); the motion's own horizontal force is not rotated (second order)."""
+    out = np.array(force, dtype=float)
+    out[:, 0] += gravity * np.sin(pitch)
+    out[:, 1] -= gravity * np.cos(pitch) * np.sin(roll)
+    out[:, 2] = gravity * np.cos(pitch) * np.cos(roll)
+    return out
+
+
 def snr_noise_sigma(force: np.ndarray, snr_db: float) -> float:
     """Accelerometer noise sigma (m/s^2, per axis) at the output rate for a given SNR (dB).
 
@@ -95,8 +137,9 @@ def snr_noise_sigma(force: np.ndarray, snr_db: float) -> float:
 
 
 def sensor_readings(t, force, yaw_rate, v, spec: dict, gravity: float,
-                    rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """Measured specific force (N, 3) m/s^2 and yaw rate (N,) rad/s before quantization."""
+                    rng: np.random.Generator, s=None) -> tuple[np.ndarray, np.ndarray]:
+    """Measured specific force (N, 3) m/s^2 and yaw rate (N,) rad/s before quantization;
+    s (m): arc length at each sample, needed by the tilt model (`tilt_angles`)."""
     fs = spec["rate_hz"]
     n = len(t)
     model = spec.get("noise_model", "mems")
@@ -106,6 +149,8 @@ def sensor_readings(t, force, yaw_rate, v, spec: dict, gravity: float,
         sigma_out = snr_noise_sigma(force, spec["snr_db"])
         sigma_fs = sigma_out * np.sqrt(fs / spec["snr_output_rate_hz"])
         return force + rng.normal(0.0, sigma_fs, (n, 3)), np.array(yaw_rate, dtype=float)
+    if spec.get("mount_tilt_sigma_deg", 0.0) or spec.get("floor_slope_sigma_deg", 0.0):
+        force = tilt_leakage(force, *tilt_angles(s, spec, rng), gravity)
     accel_bias = rng.normal(0.0, spec["accel_bias_sigma_mps2"], 3)
     accel_sigma = spec["accel_noise_ug_per_rthz"] * MICRO_G * gravity * np.sqrt(fs / 2.0)
     accel = force + accel_bias                                  # ((f + b) + noise) + vibration, drawn in that order

@@ -116,7 +116,8 @@ def imu_text(campaign: Campaign, traj: Trajectory, rng, noise_model: str, clock_
     t_ms = _sorted(t_ms[kept])
     state = positions(campaign, traj, t_ms / 1000.0)
     force, yaw_rate = imu_model.body_motion(state["v"], state["a"], state["curvature"], g)
-    accel, gyro = imu_model.sensor_readings(t_ms / 1000.0, force, yaw_rate, state["v"], spec, g, rng)
+    accel, gyro = imu_model.sensor_readings(t_ms / 1000.0, force, yaw_rate, state["v"], spec, g, rng,
+                                            state["s"])
     acc_counts, gyro_counts = imu_model.to_counts(accel, gyro, spec, g)
     header = [f"# {campaign.format}-imu v1",
               f"# accel_lsb_per_g={spec['accel_lsb_per_g']:g} gyro_lsb_per_dps={spec['gyro_lsb_per_dps']:g}",

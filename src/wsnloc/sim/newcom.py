@@ -59,7 +59,9 @@ def _uwb_lines(campaign: Campaign, spec: dict, traj, rng_time, rng_channel, rng_
     Link budget (sim.link_budget): P_rx from the CM3 (no wall) / CM4 (walls) path loss and a
     shadowing field correlated along the path (one per anchor, Gudmundson, decorrelation
     `shadowing_decorrelation_m`, drawn from `rng_shadow`); the link exists when P_rx reaches
-    `sensitivity_dbm`. Its channel realisation carries P_rx, the direct path loses
+    `sensitivity_dbm`. Its channel realisation (one per anchor and `small_scale_coherence_m` of
+    path travelled: small-scale fading does not change while the cart stands still) carries P_rx,
+    the direct path loses
     `direct_path_wall_loss_db` per wall, and the detector reads it against the noise-referenced
     threshold (uwb_channel.detected_delays_ns); a link whose taps all stay below it gives no
     range. tw_toa_ps = round(2 (d + n_walls * excess_path_per_wall + c * (delay_detected + noise)
@@ -98,11 +100,19 @@ def _uwb_lines(campaign: Campaign, spec: dict, traj, rng_time, rng_channel, rng_
     received_mw = 10 ** (power_dbm[k, j] / 10)
     direct_gain = 10 ** (-n_walls * spec["direct_path_wall_loss_db"] / 10)
     noise_threshold_mw = 10 ** (link_budget.first_path_threshold_dbm(spec) / 10)
+    # one channel realisation per (anchor, small-scale cell of the path): a cart standing still
+    # sees the same impulse response, hence the same leading-edge error, at every ranging
+    cell = np.floor(arc / spec["small_scale_coherence_m"]).astype(np.int64)[k] * len(anchors) + j
     delay_ns = np.zeros(len(k))
     for name, of_model in (("CM3", ~faulty & (n_walls == 0)), ("CM4", ~faulty & (n_walls > 0))):
-        delay_ns[of_model] = uwb_channel.detected_delays_ns(
-            spec["channel_models"][name], rng_channel, int(of_model.sum()), spec["cir_tap_ns"], detector,
-            spec["leading_edge_threshold_db"], received_mw[of_model], direct_gain[of_model], noise_threshold_mw)
+        links = np.flatnonzero(of_model)
+        _, first, again = np.unique(cell[links], return_index=True, return_inverse=True)
+        drawn = links[np.sort(first)]                # each realisation at its first ranging, in time order
+        order = np.argsort(np.argsort(first))        # unique key -> its slot among `drawn`
+        delays = uwb_channel.detected_delays_ns(
+            spec["channel_models"][name], rng_channel, len(drawn), spec["cir_tap_ns"], detector,
+            spec["leading_edge_threshold_db"], received_mw[drawn], direct_gain[drawn], noise_threshold_mw)
+        delay_ns[links] = delays[order[again.ravel()]]
     delay_ns += rng_channel.normal(0.0, spec["timing_noise_ns"], len(k))
     range_m = d + n_walls * spec["excess_path_per_wall_m"] + c * delay_ns * 1e-9 \
         + twr_clock_bias_m(spec, rng_clock, len(anchors), c)[j]

@@ -176,7 +176,8 @@ class _Recorder:
 def variable_speed(length: float, rng: np.random.Generator, static_start_s: float,
                    ramp_interval_s: float, speed_range_mps, max_accel_mps2: float,
                    stop_s: float, static_end_s: float) -> Trajectory:
-    """Random target speed every `ramp_interval_s`, one stop half-way, rest at both ends.
+    """Random target speed every `ramp_interval_s`, one stop half-way (none for `stop_s` 0:
+    the cart moves on without braking), rest at both ends (none for a duration 0).
 
     A speed controller (`_acceleration`) tracks the target with |a| <= max_accel and brakes
     so as to stop exactly at the half-way point and at the end: v_des = min(target,
@@ -190,7 +191,7 @@ def variable_speed(length: float, rng: np.random.Generator, static_start_s: floa
     loop, so logs stay byte-identical.
     """
     low, high = speed_range_mps
-    stops = [length / 2.0, length]
+    stops = [length / 2.0, length] if stop_s > 0 else [length]
     dt, a_max = STEP_S, max_accel_mps2
     record = _Recorder()
     record.rest(0.0, int(round(static_start_s / dt)))
@@ -231,8 +232,16 @@ def variable_speed(length: float, rng: np.random.Generator, static_start_s: floa
 
 
 def for_scenario(scenario: dict, length: float, rng: np.random.Generator) -> Trajectory:
-    """Build the trajectory a campaign scenario describes (``motion: constant|variable``)."""
-    params = {k: v for k, v in scenario.items() if k not in ("motion", "overrides")}
+    """Build the trajectory a campaign scenario describes (``motion: constant|variable``).
+
+    `length` is the campaign path's length (m); a scenario with `path_length_m` follows only the
+    first path_length_m metres of it (at most `length`).
+    """
+    params = {k: v for k, v in scenario.items() if k not in ("motion", "overrides", "path_length_m")}
+    part = scenario.get("path_length_m", length)
+    if not 0 < part <= length:
+        raise ValueError(f"scenario path_length_m = {part:g} m: must lie in (0, {length:.2f}] m (the campaign path)")
+    length = part
     if scenario["motion"] == "constant":
         return constant_speed(length, **params)
     return variable_speed(length, rng, **params)

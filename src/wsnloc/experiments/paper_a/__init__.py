@@ -101,8 +101,8 @@ def claims(metrics: dict[str, pd.DataFrame], motions: dict[str, str], spec: dict
     labels = [row_label(r) for r in spec["rows"]]
     tables = TABLES
 
-    def rmse(label, table, row):
-        return claims_of.runs_of(metrics[label], table=table, row=row)
+    def rmse(label, table, row, metric="rmse"):
+        return claims_of.runs_of(metrics[label], metric, table=table, row=row)
 
     order, anchors, detection = [], [], []
     for label in metrics:
@@ -125,11 +125,13 @@ def claims(metrics: dict[str, pd.DataFrame], motions: dict[str, str], spec: dict
     for c, v in zip(constant, variable):
         for table in tables:
             for row in labels:
-                speed.append(claims_of.unpaired(rmse(c, table, row), rmse(v, table, row), "<",
-                                                f"{table} {row}: {c} - {v} (independent runs)"))
+                # moving epochs only (metrics.tracking: rmse_moving): the rests' share would decide it otherwise
+                speed.append(claims_of.unpaired(rmse(c, table, row, "rmse_moving"), rmse(v, table, row, "rmse_moving"),
+                                                "<", f"{table} {row}: {c} - {v}, moving epochs (independent runs)"))
     return [claims_of.record("Hybrid beats TOA-only, which beats RSS-only", verdicts.claim(order)),
             claims_of.record("More anchors give a lower RMSE", verdicts.claim(anchors)),
-            claims_of.record("Constant speed is tracked better than variable speed", verdicts.claim(speed)),
+            claims_of.record("Constant speed is tracked better than variable speed", verdicts.claim(speed),
+                             note="RMSE over the epochs at which the cart moves: "),
             claims_of.record("Motion detection improves every row", verdicts.claim(detection))]
 
 
