@@ -15,7 +15,7 @@ from wsnloc.filters.motion_models import constant_velocity
 from wsnloc.geometry.lateration import min_max, multilateration
 from wsnloc.geometry.selection import rss_to_distance, smallest_per_epoch
 from synthetic import k_smallest
-from wsnloc.estimators import registry
+from wsnloc.estimators import core, registry
 from wsnloc.tracking.velocity_bounded import VelocityBoundedTracker
 
 RSS_MODEL = {"p0_dbm": -50.0, "path_loss_exponent": 3.0, "d0_m": 1.0}
@@ -207,6 +207,39 @@ def test_kalman_filter_equals_filterpy():
         np.testing.assert_allclose(ours.P, ref.P, rtol=0, atol=1e-9)
 
 
+def test_kf_tracker_equals_filterpy_over_the_runs_fixes(campaign, simulated_run):
+    """kf_tracker (the core's epoch loop with the fix initiator and the array KF bank) against
+    filterpy's KalmanFilter fed the same fixes: start at the first fix (x0 = [fix, 0, 0], P0),
+    predict at every later epoch, update with each fix, output at the epochs with a fix."""
+    from wsnloc.estimators import fixes
+    from wsnloc.io.newcom import ingest_run
+
+    tables, _ = ingest_run(simulated_run, campaign)
+    data = RunData(tables, campaign)
+    p = registry.get("kf_tracker").resolve({"anchors": "UWB=12", "k_smallest": 6, "max_range_m": 50.0})
+    got = registry.run("kf_tracker", data, p)
+    fix = fixes.epoch_fixes(data, p, p["fixes"])
+    F, Q = constant_velocity(p["epoch_s"], p["accel_sigma_mps2"])
+    ref, rows = None, []
+    for t, x, y in fix[["t", "x", "y"]].itertuples(index=False):
+        if ref is not None:
+            ref.predict()
+        if not (np.isfinite(x) and np.isfinite(y)):
+            continue
+        if ref is None:
+            ref = FilterpyKF(dim_x=4, dim_z=2)
+            ref.x = np.array([x, y, 0.0, 0.0])
+            ref.P = np.diag([p["position_sigma_m"] ** 2] * 2 + [p["initial_speed_sigma_mps"] ** 2] * 2)
+            ref.F, ref.Q, ref.H = F, Q, np.hstack([np.eye(2), np.zeros((2, 2))])
+            ref.R = np.eye(2) * p["position_sigma_m"] ** 2
+        else:
+            ref.update(np.array([x, y]))
+        rows.append((t, ref.x[0], ref.x[1], ref.P[0, 0], ref.P[0, 1], ref.P[1, 1]))
+    expected = np.array(rows)
+    assert len(expected) > 100 and got["n_meas"].iloc[0] == 0 and (got["n_meas"].iloc[1:] == 1).all()
+    np.testing.assert_allclose(got[["t", "x", "y", "p_xx", "p_xy", "p_yy"]].to_numpy(), expected, rtol=0, atol=1e-9)
+
+
 def test_constant_velocity_process_noise():
     F, Q = constant_velocity(2.0, 1.0)
     assert F[0, 2] == 2.0 and F[1, 3] == 2.0
@@ -259,18 +292,20 @@ def test_paper_d_on_a_simulated_run(campaign, simulated_run):
     assert len(claims) == 6 and all(c["verdict"] == "inconclusive" for c in claims)     # one run: no interval
 
 
-def test_paper_d_run_all_equals_its_cells_registry_frames_stacked(campaign, simulated_run):
+@pytest.mark.parametrize("speed_input", [False, True])
+def test_paper_d_run_all_equals_its_cells_registry_frames_stacked(campaign, simulated_run, speed_input):
     """run_all stacks each cell's arrays (batched.cell_tracks, no registry.finish frame per
     cell): the same t, x, y, labels and scores, exactly, as stacking every cell's
-    registry.run frame."""
-    from wsnloc.estimators import registry
+    registry.run frame (the KF with and without the velocity algorithm's speed)."""
     from wsnloc.io.newcom import ingest_run
     from wsnloc.metrics.tracking import score
 
+    spec = {**SPEC, "estimators": {**SPEC["estimators"],
+                                   "kalman": {**SPEC["estimators"]["kalman"], "speed_input": speed_input}}}
     tables, _ = ingest_run(simulated_run, campaign)
-    got = paper_d.run(RunData(tables, campaign, RSS_MODEL), SPEC, LABEL)
+    got = paper_d.run(RunData(tables, campaign, RSS_MODEL), spec, LABEL)
     data = RunData(tables, campaign, RSS_MODEL)
-    cells = paper_d.cell_list(SPEC, LABEL)
+    cells = paper_d.cell_list(spec, LABEL)
     frames = [registry.run(name, data, p, where="experiments.paper_d") for *_, name, p in cells]
     labels = {key: np.repeat([cell[k] for cell in cells], [len(f) for f in frames])
               for k, key in enumerate(("localizer", "technique", "stage"))}
@@ -281,12 +316,12 @@ def test_paper_d_run_all_equals_its_cells_registry_frames_stacked(campaign, simu
 
 def test_track_of_an_estimator_frame_is_registry_finish():
     """batched.Track.of: the columns a frame lacks NaN, rows sorted by time (stable)."""
-    from wsnloc.estimators import batched, registry
+    from wsnloc.estimators import batched
 
     frame = pd.DataFrame({"t": [2.0, 1.0, 1.0, 3.0], "x": [0.0, 1.0, 2.0, 3.0], "y": [4.0, 5.0, 6.0, 7.0],
                           "n_meas": [1, 2, 3, 4]})
     frame.attrs["resets"] = 2
     track = batched.Track.of(frame)
     finished = registry.finish(frame)
-    np.testing.assert_array_equal(track.rows, finished[registry.OUTPUT_COLUMNS].to_numpy(float))
+    np.testing.assert_array_equal(track.rows, finished[core.COLUMNS].to_numpy(float))
     assert track.rows[:, 1].tolist() == [1.0, 2.0, 0.0, 3.0] and track.attrs == {"resets": 2}

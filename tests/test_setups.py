@@ -134,12 +134,12 @@ def test_kalman_over_fixes_with_speed_input_uses_the_velocity_algorithms_speed()
 
     t = np.arange(0.0, 10.0, 0.5)
     fixes = pd.DataFrame({"t": t, "x": 0.4 * t, "y": 0.0})
-    matrices = trackers.kalman_matrices(0.5, 0.1, 0.5, 0.5)
-    plain = trackers.kalman_track(fixes, matrices)
-    fed = trackers.kalman_track(fixes, matrices, speed=(6, "raw", 0.05))
+    plain, fed = (trackers.fix_tracks([trackers.FixSource.of(fixes, velocity)], 0.5, 0.1, 0.5, 0.5, 0.05)[0].frame()
+                  for velocity in (None, (6, "raw")))
     early = slice(2, 6)
     assert np.abs(fed["x"] - fixes["x"])[early].mean() < np.abs(plain["x"] - fixes["x"])[early].mean()
     assert not np.allclose(plain["x"], fed["x"])
+    assert (plain["n_meas"].iloc[1:] == 1).all() and (fed["n_meas"].iloc[3:] == 2).all()
 
 
 def test_speed_measurement_jacobian_is_numerical():

@@ -8,10 +8,9 @@ Runs whose epoch grids and measurement sets differ:
 - the measurements of epoch k of all runs (any kinds and anchor subsets) are padded to
   the largest count M_k: a padded row has H = 0, y = 0 and R = 1, so it adds nothing to
   H^T R^-1 H, H^T R^-1 y or y^T R^-1 y and changes neither x, P nor NIS = y^T S^-1 y;
-- per run, measurement i of an epoch is a range (h = sqrt(d^2 + dz^2),
-  H = [(p - a) / h, 0...]) or an RSS value (h = P0 - 10 n log10(d / d0),
-  H = [-10 n / ln10 (p - a) / d^2, 0...]) with d = max(||p - a||, 1 mm), as in
-  filters.measurement_models; R is diagonal (range sigma^2, RSS sigma_dB^2).
+- per run, measurement i of an epoch is a range or an RSS value, h and H by
+  filters.measurement_models (range_rows, rss_rows: distances with the anchor's height offset
+  dz, RSS floored at d0) on the whole padded array; R is diagonal (range sigma^2, RSS sigma_dB^2).
 Predict x <- F x + B u, P <- F P F^T + Q; Joseph-form update (filters.kalman), computed in
 2 x 2 algebra as H sees the position only (position_update), so its cost hardly grows with M_k.
 """
@@ -24,7 +23,7 @@ import numpy as np
 
 from wsnloc.estimators import filter_options
 from wsnloc.estimators.core import RunInputs
-from wsnloc.filters.measurement_models import MIN_DISTANCE
+from wsnloc.filters.measurement_models import range_rows, rss_rows
 
 RANGE, RSS = 0, 1
 
@@ -68,19 +67,17 @@ def predict(x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray, Bu: np.n
 
 def update(x: np.ndarray, P: np.ndarray, m: Measurements):
     """Joseph-form EKF update of every run with its (padded) measurements; returns (x, P, NIS).
-    Only the position columns of H are non-zero: position_update."""
+    h and the position columns of H are filters.measurement_models' (range_rows, rss_rows);
+    only those columns are non-zero: position_update."""
     width = m.z.shape[1]
     diff = x[:, None, :2] - m.anchors
-    d = np.maximum(np.hypot(diff[..., 0], diff[..., 1]), MIN_DISTANCE)
-    slant = np.sqrt(d**2 + m.dz**2)
-    h, gain = slant, 1.0 / np.maximum(slant, MIN_DISTANCE)
+    h, H = range_rows(diff, m.dz)
     is_rss = m.kind == RSS
     if is_rss.any():                          # the RSS model's rows (range-only epochs skip it)
-        D = np.maximum(slant, m.d0)
-        h = np.where(is_rss, m.p0 - 10.0 * m.exponent * np.log10(D / m.d0), h)
-        gain = np.where(is_rss, np.where(slant >= m.d0, -10.0 * m.exponent / np.log(10.0) / D**2, 0.0), gain)
+        h_rss, H_rss = rss_rows(diff, m.p0, m.exponent, m.d0, m.dz)
+        h, H = np.where(is_rss, h_rss, h), np.where(is_rss[..., None], H_rss, H)
     real = np.arange(width)[None, :] < m.count[:, None]
-    H = np.where(real[..., None], diff * gain[..., None], 0.0)
+    H = np.where(real[..., None], H, 0.0)
     y = np.where(real, m.z - h, 0.0)
     return position_update(x, P, y, H, 1.0 / m.variance)
 

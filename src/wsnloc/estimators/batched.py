@@ -6,8 +6,8 @@ run x row of a paper's table).
   that share a motion model, period, initiator and deleter go through one core.epoch_loop
   (the bare EKF as array_ekf.ArrayEKF: one predict and one update per epoch cost a few array
   operations for all cells);
-- the KF over fixes (`kf_tracker`) of cells with the same KF matrices is stepped together
-  (kalman_tracks);
+- the KF over fixes (`kf_tracker`): the cells with the same KF settings go through one
+  core.epoch_loop (trackers.kalman_tracks);
 - other estimators run one cell at a time.
 `stacked` builds one frame of several cells' tracks with their labels.
 """
@@ -19,12 +19,11 @@ import copy
 import numpy as np
 import pandas as pd
 
-from wsnloc.estimators import bayes, fixes, registry, trackers
-from wsnloc.estimators.array_ekf import joseph_update, predict
+from wsnloc.estimators import bayes, registry, trackers
 from wsnloc.estimators.core import COLUMNS, Track
 from wsnloc.estimators.run_data import RunData
 
-__all__ = ["Track", "cell_tracks", "kalman_tracks", "run_cells", "run_many", "stacked"]
+__all__ = ["Track", "cell_tracks", "run_cells", "run_many", "stacked"]
 
 
 def stacked(tracks: list[Track], labels: dict[str, list[str]], columns=tuple(COLUMNS)) -> pd.DataFrame:
@@ -69,46 +68,5 @@ def cell_tracks(name: str, cells: list[tuple[RunData, dict]], where: str = "") -
         return [tracks[i] if i in tracks else Track.of(bayes.run_filter(cells[i][0], params[i]))
                 for i in range(len(cells))]
     if name == "kf_tracker":
-        return [Track.of(frame) for frame in _kalman_cells([data for data, _ in cells], params)]
+        return trackers.kalman_tracks([data for data, _ in cells], params)
     return [Track.of(estimator.function(data, p)) for (data, _), p in zip(cells, params)]
-
-
-def kalman_tracks(fix_tables: list[pd.DataFrame], matrices: tuple) -> list[pd.DataFrame]:
-    """trackers.kalman_track(fixes, matrices) for every table of per-epoch fixes (t, x, y;
-    NaN without a fix), stepped together: a run starts at its first fix, predicts at every
-    later epoch of its grid and is updated with each fix (z = H x + v); output at its fixes."""
-    F, Q, H, R, P0 = matrices
-    n_runs, n_epochs = len(fix_tables), max([len(f) for f in fix_tables] + [0])
-    t, z = np.full((n_runs, n_epochs), np.nan), np.full((n_runs, n_epochs, 2), np.nan)
-    for i, f in enumerate(fix_tables):
-        t[i, :len(f)], z[i, :len(f)] = f["t"].to_numpy(float), f[["x", "y"]].to_numpy(float)
-    live, has_fix = np.arange(n_epochs)[None, :] < np.array([len(f) for f in fix_tables])[:, None], \
-        np.isfinite(z).all(axis=2)
-    x, P, started = np.zeros((n_runs, 4)), np.zeros((n_runs, 4, 4)), np.zeros(n_runs, bool)
-    out = np.full((n_runs, n_epochs, 6), np.nan)
-    for k in range(n_epochs):
-        rolling = np.flatnonzero(started & live[:, k])
-        x[rolling], P[rolling] = predict(x[rolling], P[rolling], F, Q)
-        first = has_fix[:, k] & ~started
-        x[first], P[first], started[first] = np.column_stack([z[first, k], np.zeros((first.sum(), 2))]), P0, True
-        rows = np.flatnonzero(has_fix[:, k] & ~first)
-        if len(rows):
-            x[rows], P[rows], _ = joseph_update(x[rows], P[rows], z[rows, k] - x[rows] @ H.T, H[None], R[None])
-        out[:, k] = np.column_stack([t[:, k], x[:, 0], x[:, 1], P[:, 0, 0], P[:, 0, 1], P[:, 1, 1]])
-    return [pd.DataFrame(out[i, has_fix[i]], columns=["t", "x", "y", "p_xx", "p_xy", "p_yy"]) for i in range(n_runs)]
-
-
-def _kalman_cells(datas: list[RunData], params: list[dict]) -> list[pd.DataFrame]:
-    """kf_tracker of every (run, resolved parameters) cell: cells with the same KF matrices are
-    stepped together (kalman_tracks)."""
-    groups: dict[tuple, list[int]] = {}
-    for i, p in enumerate(params):
-        key = (p["epoch_s"], p["accel_sigma_mps2"], p["position_sigma_m"], p["initial_speed_sigma_mps"])
-        groups.setdefault(key, []).append(i)
-    frames: list[pd.DataFrame] = [pd.DataFrame()] * len(params)
-    for key, members in groups.items():
-        tracks = kalman_tracks([fixes.epoch_fixes(datas[i], params[i], params[i]["fixes"]) for i in members],
-                               trackers.kalman_matrices(*key))
-        for i, track in zip(members, tracks):
-            frames[i] = track
-    return frames

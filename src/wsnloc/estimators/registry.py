@@ -28,8 +28,6 @@ from wsnloc.estimators.parameters import Param, resolve
 from wsnloc.estimators.run_data import RunData
 from wsnloc.estimators.measurements import KINDS
 
-OUTPUT_COLUMNS = core.COLUMNS
-
 # ---- parameter groups ------------------------------------------------------------------
 STATIC_START = Param("static_start_s", 4.0, "s", "the mobile rests during the first S s: gravity reference and "
                      "IMU bias measured then (0: none)", minimum=0.0)
@@ -219,10 +217,7 @@ def _velocity_run(data: RunData, p: dict) -> pd.DataFrame:
 
 
 def _kalman_run(data: RunData, p: dict) -> pd.DataFrame:
-    matrices = trackers.kalman_matrices(p["epoch_s"], p["accel_sigma_mps2"], p["position_sigma_m"],
-                                        p["initial_speed_sigma_mps"])
-    speed = (p["window"], p["speed_from"], p["speed_sigma_mps"]) if p["speed_input"] else None
-    return trackers.kalman_track(fixes.epoch_fixes(data, p, p["fixes"]), matrices, speed)
+    return trackers.kalman_tracks([data], [p])[0].frame()
 
 
 def _minmax_fixes(p: dict) -> dict:
@@ -331,8 +326,8 @@ def run(name: str, data: RunData, overrides: dict | None = None, where: str = ""
 def finish(estimates: pd.DataFrame) -> pd.DataFrame:
     """Standard columns (NaN covariance, n_meas and nis where the estimator has none), sorted by
     time. A shallow copy: estimators may return frames they cache for other estimators."""
-    missing = [column for column in OUTPUT_COLUMNS if column not in estimates]
-    columns = {name: (values.astype(float) if name in OUTPUT_COLUMNS and values.dtype != float else values).array
+    missing = [column for column in core.COLUMNS if column not in estimates]
+    columns = {name: (values.astype(float) if name in core.COLUMNS and values.dtype != float else values).array
                for name, values in estimates.items()}
     out = pd.DataFrame({**columns, **{column: np.full(len(estimates), np.nan) for column in missing}},
                        index=estimates.index, copy=False)

@@ -1,28 +1,38 @@
 """Trackers over a sequence of fixes (paper D): the velocity-bounded tracker and a
 constant-velocity Kalman filter with the fixes as position measurements.
 
-KF: state [x, y, vx, vy], PV model with white acceleration sigma_a over the epoch T;
-z = [x, y] with R = sigma_fix^2 I; P0 = diag(sigma_fix^2, sigma_fix^2, sigma_v^2, sigma_v^2).
-It starts at the first fix, predicts at every later epoch (with or without a fix) and
-is updated with each fix. Both trackers output only at epochs that have a fix.
+KF (`kf_tracker`): the filter core's epoch loop (core.epoch_loop) with the PV motion model
+(state [x, y, vx, vy], white acceleration sigma_a over the epoch T), an initiator that starts
+at the first fix (FixInitiator: x0 = [fix, 0, 0], P0 = diag(sigma_fix^2, sigma_fix^2,
+sigma_v^2, sigma_v^2)), no coasting limit, and a bank (FixBank) of the runs' filters as arrays
+whose measurement is the fix, z = [x, y] = H x + v, R = sigma_fix^2 I. It predicts at every
+epoch after the start (with or without a fix) and is updated with each fix; a single run is
+a batch of one. Both trackers output only at epochs that have a fix.
 
-Fed the velocity algorithm's speed (paper D §4.2: "z_k is populated with the position estimates
-coming from Min-Max ... while the velocity algorithm provides speed estimates"): the velocity
-tracker's window speed v_hat (eq. 1) at the fix joins the update as a third component,
-z = [x, y, v_hat], h(x) = [x, y, ||v||], H_3 = [0, 0, vx / ||v||, vy / ||v||], R_33 = sigma_v^2;
-position-only where v_hat is undefined (window not filled) or ||v|| < MIN_SPEED_MPS (no direction).
+Fed the velocity algorithm's speed (`speed_input`; paper D §4.2: "z_k is populated with the
+position estimates coming from Min-Max ... while the velocity algorithm provides speed
+estimates"): the velocity tracker's window speed v_hat (eq. 1) at the fix joins the update as a
+third component, z = [x, y, v_hat], h(x) = [x, y, ||v||], H_3 = [0, 0, vx / ||v||, vy / ||v||],
+R_33 = sigma_v^2 (an EKF update); position-only where v_hat is undefined (window not filled) or
+the predicted ||v|| < MIN_SPEED_MPS (no direction).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
-from wsnloc.filters.kalman import KalmanFilter
+from wsnloc.estimators import core, fixes
+from wsnloc.estimators.array_ekf import joseph_update, predict
+from wsnloc.estimators.motion import MotionModel
+from wsnloc.estimators.run_data import RunData
 from wsnloc.filters.motion_models import constant_velocity
 from wsnloc.tracking.velocity_bounded import VelocityBoundedTracker
+
+MIN_SPEED_MPS = 1e-3     # below this predicted speed ||v|| has no direction: the speed component is left out
 
 
 def kalman_matrices(epoch_s: float, accel_sigma_mps2: float, position_sigma_m: float,
@@ -43,40 +53,131 @@ def velocity_track(fixes: pd.DataFrame, window: int, speed_from: str) -> pd.Data
     return pd.DataFrame(rows, columns=["t", "x", "y"])
 
 
-MIN_SPEED_MPS = 1e-3     # below this predicted speed ||v|| has no direction: the speed component is left out
+@dataclass(frozen=True)
+class FixSource:
+    """One run's per-epoch fixes (fixes.epoch_fixes: t, x, y; NaN x, y without a fix) and the
+    velocity algorithm's speed v_hat (m/s) after each fix (NaN: none, or no speed input)."""
 
+    t: np.ndarray
+    xy: np.ndarray
+    speed: np.ndarray
 
-def kalman_track(fixes: pd.DataFrame, matrices: tuple, speed: tuple | None = None) -> pd.DataFrame:
-    """KF output (t, x, y and the position covariance) at the epochs with a fix; `speed` =
-    (window, speed_from, sigma_v in m/s) feeds the velocity algorithm's speed (module docstring)."""
-    F, Q, H, R, P0 = matrices
-    velocity = VelocityBoundedTracker(speed[0], speed[1]) if speed is not None else None
-    kf, rows = None, []
-    for t, x, y in fixes[["t", "x", "y"]].itertuples(index=False):
-        has_fix = np.isfinite(x) and np.isfinite(y)
-        if kf is not None:
-            kf.predict()
-        if not has_fix:
-            continue
+    @classmethod
+    def of(cls, fix_table: pd.DataFrame, velocity: tuple[int, str] | None = None) -> "FixSource":
+        """velocity = (window, speed_from) of the velocity tracker whose speed is fed (None: none)."""
+        t, xy = fix_table["t"].to_numpy(float), fix_table[["x", "y"]].to_numpy(float)
+        speed = np.full(len(t), np.nan)
         if velocity is not None:
-            velocity.update(t, x, y)
-        if kf is None:
-            kf = KalmanFilter(np.array([x, y, 0.0, 0.0]), P0, F, Q, H, R)
-        elif velocity is not None and math.isfinite(velocity.speed) and math.hypot(*kf.x[2:]) >= MIN_SPEED_MPS:
-            kf.update(np.array([x, y, velocity.speed]), H=_position_and_speed_jacobian(kf.x),
-                      R=np.diag([R[0, 0], R[1, 1], speed[2] ** 2]), hx=_position_and_speed(kf.x))   # EKF update
-        else:
-            kf.update(np.array([x, y]))
-        rows.append((t, kf.x[0], kf.x[1], kf.P[0, 0], kf.P[0, 1], kf.P[1, 1]))
-    return pd.DataFrame(rows, columns=["t", "x", "y", "p_xx", "p_xy", "p_yy"])
+            tracker = VelocityBoundedTracker(*velocity)
+            for k in np.flatnonzero(np.isfinite(xy).all(axis=1)):
+                tracker.update(float(t[k]), float(xy[k, 0]), float(xy[k, 1]))
+                speed[k] = tracker.speed
+        return cls(t, xy, speed)
+
+    def has_fix(self) -> np.ndarray:
+        return np.isfinite(self.xy).all(axis=1)
+
+
+class FixInitiator:
+    """Starts a track at the first epoch with a fix: x0 = [fix, 0, 0], P0 = the motion model's
+    initial covariance (core's initiator interface)."""
+
+    def initiate(self, source: FixSource, t: float, motion) -> tuple[np.ndarray, np.ndarray] | None:
+        k = int(np.searchsorted(source.t, t))
+        if k == len(source.t) or not np.isfinite(source.xy[k]).all():
+            return None
+        return np.concatenate([source.xy[k], np.zeros(motion.dim - 2)]), motion.initial_covariance()
 
 
 def _position_and_speed(state: np.ndarray) -> np.ndarray:
-    """h(x) = [x, y, ||v||] (m, m, m/s) of the PV state [x, y, vx, vy]."""
-    return np.array([state[0], state[1], math.hypot(state[2], state[3])])
+    """h(x) = [x, y, ||v||] (m, m, m/s) of PV states [x, y, vx, vy] (..., 4) -> (..., 3)."""
+    return np.stack([state[..., 0], state[..., 1], np.hypot(state[..., 2], state[..., 3])], axis=-1)
 
 
 def _position_and_speed_jacobian(state: np.ndarray) -> np.ndarray:
-    """dh/dx of _position_and_speed: rows [1 0 0 0], [0 1 0 0], [0 0 vx/||v|| vy/||v||]."""
-    norm = math.hypot(state[2], state[3])
-    return np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, state[2] / norm, state[3] / norm]])
+    """dh/dx of _position_and_speed (..., 3, 4): rows [1 0 0 0], [0 1 0 0], [0 0 vx/||v|| vy/||v||]."""
+    norm = np.hypot(state[..., 2], state[..., 3])
+    H = np.zeros(state.shape[:-1] + (3, 4))
+    H[..., 0, 0], H[..., 1, 1], H[..., 2, 2], H[..., 2, 3] = 1.0, 1.0, state[..., 2] / norm, state[..., 3] / norm
+    return H
+
+
+class FixBank:
+    """The KF over fixes of several runs as arrays (a core filter bank): x (runs, 4), P (runs, 4, 4);
+    predict x <- F x, P <- F P F^T + Q and the Joseph update with the epoch's fix, or with the
+    fix and the speed v_hat where the run has one (module docstring) (array_ekf.joseph_update)."""
+
+    def __init__(self, sources: list[FixSource], position_sigma_m: float, speed_sigma_mps: float):
+        n_epochs = max([len(s.t) for s in sources] + [0])
+        self.z, self.speed = np.full((len(sources), n_epochs, 2), np.nan), np.full((len(sources), n_epochs), np.nan)
+        for i, s in enumerate(sources):
+            self.z[i, :len(s.t)], self.speed[i, :len(s.t)] = s.xy, s.speed
+        self.fixed = np.isfinite(self.z).all(axis=2)
+        self.H, self.R = np.hstack([np.eye(2), np.zeros((2, 2))]), np.eye(2) * position_sigma_m**2
+        self.R_speed = np.diag([position_sigma_m**2] * 2 + [speed_sigma_mps**2])
+        self.x, self.P = np.zeros((len(sources), 4)), np.zeros((len(sources), 4, 4))
+
+    def start(self, i: int, x0: np.ndarray, P0: np.ndarray, motion) -> None:
+        self.x[i], self.P[i] = x0, P0
+
+    def track(self, i: int):
+        raise NotImplementedError("the KF over fixes records no forward pass")
+
+    def predict(self, rows: np.ndarray, F, Q, B, u) -> None:
+        if len(rows):
+            self.x[rows], self.P[rows] = predict(self.x[rows], self.P[rows], F, Q)
+
+    def update(self, rows: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Update the given runs that have a fix at epoch k: (measurements used: 0, 1 for the fix,
+        2 with the speed; NIS; lost = False)."""
+        fixed = np.flatnonzero(self.fixed[rows, k])
+        v = self.speed[rows[fixed], k]
+        with_speed = np.isfinite(v) & (np.hypot(self.x[rows[fixed], 2], self.x[rows[fixed], 3]) >= MIN_SPEED_MPS)
+        used, nis = np.zeros(len(rows), int), np.full(len(rows), np.nan)
+        used[fixed] = 1 + with_speed
+        plain, fed = fixed[~with_speed], fixed[with_speed]
+        if len(plain):
+            r = rows[plain]
+            y = self.z[r, k] - self.x[r] @ self.H.T
+            self.x[r], self.P[r], nis[plain] = joseph_update(self.x[r], self.P[r], y, self.H[None], self.R[None])
+        if len(fed):
+            r = rows[fed]
+            y = np.column_stack([self.z[r, k], self.speed[r, k]]) - _position_and_speed(self.x[r])
+            self.x[r], self.P[r], nis[fed] = joseph_update(self.x[r], self.P[r], y,
+                                                           _position_and_speed_jacobian(self.x[r]), self.R_speed[None])
+        return used, nis, np.zeros(len(rows), bool)
+
+    def estimates(self, rows) -> np.ndarray:
+        x, P = self.x[rows], self.P[rows]
+        return np.column_stack([x[:, 0], x[:, 1], P[:, 0, 0], P[:, 0, 1], P[:, 1, 1]])
+
+
+def fix_tracks(sources: list[FixSource], epoch_s: float, accel_sigma_mps2: float, position_sigma_m: float,
+               initial_speed_sigma_mps: float, speed_sigma_mps: float) -> list[core.Track]:
+    """The KF over the fixes of every source, stepped together by one core.epoch_loop;
+    output at the epochs with a fix (module docstring)."""
+    motion = MotionModel("pv", epoch_s, 0.0, accel_sigma_mps2, 0.0, position_sigma_m, initial_speed_sigma_mps, 0.0)
+    runs = [core.RunInputs(s.t, s, np.zeros(len(s.t), bool), None) for s in sources]
+    out = core.epoch_loop(FixBank(sources, position_sigma_m, speed_sigma_mps), runs, motion, epoch_s,
+                          FixInitiator(), core.CoastingDeleter(np.inf))
+    return [core.Track(rows[np.isin(rows[:, 0], source.t[source.has_fix()])], {"resets": resets})
+            for source, (rows, resets) in zip(sources, out)]
+
+
+def kalman_tracks(datas: list[RunData], params: list[dict]) -> list[core.Track]:
+    """`kf_tracker` of every (run, resolved parameters) cell: the fixes of each (fixes.epoch_fixes
+    with p["fixes"]; with speed_input, the speed of the velocity tracker (window, speed_from)),
+    then fix_tracks per set of KF settings (the cells sharing them are stepped together)."""
+    groups: dict[tuple, list[int]] = {}
+    for i, p in enumerate(params):
+        key = (p["epoch_s"], p["accel_sigma_mps2"], p["position_sigma_m"], p["initial_speed_sigma_mps"],
+               p["speed_sigma_mps"])
+        groups.setdefault(key, []).append(i)
+    tracks: list[core.Track] = [None] * len(params)
+    for key, members in groups.items():
+        sources = [FixSource.of(fixes.epoch_fixes(datas[i], params[i], params[i]["fixes"]),
+                                (params[i]["window"], params[i]["speed_from"]) if params[i]["speed_input"] else None)
+                   for i in members]
+        for i, track in zip(members, fix_tracks(sources, *key)):
+            tracks[i] = track
+    return tracks

@@ -44,15 +44,45 @@ def _norm(diff):
 def _geometry(x, anchors):
     """(p - a_i (m, k), d_i (m,)) with k = 2 or 3, the anchors' coordinates."""
     diff = np.asarray(x, dtype=float)[None, :anchors.shape[1]] - anchors
-    d = np.hypot(diff[:, 0], diff[:, 1]) if anchors.shape[1] == 2 else np.sqrt(np.sum(diff**2, axis=1))
-    return diff, np.maximum(d, MIN_DISTANCE)
+    return diff, distance(diff)
+
+
+def distance(diff: np.ndarray) -> np.ndarray:
+    """d = max(||p - a||, 1 mm) of displacements diff = p - a (..., k), k = 2 (horizontal) or 3, in m."""
+    return np.maximum(_norm(diff), MIN_DISTANCE)
+
+
+def range_rows(diff: np.ndarray, dz: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """TOA range h and the position columns of its Jacobian for displacements diff = p - a
+    (..., k) and height differences dz (...; None: none): h = sqrt(d^2 + dz^2),
+    H_p = (p - a) / h (h floored at 1 mm). Any leading shape: one filter's anchors or every
+    run's padded measurements (estimators.array_ekf)."""
+    d = distance(diff)
+    h = d if dz is None else np.sqrt(d**2 + dz**2)
+    return h, diff / np.maximum(h, MIN_DISTANCE)[..., None]
+
+
+def rss_rows(diff: np.ndarray, p0_dbm, exponent, d0_m, dz: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """RSS h = P0 - 10 n log10(D / d0), D = max(sqrt(d^2 + dz^2), d0), and the position columns
+    of its Jacobian, H_p = -10 n / ln10 (p - a) / D^2 (0 below d0: module docstring), for
+    displacements diff (..., k) and height differences dz (...; None: none); P0, n, d0
+    scalars or arrays of the leading shape."""
+    full, D = _rss_distance(distance(diff), d0_m, dz)
+    gain = np.where(full >= d0_m, -10.0 * exponent / np.log(10.0) / D**2, 0.0)
+    return p0_dbm - 10.0 * exponent * np.log10(D / d0_m), diff * gain[..., None]
+
+
+def _rss_distance(d: np.ndarray, d0_m, dz: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """(sqrt(d^2 + dz^2), D = max(sqrt(d^2 + dz^2), d0)) of distances d (m); dz None: none."""
+    full = d if dz is None else np.sqrt(d**2 + dz**2)
+    return full, np.maximum(full, d0_m)
 
 
 def _distances_many(X, anchors):
     """Distances (N, m) from N states X (N, n) to the anchors (in the anchors' 2 or 3
     coordinates; horizontal ones for 2-D anchors), floored like _geometry."""
     X = np.asarray(X, dtype=float)
-    return np.maximum(_norm(X[:, None, :anchors.shape[1]] - anchors[None]), MIN_DISTANCE)
+    return distance(X[:, None, :anchors.shape[1]] - anchors[None])
 
 
 @dataclass
@@ -62,8 +92,7 @@ class RangeModel:
     dz_m: np.ndarray | None = None   # (m,) anchor height - tag height with 2-D anchors; None: no offset
 
     def h(self, x) -> np.ndarray:
-        d = _geometry(x, self.anchors)[1]
-        return d if self.dz_m is None else np.sqrt(d**2 + self.dz_m**2)
+        return range_rows(_geometry(x, self.anchors)[0], self.dz_m)[0]
 
     def h_many(self, X) -> np.ndarray:
         """h at every row of X (N, n): (N, m) ranges in m."""
@@ -71,10 +100,8 @@ class RangeModel:
         return d if self.dz_m is None else np.sqrt(d**2 + self.dz_m[None, :] ** 2)
 
     def jacobian(self, x) -> np.ndarray:
-        diff, d = _geometry(x, self.anchors)
-        h = d if self.dz_m is None else np.sqrt(d**2 + self.dz_m**2)
         H = np.zeros((len(self.anchors), len(x)))
-        H[:, :diff.shape[1]] = diff / np.maximum(h, MIN_DISTANCE)[:, None]
+        H[:, :self.anchors.shape[1]] = range_rows(_geometry(x, self.anchors)[0], self.dz_m)[1]
         return H
 
     def R(self) -> np.ndarray:
@@ -90,25 +117,19 @@ class RssModel:
     d0_m: float = 1.0
     dz_m: np.ndarray | None = None   # (m,) receiver height - tag height; None: 2-D
 
-    def _distance(self, d: np.ndarray) -> np.ndarray:
-        """D = max(sqrt(d^2 + dz^2), d0) of horizontal distances d (m)."""
-        return np.maximum(d if self.dz_m is None else np.sqrt(d**2 + self.dz_m**2), self.d0_m)
-
     def h(self, x) -> np.ndarray:
-        return self.p0_dbm - 10.0 * self.exponent * np.log10(self._distance(_geometry(x, self.anchors)[1]) / self.d0_m)
+        return rss_rows(_geometry(x, self.anchors)[0], self.p0_dbm, self.exponent, self.d0_m, self.dz_m)[0]
 
     def h_many(self, X) -> np.ndarray:
         """h at every row of X (N, n): (N, m) RSS in dBm."""
-        return self.p0_dbm - 10.0 * self.exponent * np.log10(self._distance(_distances_many(X, self.anchors))
-                                                              / self.d0_m)
+        dz = None if self.dz_m is None else self.dz_m[None, :]
+        D = _rss_distance(_distances_many(X, self.anchors), self.d0_m, dz)[1]
+        return self.p0_dbm - 10.0 * self.exponent * np.log10(D / self.d0_m)
 
     def jacobian(self, x) -> np.ndarray:
-        diff, d = _geometry(x, self.anchors)
-        full = d if self.dz_m is None else np.sqrt(d**2 + self.dz_m**2)
-        D = self._distance(d)
         H = np.zeros((len(self.anchors), len(x)))
-        H[:, :diff.shape[1]] = np.where((full >= self.d0_m)[:, None],
-                            -10.0 * self.exponent / np.log(10.0) * diff / (D**2)[:, None], 0.0)
+        H[:, :self.anchors.shape[1]] = rss_rows(_geometry(x, self.anchors)[0], self.p0_dbm, self.exponent, self.d0_m,
+                                                self.dz_m)[1]
         return H
 
     def R(self) -> np.ndarray:
