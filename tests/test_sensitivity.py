@@ -281,3 +281,6 @@ def test_every_cell_outside_our_interval_gets_a_computed_mechanism():
     other = explanations.Numbers(frame, {"d/s": {"range_error_pooled": {"LOS": {"n": 90, "median": 0.02},
                                                                          "NLOS": {"n": 10, "bias": 0.2}}}})
     assert "10% of the ranges are NLOS (median excess 0.20 m" in explanations.cell_whys(other, "B", [table])[0]
+    # the kind of cell chooses the mechanism: dead reckoning gets the rest share, not the ranging
+    imu = explanations.cell_mechanism(numbers, "B", "d/s", "RMSE [m]", methods[1], "d/s")
+    assert "no rest to measure the IMU biases in" in imu and "NLOS" not in imu

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import math
+import re
 
 import pandas as pd
 
@@ -93,14 +94,16 @@ def campaign_of(config: dict, label: str) -> Campaign:
 
 
 # ---- one mechanism per table cell outside our interval ------------------------------------------
-RANGING_WORDS = ("uwb", "toa", "range", "beacon", "p", "pv", "pva", "min-max", "multilateration", "hybrid", "mix")
+RANGING_WORDS = ("uwb", "toa", "range", "beacon", "beacons", "p", "pv", "pva", "min-max", "multilateration", "hybrid",
+                 "mix", "f-mix", "p-mix", "fused", "fusion")
 RSS_WORDS = ("rss", "zigbee", "narrowband", "hybrid", "mix")
 DRIFT_WORDS = ("imu", "dead", "reckoning", "inertial", "kf", "fusion", "fused", "sskf")
 STILL_SHARE = 0.05      # static share of epochs below which a run has no rest to measure sensor biases in
 
 
 def _words(*labels: str) -> set[str]:
-    return {w for label in labels for w in label.lower().replace("/", " ").replace(",", " ").split()}
+    """The lower-case words (letters, digits, inner hyphens) of `labels`."""
+    return {w for label in labels for w in re.findall(r"[a-z0-9]+(?:-[a-z0-9]+)*", label.lower())}
 
 
 def cell_mechanism(n: Numbers, experiment: str, scenario: str, *labels: str) -> str:
@@ -110,10 +113,10 @@ def cell_mechanism(n: Numbers, experiment: str, scenario: str, *labels: str) -> 
     RSS path-loss fit (exponent, residual spread in dB) for RSS cells, and the scenario's set-up
     facts (static share of epochs, anchors heard per epoch) for every cell; "" when the build has
     none of these numbers for the scenario."""
-    words, text = _words(*labels), " ".join(labels).lower()
+    words = _words(*labels)
     parts = []
     r = n.ranging(scenario)
-    if (words & set(RANGING_WORDS) or "min-max" in text) and finite(r["nlos_share"], r["los_median_m"]):
+    if words & set(RANGING_WORDS) and finite(r["nlos_share"], r["los_median_m"]):
         parts.append(f"{r['nlos_share']:.0%} of the ranges are NLOS"
                      + (f" (median excess {r['nlos_bias_m']:.2f} m, a positive bias the estimators' range noise "
                         f"does not model)" if finite(r["nlos_bias_m"]) else "")
