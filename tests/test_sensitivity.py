@@ -273,7 +273,7 @@ def test_every_cell_outside_our_interval_gets_a_computed_mechanism():
     outside = explanations.outside_cells(section["tables"])
     assert [row["label"] for _, row, _, _ in outside] == [methods[0]]
     for _, row, column, cell in outside:
-        line = next(line for line in section["why"] if line.startswith(f"RMSE [m], {row['label']} / {column}"))
+        line = next(line for line in section["why"] if line.startswith(f"RMSE [m], {row['label']} / {column}:"))
         assert f"ours {cell['value']:.3f}" in line and "paper's 3.250" in line
         assert "40% of the ranges are NLOS (median excess 0.50 m" in line and "static share of epochs 2%" in line
     assert section["why"][0] == "a paper sentence" and len(section["why"]) == 2   # none for the inside cell

@@ -155,7 +155,9 @@ def cell_whys(n: Numbers, experiment: str, tables: list[dict]) -> list[str]:
                     else "no interval")
         mechanism = cell_mechanism(n, experiment, scenario, table["title"], row["label"], column)
         side = "below" if cell["value"] < cell["paper"] else "above"
-        out.append(f"{table['title'].split(':')[0]}, {row['label']} / {column} ({scenario}): ours {cell['value']:.3f} "
+        name = table["title"].split(":")[0].split(" (")[0]
+        where = f"{column} ({scenario})" if scenario and scenario != column else column
+        out.append(f"{name}, {row['label']} / {where}: ours {cell['value']:.3f} "
                    f"({interval}) is {side} the paper's {cell['paper']:.3f} by {abs(cell['delta']):.3f}; "
                    + (f"measured here: {mechanism}." if mechanism else
                       "no data-quality figures for this scenario in the build."))
