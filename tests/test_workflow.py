@@ -175,7 +175,6 @@ def test_real_data_study_runs_from_its_overlay(tmp_path):
     config["ranging_validation"] = {"scenarios": []}                          # simulated scenarios only
     config["bounds"] = {key: {d: v for d, v in spec.items() if d in config["datasets"]}
                         for key, spec in config["bounds"].items()}           # only the datasets kept
-    config.pop("ranging_validation", None)     # its scenarios are simulated datasets not kept here
     (work / "config" / "config.yaml").write_text(yaml.safe_dump(config))
     result = snakemake(work, "--cores", "2")
     assert result.returncode == 0, result.stderr[-3000:]
