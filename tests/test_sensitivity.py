@@ -13,7 +13,7 @@ from wsnloc.experiments import paper_b, sensitivity
 from wsnloc.experiments.paper_b import report as paper_b_report
 from wsnloc.metrics.verdicts import DOES_NOT_HOLD, HOLDS
 from wsnloc.report import explanations
-from wsnloc.report.sections import sensitivity_table
+from wsnloc.report.sections import grid_table, paper_section, sensitivity_table
 
 SPEC = {"parameters": {"fix_sigma_m": 1.0, "accel_sigma_mps2": 0.3},
         "estimators": {"kalman": {"estimator": "kf_tracker", "accel_sigma_mps2": 0.5}, "fused": {"estimator": "dr_kf"}},
@@ -253,3 +253,34 @@ def test_a_sigma_set_per_scenario_is_scaled_where_the_overrides_set_it():
     assert [half["overrides"][k]["P"]["p_sigma_m"] for k in ("c/s20", "c/s40")] == [0.05, 0.1]
     assert [double["overrides"][k]["P"]["p_sigma_m"] for k in ("c/s20", "c/s40")] == [0.2, 0.4]
     assert "p_sigma_m" not in half["estimators"]["P"] and spec["overrides"]["c/s20"]["P"]["p_sigma_m"] == 0.1
+
+
+def test_every_cell_outside_our_interval_gets_a_computed_mechanism():
+    methods = [paper_b.METHODS["uwb"], paper_b.METHODS["imu"]]
+    rows = [results.row_over_runs([0.8, 0.9, 0.85] * 4, experiment="B", table="RMSE", row=methods[0], column="d/s",
+                                  scenario="d/s", metric="rmse_m", paper_value=3.25),          # outside
+            results.row_over_runs([20.0, 30.0, 25.0] * 4, experiment="B", table="RMSE", row=methods[1], column="d/s",
+                                  scenario="d/s", metric="rmse_m", paper_value=25.0),          # inside
+            setup_facts.fact_row("B", "static share of epochs", "d/s", pd.Series([0.01, 0.02]), "share")]
+    summaries = {"d/s": {"range_error_pooled": {"LOS": {"n": 60, "median": 0.05},
+                                                "NLOS": {"n": 40, "bias": 0.5, "p95": 1.1}}}}
+    frame = results.frame(rows)
+    numbers = explanations.Numbers(frame, summaries)
+    table = grid_table(frame, experiment="B", table="RMSE", rows=methods, columns=["d/s"], metric="rmse_m",
+                       title="RMSE [m]")
+    section = paper_section("B", {"title": "t", "citation": "c"}, {}, {"claims": []}, {}, numbers=numbers,
+                            tables=[table], why=["a paper sentence"])
+    outside = explanations.outside_cells(section["tables"])
+    assert [row["label"] for _, row, _, _ in outside] == [methods[0]]
+    for _, row, column, cell in outside:
+        line = next(line for line in section["why"] if line.startswith(f"RMSE [m], {row['label']} / {column}:"))
+        assert f"ours {cell['value']:.3f}" in line and "paper's 3.250" in line
+        assert "40% of the ranges are NLOS (median excess 0.50 m" in line and "static share of epochs 2%" in line
+    assert section["why"][0] == "a paper sentence" and len(section["why"]) == 2   # none for the inside cell
+    # the mechanism follows the data: other numbers, other sentence
+    other = explanations.Numbers(frame, {"d/s": {"range_error_pooled": {"LOS": {"n": 90, "median": 0.02},
+                                                                         "NLOS": {"n": 10, "bias": 0.2}}}})
+    assert "10% of the ranges are NLOS (median excess 0.20 m" in explanations.cell_whys(other, "B", [table])[0]
+    # the kind of cell chooses the mechanism: dead reckoning gets the rest share, not the ranging
+    imu = explanations.cell_mechanism(numbers, "B", "d/s", "RMSE [m]", methods[1], "d/s")
+    assert "no rest to measure the IMU biases in" in imu and "NLOS" not in imu

@@ -172,6 +172,7 @@ def test_real_data_study_runs_from_its_overlay(tmp_path):
     config["datasets"] = {"cucudasluv": dataset}
     config["studies"] = {"realdata_uwb": study}
     config["experiments"] = {}
+    config["ranging_validation"] = {"scenarios": []}                          # simulated scenarios only
     config["bounds"] = {key: {d: v for d, v in spec.items() if d in config["datasets"]}
                         for key, spec in config["bounds"].items()}           # only the datasets kept
     (work / "config" / "config.yaml").write_text(yaml.safe_dump(config))

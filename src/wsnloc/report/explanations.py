@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import math
+import re
 
 import pandas as pd
 
@@ -90,3 +91,74 @@ def _campaign(path: str) -> Campaign:
 def campaign_of(config: dict, label: str) -> Campaign:
     """The campaign of a dataset/scenario label (its scenario details: speed profile, speed)."""
     return _campaign(config["datasets"][label.split("/", 1)[0]]["campaign"])
+
+
+# ---- one mechanism per table cell outside our interval ------------------------------------------
+RANGING_WORDS = ("uwb", "toa", "range", "beacon", "beacons", "p", "pv", "pva", "min-max", "multilateration", "hybrid",
+                 "mix", "f-mix", "p-mix", "fused", "fusion")
+RSS_WORDS = ("rss", "zigbee", "narrowband", "hybrid", "mix")
+DRIFT_WORDS = ("imu", "dead", "reckoning", "inertial", "kf", "fusion", "fused", "sskf")
+STILL_SHARE = 0.05      # static share of epochs below which a run has no rest to measure sensor biases in
+
+
+def _words(*labels: str) -> set[str]:
+    """The lower-case words (letters, digits, inner hyphens) of `labels`."""
+    return {w for label in labels for w in re.findall(r"[a-z0-9]+(?:-[a-z0-9]+)*", label.lower())}
+
+
+def cell_mechanism(n: Numbers, experiment: str, scenario: str, *labels: str) -> str:
+    """The measured error sources behind one cell of `scenario`, chosen by the cell's kind (the
+    words of its table title, row and column `labels`): the UWB / ultrasound ranging (NLOS share
+    of the ranges, their median NLOS excess and LOS median error, m) for range-based cells, the
+    RSS path-loss fit (exponent, residual spread in dB) for RSS cells, and the scenario's set-up
+    facts (static share of epochs, anchors heard per epoch) for every cell; "" when the build has
+    none of these numbers for the scenario."""
+    words = _words(*labels)
+    parts = []
+    r = n.ranging(scenario)
+    if words & set(RANGING_WORDS) and finite(r["nlos_share"], r["los_median_m"]):
+        parts.append(f"{r['nlos_share']:.0%} of the ranges are NLOS"
+                     + (f" (median excess {r['nlos_bias_m']:.2f} m, a positive bias the estimators' range noise "
+                        f"does not model)" if finite(r["nlos_bias_m"]) else "")
+                     + f", LOS median range error {r['los_median_m']:.3f} m")
+    fit = n.rss_fit(scenario)
+    if words & set(RSS_WORDS) and finite(fit["fit_all_n"], fit["fit_all_sigma_dB"]):
+        parts.append(f"RSS fits path-loss exponent n = {fit['fit_all_n']:.2f} with {fit['fit_all_sigma_dB']:.1f} dB "
+                     f"residual spread (wall losses outside the RSS model)")
+    facts = n.results[(n.results["experiment"] == experiment) & (n.results["table"] == SETUP_TABLE)
+                      & (n.results["column"] == scenario)]
+    for fact, value in zip(facts["row"], facts["value"]):
+        if pd.notna(value):
+            shown = f"{value:.0%}" if "share" in fact else f"{value:.1f}"
+            at_rest = "static" in fact and value < STILL_SHARE and words & set(DRIFT_WORDS)
+            parts.append(f"{fact} {shown}" + (" (no rest to measure the IMU biases in: dead reckoning integrates them)"
+                                              if at_rest else ""))
+    return "; ".join(parts)
+
+
+def outside_cells(tables: list[dict]) -> list[tuple[dict, dict, str, dict]]:
+    """(table, row, column, cell) of every table cell with a paper value outside our interval."""
+    return [(table, row, column, cell) for table in tables for row in table["rows"]
+            for column, cell in zip(table["columns"], row["cells"])
+            if cell["paper"] is not None and cell["value"] is not None and not cell["inside"]]
+
+
+def cell_whys(n: Numbers, experiment: str, tables: list[dict]) -> list[str]:
+    """One sentence per table cell whose paper value lies outside our interval: our value with
+    the interval it was compared with, the paper's, and the cell's measured error sources
+    (cell_mechanism of the cell's scenario)."""
+    out = []
+    for table, row, column, cell in outside_cells(tables):
+        scenario = cell.get("scenario") or table.get("scenario", "")
+        low, high = ((cell["band_low"], cell["band_high"]) if cell["basis"] == "run" else (cell["low"], cell["high"]))
+        interval = (f"{cell['basis']} interval [{low:.3f}, {high:.3f}]" if low is not None and high is not None
+                    else "no interval")
+        mechanism = cell_mechanism(n, experiment, scenario, table["title"], row["label"], column)
+        side = "below" if cell["value"] < cell["paper"] else "above"
+        name = table["title"].split(":")[0].split(" (")[0]
+        where = f"{column} ({scenario})" if scenario and scenario != column else column
+        out.append(f"{name}, {row['label']} / {where}: ours {cell['value']:.3f} "
+                   f"({interval}) is {side} the paper's {cell['paper']:.3f} by {abs(cell['delta']):.3f}; "
+                   + (f"measured here: {mechanism}." if mechanism else
+                      "no data-quality figures for this scenario in the build."))
+    return out

@@ -20,7 +20,7 @@ def cell_of(results: pd.DataFrame, **keys) -> dict:
     rows = claims_of.cell_rows(results, tuple(keys)).get(tuple(keys.values()))
     if rows is None:
         return {"value": None, "low": None, "high": None, "band_low": None, "band_high": None, "runs": None,
-                "paper": None, "delta": None, "inside": False, "basis": "mean"}
+                "paper": None, "delta": None, "inside": False, "basis": "mean", "scenario": None}
     paper, value, low, high, band_low, band_high, runs = (
         _present(results, column, int(rows[0]))
         for column in ("paper_value", "value", "ci95_low", "ci95_high", "band_low", "band_high", "runs"))
@@ -33,7 +33,7 @@ def cell_of(results: pd.DataFrame, **keys) -> dict:
     delta = value - paper if value is not None and paper is not None and not inside else None
     return {"value": value, "low": low, "high": high, "band_low": band_low, "band_high": band_high,
             "runs": int(runs) if runs is not None else None, "paper": paper, "delta": delta, "inside": inside,
-            "basis": basis}
+            "basis": basis, "scenario": _present(results, "scenario", int(rows[0])) if "scenario" in results else None}
 
 
 def _present(results: pd.DataFrame, column: str, row: int):
@@ -66,11 +66,17 @@ def detail_table(results: pd.DataFrame, *, experiment: str, table: str, scenario
 
 
 
-def paper_section(experiment: str, paper: dict, spec: dict, claims: dict, figures: dict[str, str], **parts) -> dict:
+def paper_section(experiment: str, paper: dict, spec: dict, claims: dict, figures: dict[str, str],
+                  numbers=None, **parts) -> dict:
     """The context every paper section has (paper.html.j2): id, title and citation (config/papers.yaml),
     whether its tables are published, its config `spec`, claims and figures, its set-up note's
     template (section.html.j2 of its package) and `parts`: tables, details, bounds, cost, why,
-    setup (the resolved parameters its note shows)."""
+    setup (the resolved parameters its note shows). With `numbers` (explanations.Numbers), "why"
+    gets one computed sentence per table cell outside our interval (explanations.cell_whys)."""
+    if numbers is not None:
+        from wsnloc.report.explanations import cell_whys
+
+        parts["why"] = [*parts.get("why", []), *cell_whys(numbers, experiment, parts.get("tables", []))]
     return {"id": experiment, "title": paper["title"], "citation": paper["citation"],
             "published": bool(paper.get("tables_published", True)), "spec": spec, "claims": claims["claims"],
             "figures": figures, "partial": f"paper_{experiment.lower()}/section.html.j2",

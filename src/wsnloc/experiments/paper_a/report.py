@@ -30,7 +30,7 @@ def section(results: pd.DataFrame, claims: dict, figures: dict[str, str], paper:
     bounds = [bound_line(results, f"{t}: {r} / {sc}", A, sc, {"table": f"{t} detail", "row": r},
                          {"table": f"consistency: {t}", "row": r}) for t in TABLES for r in rows for sc in labels]
     setup = cell_params(spec, labels[0], TABLES[0], spec["rows"][0])
-    return paper_section(A, paper, spec, claims, figures, tables=tables, bounds=bounds, details=details, setup=setup,
+    return paper_section(A, paper, spec, claims, figures, numbers=numbers, tables=tables, bounds=bounds, details=details, setup=setup,
                          why=why(numbers, config, labels, spec, setup["epoch_s"]))
 
 

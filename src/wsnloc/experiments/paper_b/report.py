@@ -38,7 +38,7 @@ def section(results: pd.DataFrame, claims: dict, figures: dict[str, str], paper:
     measured = [label for label in labels if label not in simulated]
     setup = cells.params(spec, "sskf", (measured or labels)[0], PAPER)
     simulation_setup = cells.params(spec, "sskf", simulated[0], PAPER) if simulated else setup
-    return paper_section(B, paper, spec, claims, figures, tables=tables, details=details, setup=setup,
+    return paper_section(B, paper, spec, claims, figures, numbers=numbers, tables=tables, details=details, setup=setup,
                          simulation_setup=simulation_setup, why=why(numbers, measured, simulated))
 
 

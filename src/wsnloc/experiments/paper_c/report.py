@@ -33,7 +33,7 @@ def section(results: pd.DataFrame, claims: dict, figures: dict[str, str], paper:
                           {"table": f"consistency: {subset}", "row": m})
                for subset in table_2 for m in MODELS]
     setup = {model: cell_params(spec, labels[0], model, table_1) for model in MODELS}
-    return paper_section(C, paper, spec, claims, figures, tables=tables, bounds=bounds, details=details, setup=setup,
+    return paper_section(C, paper, spec, claims, figures, numbers=numbers, tables=tables, bounds=bounds, details=details, setup=setup,
                          why=why(numbers, config, labels, setup["P"]["epoch_s"]))
 
 

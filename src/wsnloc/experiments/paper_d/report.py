@@ -28,7 +28,7 @@ def section(results: pd.DataFrame, claims: dict, figures: dict[str, str], paper:
                                   rows=["velocity tracker", "Kalman filter"], columns=techs, metric="rmse_m",
                                   title="Table 3: velocity tracking vs Kalman filter on Min-Max fixes, RMSE [m]"))
     setup = cells.params(spec, "velocity", labels[0], PAPER)
-    return paper_section(D, paper, spec, claims, figures, tables=tables, details=details, cost=cost_table(results),
+    return paper_section(D, paper, spec, claims, figures, numbers=numbers, tables=tables, details=details, cost=cost_table(results),
                          setup=setup, why=why(numbers, labels))
 
 
