@@ -22,6 +22,18 @@ def campaign() -> Campaign:
 
 
 @pytest.fixture(scope="session")
+def newcom() -> Campaign:
+    """The Newcom++ campaign by the name the paper set-up and bound tests use."""
+    return Campaign.load(NEWCOM)
+
+
+@pytest.fixture(scope="session")
+def cricket() -> Campaign:
+    """The Cricket campaign (a test module may define its own `cricket` fixture instead)."""
+    return Campaign.load(ROOT / "config" / "campaigns" / "cricket.yaml")
+
+
+@pytest.fixture(scope="session")
 def simulated_run(campaign, tmp_path_factory) -> Path:
     """One simulated run of the constant-speed scenario (read-only for tests)."""
     out = tmp_path_factory.mktemp("sim") / "run-01"

@@ -7,18 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from wsnloc.campaign import Campaign
 from wsnloc.sim import imu, trajectory
-
-
-@pytest.fixture(scope="module")
-def newcom():
-    return Campaign.load("config/campaigns/newcom.yaml")
-
-
-@pytest.fixture(scope="module")
-def cricket():
-    return Campaign.load("config/campaigns/cricket.yaml")
 
 
 def test_paper_b_scenario_is_18_m_continuously_moving(newcom):

@@ -8,21 +8,10 @@ import yaml
 from wsnloc.analysis.static_bounds import (NoiseModel, check_config, configured_subsets, crlb, distinct, floor_maps,
                                            members, path_points, picked_subsets, subset_rows, subset_search,
                                            with_subsets)
-from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
 from wsnloc.metrics.bounds import toa_crlb
 
 NEWCOM = NoiseModel(0.3, 3.0, 5.5)
-
-
-@pytest.fixture(scope="module")
-def newcom():
-    return Campaign.load("config/campaigns/newcom.yaml")
-
-
-@pytest.fixture(scope="module")
-def cricket():
-    return Campaign.load("config/campaigns/cricket.yaml")
 
 
 @pytest.fixture(scope="module")
