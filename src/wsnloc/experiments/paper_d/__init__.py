@@ -21,7 +21,7 @@ from wsnloc.experiments import calibration
 from wsnloc.estimators import batched
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import cells, claims as claims_of
-from wsnloc.estimators.trackers import kalman_matrices
+from wsnloc.estimators.trackers import fix_measurement, fix_motion
 from wsnloc.filters.kalman import KalmanFilter
 from wsnloc.metrics import op_counts, verdicts
 from wsnloc.metrics.tracking import cell_metrics, score
@@ -153,8 +153,11 @@ def measure_cost(spec: dict, label: str, repeats: int = 5) -> dict[str, float]:
     n = spec["cost_iterations"]
     t = np.arange(n) * kalman["epoch_s"]
     fixes = np.column_stack([0.3 * t, np.zeros(n)]) + rng.normal(0, 1.0, (n, 2))
-    F, Q, H, R, P0 = kalman_matrices(kalman["epoch_s"], kalman["accel_sigma_mps2"], kalman["position_sigma_m"],
-                                     kalman["initial_speed_sigma_mps"])
+    motion = fix_motion(kalman["epoch_s"], kalman["accel_sigma_mps2"], kalman["position_sigma_m"],
+                        kalman["initial_speed_sigma_mps"])
+    F, Q, _ = motion.matrices(kalman["epoch_s"])
+    H, R = fix_measurement(kalman["position_sigma_m"])
+    P0 = motion.initial_covariance()
     per_step = {"velocity": [], "kalman": []}
     for _ in range(repeats):
         tracker = VelocityBoundedTracker(velocity["window"], velocity["speed_from"])
