@@ -49,8 +49,7 @@ def test_default_tracker_absorbs_a_seven_percent_scale_offsets_and_two_gaps(seed
 def test_given_the_true_sigma_the_tracker_is_within_1_2x_of_the_best_sigma_of_a_grid():
     tables = _run(3)
     grid = {sigma: _median(tables, {"range_sigma_m": sigma})[0] for sigma in (0.05, 0.1, 0.2, 0.3, 0.5)}
-    # the issue asks for 1.2x; measured 1.33x on this run (the self-fit re-fits the noise anyway)
-    assert grid[0.1] <= 1.5 * min(grid.values())
+    assert grid[0.1] <= 1.2 * min(grid.values())
 
 
 def test_profile_likelihood_recovers_the_innovation_scale_despite_outliers():

@@ -39,10 +39,14 @@ import numpy as np
 import pandas as pd
 
 MODES = ("none", "two_pass")
-LIVELIER = (0.5, 3.0)                  # candidate: sigma x 0.5, accel x 3 (ratio q / r x 36 in variance)
+# noise candidates (sigma factor, accel factor): calmer, configured, livelier; the ratio accel / sigma
+# x 1/6, 1, 6 (the process-to-measurement noise variance ratio x 1/36, 1, 36)
+CANDIDATES = ((2.0, 1.0 / 3.0), (1.0, 1.0), (0.5, 3.0))
+SEARCH_SHARE = 0.2                     # the candidates are scored on the central 20% of the measurements
+MEASUREMENT_TABLES = ("ranges", "rss", "tdoa")
 OUTLIER_SHARE = 0.05                   # eps of the uniform outlier component
-CLAMP = (0.05, 20.0)                   # c* searched on a log grid in this range
-GRID = np.exp(np.linspace(np.log(CLAMP[0]), np.log(CLAMP[1]), 121))
+CLAMP = (0.01, 100.0)                  # c* searched on a log grid in this range
+GRID = np.exp(np.linspace(np.log(CLAMP[0]), np.log(CLAMP[1]), 161))
 SIGMA_FLOOR_M = 0.01
 MIN_INNOVATIONS = 50
 MIN_ANCHORS_FOR_OFFSETS = 4
@@ -122,6 +126,31 @@ def range_correction(data, estimates: pd.DataFrame, p: dict, scale: float) -> di
             "source": "self-fitted on the run (two-pass)"}
 
 
+def segment(data, p: dict, share: float):
+    """The run cut to the central `share` of its usable measurements (ranges, RSS, TDOA) by time:
+    the sub-run the noise candidates are scored on (module docstring, step 2)."""
+    stamps = np.sort(np.concatenate([data.usable_ranges(p["preliminary_filter"], p["max_range_m"])["t"].to_numpy(float),
+                                     data.usable_rss()["t"].to_numpy(float), data.usable_tdoa()["t"].to_numpy(float)]))
+    if share >= 1.0 or len(stamps) < 2:
+        return data
+    lo, hi = stamps[int((0.5 - share / 2) * (len(stamps) - 1))], stamps[int((0.5 + share / 2) * (len(stamps) - 1))]
+    tables = {name: (frame[(frame["t"] >= lo) & (frame["t"] <= hi)] if name in MEASUREMENT_TABLES else frame)
+              for name, frame in data.tables.items()}
+    return replace(data, tables=tables, _cache={})
+
+
+def refine(x: np.ndarray, ll: np.ndarray) -> float:
+    """The maximum over [x_0, x_-1] of the parabola through (x_i, ll_i) (three points, x increasing);
+    the best point when the parabola is not concave or the points are not all finite."""
+    best = float(x[int(np.argmax(ll))])
+    if not np.all(np.isfinite(ll)):
+        return best
+    a, b, _ = np.polyfit(x, ll, 2)
+    if a >= 0:
+        return best
+    return float(np.clip(-b / (2 * a), x[0], x[-1]))
+
+
 def two_pass(data, p: dict, run_pass) -> pd.DataFrame:
     """The self-fitted estimates of one run (module docstring); run_pass(data, p) -> (estimates,
     (y, S)) runs one pass of the filter and returns its innovations."""
@@ -136,18 +165,28 @@ def two_pass(data, p: dict, run_pass) -> pd.DataFrame:
             run = replace(data, range_model=model, _cache=data._cache)
             q = dict(q, range_calibration="other_run")
             fitted["self_fit_range_scale"] = model["scale"]
-    first, innovations = run_pass(run, q)
-    livelier = dict(q, range_sigma_m=q["range_sigma_m"] * LIVELIER[0],
-                    accel_sigma_mps2=q["accel_sigma_mps2"] * LIVELIER[1])
-    scored = []
-    for candidate, (estimates, (y, S)) in ((q, (first, innovations)), (livelier, run_pass(run, livelier))):
+    part = segment(run, q, SEARCH_SHARE)
+    x, ll, used, fit = [], [], [], []      # log(accel / sigma) factor, max_c L(c), log (sigma, accel) run and fitted
+    for sigma_factor, accel_factor in CANDIDATES:
+        candidate = dict(q, range_sigma_m=q["range_sigma_m"] * sigma_factor,
+                         accel_sigma_mps2=q["accel_sigma_mps2"] * accel_factor)
+        _, (y, S) = run_pass(part, candidate)
         ok = np.isfinite(y) & (S > 0)
-        ll, c = profile_likelihood(y[ok], S[ok], span) if ok.sum() >= MIN_INNOVATIONS else (-np.inf, 1.0)
-        scored.append((ll, c, candidate, estimates))
-    ll, c, best, out = max(scored, key=lambda s: s[0])
-    if np.isfinite(ll):
-        fitted.update(self_fit_candidate="livelier" if best is livelier else "configured",
-                      self_fit_range_sigma_m=max(best["range_sigma_m"] * np.sqrt(c), SIGMA_FLOOR_M),
-                      self_fit_accel_sigma_mps2=best["accel_sigma_mps2"] * np.sqrt(c))
+        best, c = profile_likelihood(y[ok], S[ok], span) if ok.sum() >= MIN_INNOVATIONS else (-np.inf, 1.0)
+        x.append(np.log(accel_factor / sigma_factor))
+        ll.append(best)
+        used.append(np.log([candidate["range_sigma_m"], candidate["accel_sigma_mps2"]]))
+        fit.append(used[-1] + 0.5 * np.log(c))
+    if not np.isfinite(ll).any():
+        out, _ = run_pass(run, q)
+        out.attrs.update(fitted)
+        return out
+    x, ll, used, fit = np.array(x), np.array(ll), np.array(used), np.array(fit)
+    chosen = refine(x, ll)
+    sigma, accel = (float(np.exp(np.interp(chosen, x, used[:, k]))) for k in range(2))
+    out, _ = run_pass(run, dict(q, range_sigma_m=sigma, accel_sigma_mps2=accel))
+    fitted.update(self_fit_ratio_factor=float(np.exp(chosen)), self_fit_run_sigma_m=sigma, self_fit_run_accel_mps2=accel,
+                  self_fit_range_sigma_m=max(float(np.exp(np.interp(chosen, x, fit[:, 0]))), SIGMA_FLOOR_M),
+                  self_fit_accel_sigma_mps2=float(np.exp(np.interp(chosen, x, fit[:, 1]))))
     out.attrs.update(fitted)
     return out
