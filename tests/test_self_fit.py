@@ -46,8 +46,11 @@ def test_default_tracker_absorbs_a_seven_percent_scale_offsets_and_two_gaps(seed
     assert plain > 1.3 * clean            # without the self-fit the errors matter
 
 
-def test_given_the_true_sigma_the_tracker_is_within_1_2x_of_the_best_sigma_of_a_grid():
-    tables = _run(3)
+@pytest.mark.parametrize("seed", [1, 3])
+def test_given_the_true_sigma_the_tracker_is_within_1_2x_of_the_best_sigma_of_a_grid(seed):
+    """Acceptance: range noise 0.1 m; the configured sigma 0.1 (with the default accel) is no worse
+    than 1.2x the best of the grid (it was 1.33x-1.36x when the self-fit could only go livelier)."""
+    tables = _run(seed)
     grid = {sigma: _median(tables, {"range_sigma_m": sigma})[0] for sigma in (0.05, 0.1, 0.2, 0.3, 0.5)}
     assert grid[0.1] <= 1.2 * min(grid.values())
 

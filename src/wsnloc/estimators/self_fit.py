@@ -3,7 +3,7 @@
 Real data break a filter's assumptions in a few common ways: the range noise is not the
 configured one, the motion is livelier or calmer than the process noise says, the ranges carry
 a common scale error and per-anchor offsets. `self_fit: two_pass` (the `tracker` default) learns
-them from the run itself, in three passes of the same filter:
+them from the run itself, with passes of the same filter:
 
 1. **Range scale and per-anchor offsets** (ranges, >= 4 anchors ranged, no configured or donor
    calibration, which wins): a first pass with the state augmented by a common range scale
@@ -11,22 +11,35 @@ them from the run itself, in three passes of the same filter:
    the per-anchor offsets against that pass's track (range_correction: least squares through
    each window's geometry, undoing what the track absorbed). The ranges are corrected
    (estimators.range_calibration) for the next passes.
-2. **Noise, by maximum likelihood of the innovations.** Two passes with the configured
-   (range_sigma_m, accel_sigma_mps2) and with a livelier candidate (sigma / 2, accel x 3: a
-   six times larger process-to-measurement noise ratio, i.e. a higher gain). Each pass records
-   every innovation y_i = z_i - h_i(x-) and its variance S_i = (H P- H' + R)_ii, gated ones
-   included. Scaling Q and R together by c leaves a linear filter's track unchanged and scales
-   every S_i by c, so per candidate the likelihood is profiled over c:
+2. **Noise, by maximum likelihood of the innovations.** Three candidates, the configured
+   (range_sigma_m, accel_sigma_mps2), a calmer (sigma x 2, accel / 3) and a livelier one
+   (sigma / 2, accel x 3): the ratio accel / sigma, which sets the filter's gain, x 1/6, 1 and 6.
+   Each runs on the central SEARCH_SHARE of the run's measurements (segment(); a sub-run, so the
+   search costs a fraction of a pass) and records every innovation y_i = z_i - h_i(x-) and its
+   variance S_i = (H P- H' + R)_ii, gated ones included. Scaling Q and R together by c leaves a
+   linear filter's track unchanged and scales every S_i by c, so per candidate the likelihood is
+   profiled over c:
        L(c) = sum_i log[(1 - eps) N(y_i; 0, c S_i) + eps / span],
    a Gaussian with a uniform outlier component (eps = OUTLIER_SHARE over span = 2 max_range_m:
    reflections and NLOS ranges do not decide the noise), c on a log grid (CLAMP).
-3. The pass with the larger max_c L(c) is the output; attrs `self_fit_*` give the candidate and
-   the fitted noise, range_sigma_m sqrt(c*) (floored at SIGMA_FLOOR_M) and accel sqrt(c*), and
-   the range scale. Because the likelihood is that of the innovations, which carry the state's
-   own uncertainty H P H', the fitted sigma does not collapse onto the track the way residuals
-   against the filter's own output do.
+3. **The ratio**: the best candidate's, or, when the middle (configured) one is the best, the
+   maximum of the parabola through the three max_c L(c) against log(ratio) (refine()); sigma
+   and accel interpolated in log between the candidates. One full pass with them is the output.
+   The candidates' absolute sigma is kept for the run (not scaled by c*): the gate then keeps
+   the candidate's width, and on real ranges with NLOS errors the Gaussian core's c* is too
+   narrow a gate. attrs `self_fit_*`: the ratio factor, the sigma and accel the pass ran with
+   (`self_fit_run_*`) and the fitted noise range_sigma_m sqrt(c*) (floored at SIGMA_FLOOR_M) and
+   accel sqrt(c*), and the range scale. Because the likelihood is that of the innovations, which
+   carry the state's own uncertainty H P H', the fitted sigma does not collapse onto the track
+   the way residuals against the filter's own output do.
 
-Cost: three passes of the filter plus the fits (milliseconds); about 3x one plain pass.
+Why three candidates: with only the configured one and a livelier one, a configured sigma
+smaller than the default (e.g. the true 0.1 m with the default accel) could never go calmer
+and tracked the noise (1.33x the best sigma of a grid on a synthetic walk); now the outcome
+hardly depends on where the configured values start.
+
+Cost: one augmented pass (step 1), three passes on 15% of the run, one full pass and the fits:
+about 2.6-2.9x one plain pass in CPU time on the shared real cases (benchmarks/realdata.py).
 Online (live) use has no second pass: `range_self_calibration` (state augmentation) and the
 gate's widening (filter_options) adapt as the data come.
 """
@@ -42,7 +55,7 @@ MODES = ("none", "two_pass")
 # noise candidates (sigma factor, accel factor): calmer, configured, livelier; the ratio accel / sigma
 # x 1/6, 1, 6 (the process-to-measurement noise variance ratio x 1/36, 1, 36)
 CANDIDATES = ((2.0, 1.0 / 3.0), (1.0, 1.0), (0.5, 3.0))
-SEARCH_SHARE = 0.2                     # the candidates are scored on the central 20% of the measurements
+SEARCH_SHARE = 0.15                    # the candidates are scored on the central 15% of the measurements
 MEASUREMENT_TABLES = ("ranges", "rss", "tdoa")
 OUTLIER_SHARE = 0.05                   # eps of the uniform outlier component
 CLAMP = (0.01, 100.0)                  # c* searched on a log grid in this range
@@ -140,15 +153,13 @@ def segment(data, p: dict, share: float):
 
 
 def refine(x: np.ndarray, ll: np.ndarray) -> float:
-    """The maximum over [x_0, x_-1] of the parabola through (x_i, ll_i) (three points, x increasing);
-    the best point when the parabola is not concave or the points are not all finite."""
-    best = float(x[int(np.argmax(ll))])
-    if not np.all(np.isfinite(ll)):
-        return best
+    """The maximum of the parabola through three points (x_i, ll_i) (x increasing) when the middle
+    one is the best (a bracketed maximum), else the best point: an edge is not extrapolated."""
+    best = int(np.argmax(ll))
+    if best != 1 or not np.all(np.isfinite(ll)):
+        return float(x[best])
     a, b, _ = np.polyfit(x, ll, 2)
-    if a >= 0:
-        return best
-    return float(np.clip(-b / (2 * a), x[0], x[-1]))
+    return float(np.clip(-b / (2 * a), x[0], x[-1])) if a < 0 else float(x[1])
 
 
 def two_pass(data, p: dict, run_pass) -> pd.DataFrame:
