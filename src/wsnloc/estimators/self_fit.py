@@ -55,7 +55,7 @@ MODES = ("none", "two_pass")
 # noise candidates (sigma factor, accel factor): calmer, configured, livelier; the ratio accel / sigma
 # x 1/6, 1, 6 (the process-to-measurement noise variance ratio x 1/36, 1, 36)
 CANDIDATES = ((2.0, 1.0 / 3.0), (1.0, 1.0), (0.5, 3.0))
-SEARCH_SHARE = 0.15                    # the candidates are scored on the central 15% of the measurements
+SEARCH_SHARE = 0.12                    # the candidates are scored on the central 12% of the measurements
 MEASUREMENT_TABLES = ("ranges", "rss", "tdoa")
 OUTLIER_SHARE = 0.05                   # eps of the uniform outlier component
 CLAMP = (0.01, 100.0)                  # c* searched on a log grid in this range
@@ -162,12 +162,22 @@ def refine(x: np.ndarray, ll: np.ndarray) -> float:
     return float(np.clip(-b / (2 * a), x[0], x[-1])) if a < 0 else float(x[1])
 
 
+def _score(run_pass, part, p: dict, span: float) -> tuple[float, float, int]:
+    """(max_c L(c), c*, innovations used) of one pass with parameters p on the sub-run `part`;
+    -inf with fewer than MIN_INNOVATIONS."""
+    _, (y, S) = run_pass(part, p)
+    ok = np.isfinite(y) & (S > 0)
+    if ok.sum() < MIN_INNOVATIONS:
+        return -np.inf, 1.0, int(ok.sum())
+    return (*profile_likelihood(y[ok], S[ok], span), int(ok.sum()))
+
+
 def two_pass(data, p: dict, run_pass) -> pd.DataFrame:
     """The self-fitted estimates of one run (module docstring); run_pass(data, p) -> (estimates,
     (y, S)) runs one pass of the filter and returns its innovations."""
     span = 2.0 * p["max_range_m"]
     q = dict(p, self_fit="none")
-    run, fitted = data, {}
+    run, model, fitted = data, None, {}
     if p["measurements"] in ("toa", "hybrid") and p["range_calibration"] == "none" \
             and p["range_self_calibration"] == "none" and _anchors_ranged(data, p) >= MIN_ANCHORS_FOR_OFFSETS:
         scaled, _ = run_pass(data, dict(q, range_self_calibration="scale"))
@@ -175,24 +185,29 @@ def two_pass(data, p: dict, run_pass) -> pd.DataFrame:
         if model is not None:
             run = replace(data, range_model=model, _cache=data._cache)
             q = dict(q, range_calibration="other_run")
-            fitted["self_fit_range_scale"] = model["scale"]
     part = segment(run, q, SEARCH_SHARE)
-    x, ll, used, fit = [], [], [], []      # log(accel / sigma) factor, max_c L(c), log (sigma, accel) run and fitted
-    for sigma_factor, accel_factor in CANDIDATES:
-        candidate = dict(q, range_sigma_m=q["range_sigma_m"] * sigma_factor,
-                         accel_sigma_mps2=q["accel_sigma_mps2"] * accel_factor)
-        _, (y, S) = run_pass(part, candidate)
-        ok = np.isfinite(y) & (S > 0)
-        best, c = profile_likelihood(y[ok], S[ok], span) if ok.sum() >= MIN_INNOVATIONS else (-np.inf, 1.0)
-        x.append(np.log(accel_factor / sigma_factor))
-        ll.append(best)
-        used.append(np.log([candidate["range_sigma_m"], candidate["accel_sigma_mps2"]]))
-        fit.append(used[-1] + 0.5 * np.log(c))
+    candidates = [dict(q, range_sigma_m=q["range_sigma_m"] * k_sigma, accel_sigma_mps2=q["accel_sigma_mps2"] * k_accel)
+                  for k_sigma, k_accel in CANDIDATES]
+    scores = [_score(run_pass, part, candidate, span) for candidate in candidates]
+    ll = np.array([score[0] for score in scores])
     if not np.isfinite(ll).any():
         out, _ = run_pass(run, q)
-        out.attrs.update(fitted)
         return out
-    x, ll, used, fit = np.array(x), np.array(ll), np.array(used), np.array(fit)
+    best = int(np.argmax(ll))
+    if model is not None:                  # likelihood-ratio test of the range correction (module docstring, 4)
+        ll_plain = _score(run_pass, replace(part, range_model=None, _cache={}),
+                          dict(candidates[best], range_calibration="none"), span)[0]
+        penalty = 0.5 * (1 + len(model["offsets_m"])) * np.log(scores[best][2])
+        supported = ll[best] - ll_plain > penalty
+        fitted.update(self_fit_range_correction="applied" if supported else "not supported",
+                      self_fit_range_ll_gain=float(ll[best] - ll_plain), self_fit_range_ll_penalty=float(penalty))
+        if supported:
+            fitted["self_fit_range_scale"] = model["scale"]
+        else:
+            run, q = data, dict(q, range_calibration="none")
+    x = np.log([k_accel / k_sigma for k_sigma, k_accel in CANDIDATES])
+    used = np.log([[c["range_sigma_m"], c["accel_sigma_mps2"]] for c in candidates])
+    fit = used + 0.5 * np.log([[score[1]] for score in scores])
     chosen = refine(x, ll)
     sigma, accel = (float(np.exp(np.interp(chosen, x, used[:, k]))) for k in range(2))
     out, _ = run_pass(run, dict(q, range_sigma_m=sigma, accel_sigma_mps2=accel))
