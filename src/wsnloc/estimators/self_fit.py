@@ -32,14 +32,25 @@ them from the run itself, with passes of the same filter:
    accel sqrt(c*), and the range scale. Because the likelihood is that of the innovations, which
    carry the state's own uncertainty H P H', the fitted sigma does not collapse onto the track
    the way residuals against the filter's own output do.
+4. **Is the range correction supported?** A common scale and per-anchor offsets are separable
+   from the position only with enough geometry: with anchors clustered a few metres apart and
+   the target further away, a scale, a common offset and the target's distance trade off, and
+   the fit of step 1 returns a correction the data do not support (on a real run thinned to one
+   range per round it made the RMSE 2.7x worse).
+   So the best candidate also runs on the segment with the ranges as measured, and the correction
+   is kept only when it raises max_c L(c) by more than the BIC penalty of its parameters,
+   (1 + n_anchors) / 2 ln(n_innovations) (a likelihood-ratio test: the likelihood of nested
+   models, the extra parameters paid for); else the output pass reads the ranges as measured.
+   attrs `self_fit_range_correction` (applied / not supported), `self_fit_range_ll_gain`,
+   `self_fit_range_ll_penalty`.
 
 Why three candidates: with only the configured one and a livelier one, a configured sigma
 smaller than the default (e.g. the true 0.1 m with the default accel) could never go calmer
 and tracked the noise (1.33x the best sigma of a grid on a synthetic walk); now the outcome
 hardly depends on where the configured values start.
 
-Cost: one augmented pass (step 1), three passes on 15% of the run, one full pass and the fits:
-about 2.6-2.9x one plain pass in CPU time on the shared real cases (benchmarks/realdata.py).
+Cost: one augmented pass (step 1), four passes on 12% of the run, one full pass and the fits:
+about 2.7x one plain pass in CPU time on the shared real cases (benchmarks/realdata.py).
 Online (live) use has no second pass: `range_self_calibration` (state augmentation) and the
 gate's widening (filter_options) adapt as the data come.
 """
@@ -141,7 +152,7 @@ def range_correction(data, estimates: pd.DataFrame, p: dict, scale: float) -> di
 
 def segment(data, p: dict, share: float):
     """The run cut to the central `share` of its usable measurements (ranges, RSS, TDOA) by time:
-    the sub-run the noise candidates are scored on (module docstring, step 2)."""
+    the sub-run the noise candidates and the range correction are scored on (module docstring)."""
     stamps = np.sort(np.concatenate([data.usable_ranges(p["preliminary_filter"], p["max_range_m"])["t"].to_numpy(float),
                                      data.usable_rss()["t"].to_numpy(float), data.usable_tdoa()["t"].to_numpy(float)]))
     if share >= 1.0 or len(stamps) < 2:
