@@ -178,7 +178,7 @@ def metrics_of(d: dict) -> dict:
     """Flat scalar columns of a diagnosis for metrics files (offsets as 'A=b;...', findings counted)."""
     out = {f"diag_{k}": v for k, v in d.items() if k not in ("range_offsets_m", "update", "self_fit_range_correction")}
     if "self_fit_range_correction" in d:
-        out["diag_self_fit_range_corrected"] = float(d["self_fit_range_correction"] == "applied")
+        out["diag_self_fit_range_corrected"] = float(d["self_fit_range_correction"].startswith("applied"))
     offsets = d.get("range_offsets_m") or {}
     out["diag_max_abs_offset_m"] = max((abs(v) for v in offsets.values()), default=np.nan)
     out["diag_range_offsets_m"] = ";".join(f"{k}={v:.3f}" for k, v in offsets.items())

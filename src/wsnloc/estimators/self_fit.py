@@ -201,8 +201,11 @@ def two_pass(data, p: dict, run_pass) -> pd.DataFrame:
                   for k_sigma, k_accel in CANDIDATES]
     scores = [_score(run_pass, part, candidate, span) for candidate in candidates]
     ll = np.array([score[0] for score in scores])
-    if not np.isfinite(ll).any():
+    if not np.isfinite(ll).any():          # too few innovations on the segment: the configured noise
         out, _ = run_pass(run, q)
+        if model is not None:
+            out.attrs.update(self_fit_range_correction="applied untested (too few measurements)",
+                             self_fit_range_scale=model["scale"])
         return out
     best = int(np.argmax(ll))
     if model is not None:                  # likelihood-ratio test of the range correction (module docstring, 4)
