@@ -50,7 +50,7 @@ from wsnloc.estimators import array_ekf, range_calibration, self_fit
 from wsnloc.estimators.auto import update_mode
 from wsnloc.estimators.core import CoastingDeleter, FilterBank, RunInputs, Track, WindowInitiator, \
     epoch_loop, sequential_loop
-from wsnloc.estimators.filter_options import UpdateCounts, configured_factory, site_bounds
+from wsnloc.estimators.filter_options import STANDARD_GATE, UpdateCounts, configured_factory, site_bounds
 from wsnloc.estimators.fixes import epoch_fixes
 from wsnloc.estimators.inertial import epoch_inputs, floor_input, heading_from_fixes
 from wsnloc.estimators.measurements import MeasurementSource, rss_params
@@ -172,7 +172,11 @@ def run_filter(data: RunData, p: dict) -> pd.DataFrame:
     range_offset_m, and the range calibration applied (range_calibration.RangeCorrection.describe).
     With self_fit=two_pass on a run with ranges: the self-fitted estimates (estimators.self_fit)."""
     if self_fitted(p):
-        return self_fit.two_pass(data, p, _pass_with_innovations)
+        return self_fit.two_pass(data, p, _fit_pass, _plain_filter)
+    return _plain_filter(data, p)
+
+
+def _plain_filter(data: RunData, p: dict) -> pd.DataFrame:
     return run_filters([(data, p)])[0].frame()
 
 
@@ -181,23 +185,34 @@ def self_fitted(p: dict) -> bool:
     return p.get("self_fit", "none") != "none" and p["measurements"] != "rss"
 
 
-def _pass_with_innovations(data: RunData, p: dict) -> tuple[pd.DataFrame, tuple[np.ndarray, np.ndarray]]:
-    """One pass of run_filter (no self-fit) and the innovations (y, S_ii) it recorded."""
+def _fit_pass(data: RunData, p: dict) -> tuple[pd.DataFrame, tuple[np.ndarray, np.ndarray]]:
+    """One gated EKF pass of run_filter (no self-fit) and the innovations (y, S_ii) it recorded:
+    the self-fit's passes of every filter and smoother, which then run once with the fitted
+    values (the noise and range errors are the run's, whichever filter reads them; a particle
+    filter per candidate would cost several times its own pass). Gated at the filter's gate,
+    or at STANDARD_GATE for an ungated filter (the particle filter has no gate): ungated, NLOS
+    ranges pull the fit's track and the range correction read from it (on the real outdoor UWB
+    runs it then applied a correction the gated fit rejects and doubled the pf's median)."""
     counts: list[UpdateCounts] = []
-    frame = run_filters([(data, dict(p, self_fit="none"))], counts_out=counts)[0].frame()
+    q = dict(p, self_fit="none", filter="ekf", gate_probability=p["gate_probability"] or STANDARD_GATE)
+    frame = run_filters([(data, q)], counts_out=counts)[0].frame()
     return frame, counts[0].innovation_arrays()
 
 
 def run_smoother(data: RunData, p: dict) -> pd.DataFrame:
     """The fixed-interval RTS-smoothed estimates of one run (same rows as the forward pass;
     n_meas and nis are the forward pass's). In sequential mode the recorded forward pass
-    steps the filter to every output time (see smoothing.py)."""
-    if p.get("self_fit", "none") != "none":
-        raise ConfigError("self_fit: the RTS smoothers run one pass; use the tracker's self-fit values "
-                          "(self_fit_* in its metrics) as range_sigma_m / accel_sigma_mps2 / range_calibration")
+    steps the filter to every output time (see smoothing.py). With self_fit=two_pass: smoothed
+    with the self-fitted values (the fit's passes are EKF filter passes, _fit_pass)."""
     if p.get("range_self_calibration", "none") != "none":
         raise ConfigError("range_self_calibration: the RTS smoothers do not smooth the calibration states; "
-                          "use range_calibration (donor or configured) with a smoother")
+                          "use range_calibration (donor or configured) or self_fit with a smoother")
+    if self_fitted(p):
+        return self_fit.two_pass(data, p, _fit_pass, _plain_smoother)
+    return _plain_smoother(data, p)
+
+
+def _plain_smoother(data: RunData, p: dict) -> pd.DataFrame:
     forward = ForwardPass()
     out = run_filters([(data, p)], forward)[0].frame()
     smoothed = forward.smooth()

@@ -39,6 +39,7 @@ from wsnloc.estimators import robust, self_calibration
 from wsnloc.estimators.parameters import Param
 from wsnloc.filters.measurement_models import RangeModel
 
+STANDARD_GATE = 0.999     # the registry's gate (3.29 sigma): tracker, Kalman filters and the self-fit's passes
 LOSS_WINDOW = 10          # updates over which the gate's rejections are judged
 
 PARAMS = (
@@ -112,7 +113,7 @@ class ConfiguredFilter:
         self.loss_share = p["gate_loss_share"]
         self.recent: deque = deque(maxlen=LOSS_WINDOW)   # (offered, gated, max y^2 / S) of the last updates
         self.lost = self.widened = False
-        self.gate_probability = p["gate_probability"] or 0.999
+        self.gate_probability = p["gate_probability"] or STANDARD_GATE
         self.gated_filter = any(p[k] != off for k, off in OFF.items())
         self.mode = p["range_self_calibration"]
         self.extra = len(self_calibration.extra_states(self.mode))

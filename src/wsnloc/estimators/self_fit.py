@@ -183,9 +183,10 @@ def _score(run_pass, part, p: dict, span: float) -> tuple[float, float, int]:
     return (*profile_likelihood(y[ok], S[ok], span), int(ok.sum()))
 
 
-def two_pass(data, p: dict, run_pass) -> pd.DataFrame:
+def two_pass(data, p: dict, run_pass, output) -> pd.DataFrame:
     """The self-fitted estimates of one run (module docstring); run_pass(data, p) -> (estimates,
-    (y, S)) runs one pass of the filter and returns its innovations."""
+    (y, S)) runs one fitting pass (an EKF filter pass) and returns its innovations; output(data, p)
+    -> estimates is the estimator's own single pass (filter or smoother), run once with the fit."""
     span = 2.0 * p["max_range_m"]
     q = dict(p, self_fit="none")
     run, model, fitted = data, None, {}
@@ -202,7 +203,7 @@ def two_pass(data, p: dict, run_pass) -> pd.DataFrame:
     scores = [_score(run_pass, part, candidate, span) for candidate in candidates]
     ll = np.array([score[0] for score in scores])
     if not np.isfinite(ll).any():          # too few innovations on the segment: the configured noise
-        out, _ = run_pass(run, q)
+        out = output(run, q)
         if model is not None:
             out.attrs.update(self_fit_range_correction="applied untested (too few measurements)",
                              self_fit_range_scale=model["scale"])
@@ -224,7 +225,7 @@ def two_pass(data, p: dict, run_pass) -> pd.DataFrame:
     fit = used + 0.5 * np.log([[score[1]] for score in scores])
     chosen = refine(x, ll)
     sigma, accel = (float(np.exp(np.interp(chosen, x, used[:, k]))) for k in range(2))
-    out, _ = run_pass(run, dict(q, range_sigma_m=sigma, accel_sigma_mps2=accel))
+    out = output(run, dict(q, range_sigma_m=sigma, accel_sigma_mps2=accel))
     fitted.update(self_fit_ratio_factor=float(np.exp(chosen)), self_fit_run_sigma_m=sigma, self_fit_run_accel_mps2=accel,
                   self_fit_range_sigma_m=max(float(np.exp(np.interp(chosen, x, fit[:, 0]))), SIGMA_FLOOR_M),
                   self_fit_accel_sigma_mps2=float(np.exp(np.interp(chosen, x, fit[:, 1]))))
