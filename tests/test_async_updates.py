@@ -93,6 +93,35 @@ def test_every_filter_and_smoother_follows_ranges_one_anchor_at_a_time(one_by_on
     assert ours["median"] <= 1.5 * tracker["median"], (ours["median"], tracker["median"])
 
 
+@pytest.fixture(scope="module")
+def real_like_one_by_one():
+    """The one-anchor-at-a-time walk (300 s) with the range errors of real outdoor UWB: a common
+    7% scale error and per-anchor offsets up to 0.3 m."""
+    rng = np.random.default_rng(22)
+    times, ids = one_at_a_time(300.0, 4.0, rng, SQUARE)
+    tables = tables_for(times, ids, lambda t: walk(t, 1.0), SQUARE, noise_m=0.1, rng=rng)
+    offsets = tables["ranges"]["anchor_id"].map({"A1": 0.3, "A2": -0.2, "A3": 0.1, "A4": -0.3})
+    tables["ranges"]["range_m"] = 1.07 * tables["ranges"]["range_m"] + offsets
+    return tables
+
+
+SELF_FITTED_BY_DEFAULT = ("ekf", "ukf", "pf", "ekf_filterpy", "ekf_rts", "ukf_rts")
+
+
+@pytest.mark.parametrize("name", SELF_FITTED_BY_DEFAULT)
+def test_filters_and_smoothers_self_fit_real_range_errors_like_the_tracker(real_like_one_by_one, name):
+    """With a range scale error and per-anchor offsets the Bayesian filters and smoothers stay
+    within 1.5x of `tracker`'s median by default (the tracker's self-fit, estimators.self_fit);
+    the same estimator with the configured values (self_fit: none) is beyond 1.5x."""
+    _, tracker = _metrics("tracker", real_like_one_by_one)
+    estimates, ours = _metrics(name, real_like_one_by_one)
+    _, plain = _metrics(name, real_like_one_by_one, {"self_fit": "none"})
+    assert ours["availability"] >= 0.9
+    assert ours["median"] <= 1.5 * tracker["median"], (ours["median"], tracker["median"])
+    assert plain["median"] > 1.5 * tracker["median"], (plain["median"], tracker["median"])
+    assert estimates.attrs["self_fit_range_correction"] == "applied"
+
+
 def test_the_random_walk_preset_is_available_one_anchor_at_a_time(one_by_one):
     assert _metrics("ekf_p", one_by_one)[1]["availability"] >= 0.9
 
@@ -125,7 +154,7 @@ def test_general_filters_gate_nlos_ranges_by_default(nlos_one_by_one, name):
     plain filter) is beyond 1.5x."""
     _, tracker = _metrics("tracker", nlos_one_by_one)
     estimates, gated = _metrics(name, nlos_one_by_one)
-    _, ungated = _metrics(name, nlos_one_by_one, {"gate_probability": 0.0})
+    _, ungated = _metrics(name, nlos_one_by_one, {"gate_probability": 0.0, "self_fit": "none"})
     assert registry.get(name).resolve({})["gate_probability"] == 0.999
     assert gated["median"] <= 1.5 * tracker["median"], (gated["median"], tracker["median"])
     assert ungated["median"] > 1.5 * tracker["median"], (ungated["median"], tracker["median"])
@@ -188,8 +217,8 @@ def test_sequential_ekf_equals_filterpy_predicting_to_each_range(one_by_one):
     EKF stepped by hand: predict over each range's own dt, update with it, and the output at
     each epoch end predicted from the last update."""
     data = run_data(one_by_one)
-    p = registry.get("ekf").resolve({})
-    ours = registry.run("ekf", data)
+    p = registry.get("ekf").resolve({"self_fit": "none"})
+    ours = registry.run("ekf", data, {"self_fit": "none"})
     source, motion = bayes.measurement_source(data, p), bayes.motion_model(p)
     records, times = source.records(), data.grid(p["epoch_s"], True, p["max_range_m"])
     initiator = WindowInitiator(p["epoch_s"])
