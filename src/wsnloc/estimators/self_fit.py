@@ -2,8 +2,10 @@
 
 Real data break a filter's assumptions in a few common ways: the range noise is not the
 configured one, the motion is livelier or calmer than the process noise says, the ranges carry
-a common scale error and per-anchor offsets. `self_fit: two_pass` (the `tracker` default) learns
-them from the run itself, with passes of the same filter:
+a common scale error and per-anchor offsets. `self_fit: two_pass` (the default of `tracker` and of every
+Bayesian filter and smoother of the registry: ekf, ukf, pf, ekf_filterpy, ekf_rts, ukf_rts)
+learns them from the run itself, with gated EKF passes (estimators.bayes._fit_pass); the
+estimator's own filter or smoother then runs once with the fitted values (`output`):
 
 1. **Range scale and per-anchor offsets** (ranges, >= 4 anchors ranged, no configured or donor
    calibration, which wins): a first pass with the state augmented by a common range scale
@@ -50,7 +52,9 @@ and tracked the noise (1.33x the best sigma of a grid on a synthetic walk); now 
 hardly depends on where the configured values start.
 
 Cost: one augmented pass (step 1), four passes on 12% of the run, one full pass and the fits:
-about 2.7x one plain pass in CPU time on the shared real cases (benchmarks/realdata.py).
+about 2.7x one plain pass in CPU time on the shared real cases (benchmarks/realdata.py); for
+the UKF, particle filter and smoothers the fitting passes are EKF passes, so the overhead is
+that of the EKF's (about 1.7 EKF passes) on top of their own single pass.
 Online (live) use has no second pass: `range_self_calibration` (state augmentation) and the
 gate's widening (filter_options) adapt as the data come.
 """
