@@ -115,7 +115,7 @@ def _filterpy_epoch_pass(data, params):
 
 
 def test_epoch_ekf_rts_equals_filterpys_rts_smoother_over_filterpys_ekf():
-    params = {"accel_sigma_mps2": 0.4, "range_sigma_m": 0.2}
+    params = {"accel_sigma_mps2": 0.4, "range_sigma_m": 0.2, "self_fit": "none"}
     data = noisy_walk()
     xs, Ps, Fs, Qs, _, _ = _filterpy_epoch_pass(data, params)
     smoothed, P_smoothed, _, _ = FilterpyKF(dim_x=4, dim_z=1).rts_smoother(xs, Ps, Fs, Qs)
@@ -130,7 +130,7 @@ def test_epoch_ekf_rts_equals_filterpys_rts_smoother_over_filterpys_ekf():
 
 
 def test_epoch_ukf_equals_filterpys_ukf_on_the_same_measurements():
-    params = {"accel_sigma_mps2": 0.4, "range_sigma_m": 0.2}
+    params = {"accel_sigma_mps2": 0.4, "range_sigma_m": 0.2, "self_fit": "none"}
     data = noisy_walk()
     p = registry.get("ukf").resolve(params)
     ours = registry.run("ukf", data, params)
@@ -229,12 +229,14 @@ def test_pva_smoother_on_a_simulated_run_improves_on_the_forward_filter(simulate
     checked against the batch solution in the next test; here they are small: ~1 cm per step.)
     Epoch updates: in sequential mode the recorded forward pass splits its predictions at the
     output times (smoothing.py), so its last estimate differs from the plain filter's by round-off
-    of Q(a) + Q(b) against Q(a + b). No gate: ekf_pva (paper C's) has none, ekf_rts gates by default."""
+    of Q(a) + Q(b) against Q(a + b). No gate and no self-fit: ekf_pva (paper C's) has neither, ekf_rts
+    has both by default."""
     metrics = {}
     for estimator in ("ekf_pva", "ekf_rts"):
         out = tmp_path / estimator
         assert main(["estimate", "--format", "newcom", str(simulated_run), "--out", str(out), "--estimator",
-                     estimator, "--set", "motion=pva", "--set", "update=epoch", "--set", "gate_probability=0"]) == 0
+                     estimator, "--set", "motion=pva", "--set", "update=epoch", "--set", "gate_probability=0",
+                     "--set", "self_fit=none"]) == 0
         metrics[estimator] = (json.loads((out / "metrics.json").read_text()), pd.read_parquet(out / "estimates.parquet"))
     (forward, forward_estimates), (smoothed, smoothed_estimates) = metrics["ekf_pva"], metrics["ekf_rts"]
     assert len(smoothed_estimates) == len(forward_estimates) > 100

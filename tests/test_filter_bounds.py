@@ -79,7 +79,8 @@ def test_matched_ekf_rmse_is_at_or_above_its_pcrb_and_close(seed):
     rng = np.random.default_rng(seed)
     accel, sigma, speed = 0.1, 0.05, 0.3
     p = registry.get("ekf").resolve({"update": "sequential", "accel_sigma_mps2": accel, "range_sigma_m": sigma,
-                                     "initial_speed_sigma_mps": speed, "initial_sigma_m": 1.0, "max_range_m": 1e3})
+                                     "initial_speed_sigma_mps": speed, "initial_sigma_m": 1.0, "max_range_m": 1e3,
+                                     "self_fit": "none"})    # the matched model: the true noise, one pass
     assert is_bayesian(registry.get("ekf").function) and not is_bayesian(registry.get("minmax").function)
     frames = []
     for r in range(60):

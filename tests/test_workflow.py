@@ -50,9 +50,10 @@ def test_builds_report_and_results(workdir):
     timing = study[study["metric"] == "time_per_step_us"]
     assert len(timing) == 2 * len(SMALL_WORKBENCH) and (timing["value"] > 0).all()
     robust = study.set_index(["row", "scenario", "column"])["value"]
-    # ekf gates by default; the NLOS-aware noise leaves the gate fewer wall-crossing links to reject
-    assert robust[("ekf", "newcom/constant", "gated")] > robust[("ekf_gate_nlos", "newcom/constant", "gated")] > 0
-    assert robust[("ekf_gate_nlos", "newcom/constant", "gated")] < 0.1
+    # ekf gates and self-fits by default: a few wall-crossing links rejected, with or without the
+    # NLOS-aware noise (the self-fitted noise already takes most of them back: 0.064 against 0.072)
+    assert 0 < robust[("ekf", "newcom/constant", "gated")] < 0.1
+    assert 0 < robust[("ekf_gate_nlos", "newcom/constant", "gated")] < 0.1
     assert "gated" in html and "Range error per anchor" in html
     for paper in ("a", "c"):        # per-epoch estimates of every paper, one file per scenario
         assert list((workdir / "data" / "processed").glob(f"*/*/paper_{paper}/estimates.parquet"))
