@@ -51,10 +51,9 @@ def quarantine_summary(quarantine: pd.DataFrame, where: Path) -> str | None:
     """'N row(s) quarantined (count reason per file ...); table: where', or None when none was."""
     if not len(quarantine):
         return None
-    from wsnloc.metrics.data_quality import reason_category
+    from wsnloc.metrics.data_quality import quarantine_by_reason
 
-    kinds = quarantine.assign(kind=quarantine["reason"].map(reason_category)).groupby(["file", "kind"]).size()
-    listed = "; ".join(f"{count} {file}: {kind}" for (file, kind), count in kinds.items())
+    listed = "; ".join(f"{count} {file}: {reason}" for file, reason, count in quarantine_by_reason(quarantine))
     return f"{len(quarantine)} row(s) quarantined ({listed}); table: {where}"
 
 
@@ -66,8 +65,10 @@ def converted_quarantine(run_dir: Path) -> str | None:
     rows = pd.read_csv(path)
     if not len(rows):
         return None
-    reasons = rows["reason"].str.replace(r"'[^']*'", "...", regex=True).value_counts()
-    return (f"{len(rows)} source line(s) were not converted ({'; '.join(f'{n} {r}' for r, n in reasons.items())}); "
+    from wsnloc.metrics.data_quality import quarantine_by_reason
+
+    listed = "; ".join(f"{count} {file}: {reason}" for file, reason, count in quarantine_by_reason(rows))
+    return (f"{len(rows)} source line(s) were not converted ({listed}); "
             f"table: {path}")
 
 
