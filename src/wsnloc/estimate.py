@@ -22,7 +22,7 @@ from wsnloc.diagnosis import diagnose_run, metrics_of as diagnosis_metrics, repo
 from wsnloc.estimators import registry
 from wsnloc.estimators.auto import measurements_for, motion_for
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments.calibration import calibrate_ranges, calibrate_tdoa, donor_rss_model
+from wsnloc.experiments.calibration import calibrate_ranges, calibrate_tdoa, donor_model_for
 from wsnloc.io import tables
 from wsnloc.io.convert import QUARANTINE_FILE
 from wsnloc.io.ingest import ingest_one
@@ -75,9 +75,9 @@ def converted_quarantine(run_dir: Path) -> str | None:
 def donor_models(fmt: str, donor_dir: Path, campaign: Campaign | None, out_dir: Path, name: str, p: dict,
                  reads_rss: bool) -> tuple[dict | None, dict | None]:
     """(RSS model, range calibration) fitted on a donor run with truth (same site): the RSS
-    model when the estimator reads RSS (per-receiver P0s, sigma, and the exponent, the donor's
-    or the configured one, whichever makes estimator `name` track the donor better:
-    experiments.calibration.donor_rss_model); the range scale and per-anchor offsets
+    model when the estimator reads RSS (experiments.calibration.donor_model_for: by default
+    per-receiver P0s, sigma, and the exponent, the donor's or the configured one, whichever
+    makes estimator `name` track the donor better); the range scale and per-anchor offsets
     when it asks for `range_calibration=other_run` (fitted on the donor's ranges, or on its
     range differences when it has none: offsets relative to its main reference anchor)."""
     wants_ranges = p.get("range_calibration") == "other_run"
@@ -92,7 +92,7 @@ def donor_models(fmt: str, donor_dir: Path, campaign: Campaign | None, out_dir: 
             raise WsnlocError(f"{donor_dir}: a calibration donor needs the {table} it calibrates, and has none")
     site = campaign or Campaign(name="generic", format="generic", spec={}, source="(no campaign file)")
     source = f"fitted on {donor_dir}"
-    rss = dict(donor_rss_model(donor["rss"], donor["truth"], site, p.get("d0_m", 1.0), p["path_loss_exponent"],
+    rss = dict(donor_model_for(p, donor["rss"], donor["truth"], site,
                                lambda model: registry.run(name, RunData(donor, campaign, model, str(donor_dir)), p),
                                donor["anchors"]), source=source) if reads_rss else None
     fit_ranges = calibrate_ranges if len(donor["ranges"]) else calibrate_tdoa
@@ -128,7 +128,7 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
         p = dict(p, range_calibration="other_run")       # the donor calibrates the ranges too
     rss_model, range_model = donor_models(fmt, calibration_dir, campaign, out / "calibration", name, p,
                                           reads_rss(name, p)) if calibration_dir else (None, None)
-    if rss_model:
+    if rss_model and "exponent_choice" in rss_model:
         notes.append(f"RSS model from the donor: per-receiver P0 offsets, exponent {rss_model['exponent_choice']}")
     data = RunData(run_tables, campaign, rss_model, str(run_dir), range_model)
     estimates = registry.run(name, data, p)

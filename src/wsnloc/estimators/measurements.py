@@ -55,9 +55,10 @@ class RssParams:
 
 
 def rss_params(data: RunData, p: dict) -> RssParams:
-    """The run's calibrated model (fitted on a donor run, `rss_calibration: other_run`) when
-    the caller provided one, else the configured p0_dbm, path_loss_exponent, sigma_db, d0_m."""
-    if p["rss_calibration"] == "other_run" and data.rss_model:
+    """The run's calibrated model (fitted on a donor run, `rss_calibration: other_run` or
+    `other_run_common`) when the caller provided one, else the configured p0_dbm,
+    path_loss_exponent, sigma_db, d0_m."""
+    if p["rss_calibration"] != "configured" and data.rss_model:
         return RssParams.of(data.rss_model)
     return RssParams(p["p0_dbm"], p["path_loss_exponent"], p["sigma_db"], p["d0_m"])
 

@@ -57,6 +57,17 @@ def donor_rss_model(rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign, 
     return dict(candidates[chosen][1], exponent_choice=f"{chosen} ({text})")
 
 
+def donor_model_for(p: dict, rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign,
+                    track: Callable[[dict], pd.DataFrame], anchors: pd.DataFrame | None = None) -> dict:
+    """The RSS model a donor gives by the registry's `rss_calibration` in p: `other_run`
+    donor_rss_model (per-receiver P0s, the exponent chosen by `track` on the donor),
+    `other_run_common` calibrate (one P0, n and sigma by least squares: the papers' protocol)."""
+    d0 = p.get("d0_m", 1.0)
+    if p.get("rss_calibration") == "other_run_common":
+        return calibrate(rss, truth, campaign, d0, anchors)
+    return donor_rss_model(rss, truth, campaign, d0, p["path_loss_exponent"], track, anchors)
+
+
 RSS_MODEL = ("p0_dbm", "path_loss_exponent", "sigma_db", "d0_m")   # the registry's RSS model parameters
 
 
@@ -64,8 +75,10 @@ def rss_models_for_runs(run_tables: dict[str, dict], campaign: Campaign, members
                         p: dict) -> dict[str, dict]:
     """The RSS model each run is evaluated with, by a cell's registry parameters p.
 
-    rss_calibration `other_run`: fitted on the next run (cyclically) with its truth;
-    `configured`: p's model (RSS_MODEL). With a single run `other_run` falls back to p's model.
+    rss_calibration `other_run` or `other_run_common`: one P0, n, sigma fitted (calibrate) on the
+    next run (cyclically) with its truth, paper D's protocol (the static-share analysis and paper
+    D's own tables use it); `configured`: p's model (RSS_MODEL). With a single run the donor
+    choices fall back to p's model.
     """
     method, configured = p["rss_calibration"], {k: p[k] for k in RSS_MODEL}
     names = list(run_tables)
