@@ -269,8 +269,10 @@ ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
     Estimator("ekf", "EKF: motion model p / pv / pva, toa / rss / hybrid measurements, epoch or sequential "
               "updates, optional motion detection, innovation gate at 0.999 (papers A and C: their cells have no gate)",
               COMMON + RSS + GATED_FILTER, bayes.run_filter, _filter_inputs),
-    Estimator("ekf_p", "EKF with the P (random walk) model (paper C)",
-              COMMON + RSS + _with(FILTER, motion="p"), bayes.run_filter, _filter_inputs),
+    Estimator("ekf_p", "EKF with the P (random walk) model (paper C), gated at 0.999 and self-fitted as the "
+              "tracker (its random walk's p_sigma_m is a speed, which differs from run to run)",
+              COMMON + RSS + _with(GATED_FILTER, motion="p", self_fit=TRACKER_DEFAULTS["self_fit"]),
+              bayes.run_filter, _filter_inputs),
     Estimator("ekf_pva", "EKF with the PVA model: measured acceleration as input, bias states (paper C)",
               COMMON + RSS + _with(FILTER, motion="pva"), bayes.run_filter, _filter_inputs),
     Estimator("ekf_motion_detection", "PV EKF that skips the prediction while the accelerometer says static "

@@ -39,7 +39,8 @@ import numpy as np
 import pandas as pd
 
 MODES = ("none", "two_pass")
-LIVELIER = (0.5, 3.0)                  # candidate: sigma x 0.5, accel x 3 (ratio q / r x 36 in variance)
+LIVELIER = (0.5, 3.0)                  # candidate: sigma x 0.5, process noise x 3 (ratio q / r x 36 in variance)
+PROCESS_NOISE = ("accel_sigma_mps2", "p_sigma_m")   # the PV / PVA and the P (random walk) model's
 OUTLIER_SHARE = 0.05                   # eps of the uniform outlier component
 CLAMP = (0.05, 20.0)                   # c* searched on a log grid in this range
 GRID = np.exp(np.linspace(np.log(CLAMP[0]), np.log(CLAMP[1]), 121))
@@ -138,7 +139,7 @@ def two_pass(data, p: dict, run_pass) -> pd.DataFrame:
             fitted["self_fit_range_scale"] = model["scale"]
     first, innovations = run_pass(run, q)
     livelier = dict(q, range_sigma_m=q["range_sigma_m"] * LIVELIER[0],
-                    accel_sigma_mps2=q["accel_sigma_mps2"] * LIVELIER[1])
+                    **{k: q[k] * LIVELIER[1] for k in PROCESS_NOISE if k in q})
     scored = []
     for candidate, (estimates, (y, S)) in ((q, (first, innovations)), (livelier, run_pass(run, livelier))):
         ok = np.isfinite(y) & (S > 0)
@@ -148,6 +149,7 @@ def two_pass(data, p: dict, run_pass) -> pd.DataFrame:
     if np.isfinite(ll):
         fitted.update(self_fit_candidate="livelier" if best is livelier else "configured",
                       self_fit_range_sigma_m=max(best["range_sigma_m"] * np.sqrt(c), SIGMA_FLOOR_M),
-                      self_fit_accel_sigma_mps2=best["accel_sigma_mps2"] * np.sqrt(c))
+                      self_fit_accel_sigma_mps2=best["accel_sigma_mps2"] * np.sqrt(c),
+                      **({"self_fit_p_sigma_m": best["p_sigma_m"] * np.sqrt(c)} if p.get("motion") == "p" else {}))
     out.attrs.update(fitted)
     return out
