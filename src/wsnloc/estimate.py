@@ -147,6 +147,9 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
         summary.update({METRIC_KEYS[k]: float(v) for k, v in values.items()})
         summary.update(resets=int(estimates.attrs.get("resets", 0)),
                        rss_model=(rss_model or {}).get("source", "configured"),
+                       **({"rss_exponent_choice": rss_model["exponent_source"],
+                           "rss_path_loss_exponent": rss_model["path_loss_exponent"]}
+                          if rss_model and "exponent_choice" in rss_model else {}),
                        **{k: v for k, v in calibration_metrics(estimates).items() if pd.notna(v)})
         metrics.update({METRIC_KEYS[k]: float(v) for k, v in values.items()})
         metrics["gated"] = float(summary["gated"])

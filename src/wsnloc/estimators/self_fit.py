@@ -12,7 +12,7 @@ them from the run itself, in three passes of the same filter:
    each window's geometry, undoing what the track absorbed). The ranges are corrected
    (estimators.range_calibration) for the next passes.
 2. **Noise, by maximum likelihood of the innovations.** Two passes with the configured
-   (range_sigma_m, accel_sigma_mps2) and with a livelier candidate (sigma / 2, accel x 3: a
+   (range_sigma_m, accel_sigma_mps2 or p_sigma_m) and with a livelier candidate (sigma / 2, process noise x 3: a
    six times larger process-to-measurement noise ratio, i.e. a higher gain). Each pass records
    every innovation y_i = z_i - h_i(x-) and its variance S_i = (H P- H' + R)_ii, gated ones
    included. Scaling Q and R together by c leaves a linear filter's track unchanged and scales

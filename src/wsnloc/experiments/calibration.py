@@ -40,7 +40,8 @@ def donor_rss_model(rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign, 
     estimator on the donor with the candidate, and the one with the lower RMSE on the donor's
     truth is kept (ties: the prior). The candidates share every other parameter, so the donor
     scores one number, its exponent. Returns the registry's RSS model (RSS_MODEL) with
-    `p0_offsets_db` and `exponent_choice` (text: both candidates' donor RMSE).
+    `p0_offsets_db`, `exponent_source` ("prior" or "donor fit") and `exponent_choice` (text: both
+    candidates' donor RMSE).
     """
     samples = rss_with_distance(rss, truth, campaign, anchors)
     candidates = {}
@@ -54,7 +55,7 @@ def donor_rss_model(rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign, 
         candidates[label] = (error, model)
     chosen = min(candidates, key=lambda k: candidates[k][0])      # "prior" first: kept on a tie
     text = "; ".join(f"{k} n={m['path_loss_exponent']:.2f}: donor RMSE {e:.2f} m" for k, (e, m) in candidates.items())
-    return dict(candidates[chosen][1], exponent_choice=f"{chosen} ({text})")
+    return dict(candidates[chosen][1], exponent_source=chosen, exponent_choice=f"{chosen} ({text})")
 
 
 def donor_model_for(p: dict, rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign,
