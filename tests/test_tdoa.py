@@ -218,21 +218,44 @@ def test_registry_lists_tdoa_among_the_filters_measurements(capsys):
     assert listed == accepting
 
 
+def biased_tdoa_run(seed: int = 4, scale: float = 1.07, offsets=None) -> RunData:
+    """tdoa_run whose differences are those of ranges r = s d + b_a: scale s and pair bias b_a - b_ref."""
+    offsets = offsets or {"A1": 0.3, "A2": -0.2, "A3": 0.6, "A4": 0.0}
+    data = tdoa_run(seed=seed, noise=0.05)
+    tdoa = data.tables["tdoa"]
+    tdoa["tdoa_m"] = scale * tdoa["tdoa_m"] + tdoa["anchor_id"].map(offsets) - tdoa["ref_anchor_id"].map(offsets)
+    return data
+
+
 def test_range_calibration_corrects_range_differences():
     """Ranges r = s d + b_a (scale 1.07, per-anchor offsets up to 0.6 m) make differences with
     pair bias b_a - b_ref and scale s; the donor's (here given) calibration removes both."""
     scale, offsets = 1.07, {"A1": 0.3, "A2": -0.2, "A3": 0.6, "A4": 0.0}
-    data = tdoa_run(seed=4, noise=0.05)
-    tdoa = data.tables["tdoa"]
-    bias = tdoa["anchor_id"].map(offsets) - tdoa["ref_anchor_id"].map(offsets)
-    tdoa["tdoa_m"] = scale * tdoa["tdoa_m"] + bias
-    truth, p = data.table("truth"), {"measurements": "tdoa", "range_sigma_m": 0.05}
+    data = biased_tdoa_run(4, scale, offsets)
+    truth, p = data.table("truth"), {"measurements": "tdoa", "range_sigma_m": 0.05, "self_fit": "none"}
     raw = np.nanmedian(score(registry.run("tracker", data, p), truth)["error_m"])
     donor = RunData(data.tables, None, None, "tdoa-4-calibrated", {"scale": scale, "offsets_m": offsets, "source": "t"})
     fitted = registry.run("tracker", donor, dict(p, range_calibration="other_run"))
     calibrated = np.nanmedian(score(fitted, truth)["error_m"])
     assert calibrated < 0.1 < raw and calibrated < raw / 4, (raw, calibrated)         # 0.03 m against 0.57 m
     assert fitted.attrs["calibrated_scale"] == scale and fitted.attrs["calibrated_offsets_m"] == offsets
+
+
+@pytest.mark.parametrize("scale", [1.0, 1.07])
+def test_the_default_tracker_self_fits_the_scale_and_pair_biases_of_range_differences(scale):
+    """No donor, no truth: the tracker's self-fit (estimators.self_fit.tdoa_correction) finds the
+    scale and the offset differences from the run's own differences against its first track."""
+    offsets = {"A1": 0.3, "A2": -0.2, "A3": 0.6, "A4": 0.0}
+    data = biased_tdoa_run(4, scale, offsets)
+    truth, p = data.table("truth"), {"measurements": "tdoa", "range_sigma_m": 0.05}
+    plain = np.nanmedian(score(registry.run("tracker", data, dict(p, self_fit="none")), truth)["error_m"])
+    fitted = registry.run("tracker", data, p)
+    median = np.nanmedian(score(fitted, truth)["error_m"])
+    assert median < 0.1 < plain and median < plain / 3, (plain, median)      # scale 1.07: 0.03 m against 0.57 m
+    assert fitted.attrs["self_fit_range_scale"] == pytest.approx(scale, abs=0.01)
+    found = fitted.attrs["calibrated_offsets_m"]
+    assert {a: found[a] - found["A1"] for a in offsets} == pytest.approx(
+        {a: b - offsets["A1"] for a, b in offsets.items()}, abs=0.05)
 
 
 def test_tdoa_bias_fit_recovers_scale_and_offset_differences():
@@ -272,7 +295,7 @@ def test_estimate_calibrates_a_tdoa_run_on_a_tdoa_donor(tmp_path):
         tdoa[["t", "anchor_id", "ref_anchor_id", "tdoa_m"]].to_csv(run / "tdoa.csv", index=False)
         data.tables["truth"][["t", "x", "y"]].to_csv(run / "truth.csv", index=False)
     median = {}
-    for label, extra in (("raw", []), ("calibrated", ["--calibration", str(runs["donor"]),
+    for label, extra in (("raw", ["--set", "self_fit=none"]), ("calibrated", ["--calibration", str(runs["donor"]),
                                                       "--set", "range_calibration=other_run"])):
         assert main(["estimate", "--format", "generic", str(runs["target"]), "--out", str(tmp_path / label)]
                     + extra) == 0
