@@ -19,8 +19,8 @@ with a non-zero status or not finite are not used.
 
 Before pairing, each anchor's isolated outliers are left out (a Hampel identifier): a range
 further than HAMPEL_SIGMAS normalised MADs (1.4826 x the median absolute residual over that
-anchor's ranges, at least 1 cm) from the median of its HAMPEL_NEIGHBOURS neighbours on each
-side within two windows of it. An NLOS or multipath excess of one two-way range would
+anchor's ranges, at least 1 cm) from the robust (repeated-median) line through its HAMPEL_NEIGHBOURS
+neighbours on each side within two windows of it (`outliers`). An NLOS or multipath excess of one two-way range would
 otherwise reach every difference it is paired into: the interpolations on both sides of it and,
 for the reference, every pair of its group; the tracker on the ranges meets it once and
 gates it. A lasting excess (a blocked path for seconds) moves the neighbours' median with it
@@ -47,7 +47,7 @@ from wsnloc.io.convert import QUARANTINE_FILE, Converted
 
 WINDOW_S = 0.25      # pairing window: a bracketing sample at most this far from t_ref (s); ~2.5 rounds at 10 Hz
 ROUND_WINDOWS = 1.5  # ... and at least 1.5 ranging round periods (anchors ranged one after the other, jitter)
-HAMPEL_NEIGHBOURS = 2   # outlier test: the median of up to 2 ranges of the same anchor on each side ...
+HAMPEL_NEIGHBOURS = 2   # outlier test: the line through up to 2 ranges of the same anchor on each side ...
 HAMPEL_SIGMAS = 3.0     # ... a range further than 3 normalised MADs from it is left out (Hampel identifier)
 HAMPEL_FLOOR_M = 0.01   # smallest spread of the test (m): ranges quantised or noise-free
 
@@ -84,25 +84,46 @@ def _at(t_query: np.ndarray, t: np.ndarray, r: np.ndarray, window_s: float) -> t
 
 def outliers(t: np.ndarray, r: np.ndarray, span_s: float) -> np.ndarray:
     """bool: the isolated outliers among one anchor's ranges r (m) at sorted times t (s) (module
-    docstring: residual from the median of up to HAMPEL_NEIGHBOURS neighbours on each side
-    within span_s, beyond HAMPEL_SIGMAS normalised MADs); a range with fewer than two such
-    neighbours is not tested."""
+    docstring). The reference of range i is the repeated-median line through its neighbours (up
+    to HAMPEL_NEIGHBOURS on each side within span_s, i itself left out) at t_i: the slope s is
+    the median over neighbours j of the median of j's slopes to the others (Siegel), the value
+    the median of r_j - s (t_j - t_i), so the target's motion does not count as an outlier and
+    one outlier among the neighbours does not move it. Flagged: a
+    residual beyond HAMPEL_SIGMAS normalised MADs of the anchor's residuals (at least
+    HAMPEL_FLOOR_M); a range with fewer than two neighbours is not tested. At the onset and end
+    of a lasting excess one or two ranges may be flagged too."""
     n = len(t)
     steps = [k for k in range(-HAMPEL_NEIGHBOURS, HAMPEL_NEIGHBOURS + 1) if k]
-    neighbours = np.full((n, len(steps)), np.nan)
+    dt = np.full((n, len(steps)), np.nan)
+    value = np.full((n, len(steps)), np.nan)
     for j, k in enumerate(steps):
         index = np.arange(n) + k
         inside = (index >= 0) & (index < n)
         index = np.clip(index, 0, n - 1)
         near = inside & (np.abs(t[index] - t) <= span_s)
-        neighbours[near, j] = r[index][near]
-    tested = np.sum(np.isfinite(neighbours), axis=1) >= 2
+        dt[near, j], value[near, j] = (t[index] - t)[near], r[index][near]
+    tested = np.sum(np.isfinite(value), axis=1) >= 2
     if not tested.any():
         return np.zeros(n, dtype=bool)
-    residual = np.full(n, np.nan)
-    residual[tested] = r[tested] - np.nanmedian(neighbours[tested], axis=1)
-    spread = max(1.4826 * np.median(np.abs(residual[tested])), HAMPEL_FLOOR_M)
-    return tested & (np.abs(np.nan_to_num(residual)) > HAMPEL_SIGMAS * spread)
+    dt, value = dt[tested], value[tested]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        slopes = (value[:, None, :] - value[:, :, None]) / (dt[:, None, :] - dt[:, :, None])   # (rows, j, k)
+    slopes[~np.isfinite(slopes)] = np.nan
+    each = np.column_stack([_nanmedian(slopes[:, j]) for j in range(len(steps))])
+    slope = np.nan_to_num(_nanmedian(each))
+    residual = r[tested] - _nanmedian(value - slope[:, None] * dt)
+    spread = max(1.4826 * np.median(np.abs(residual)), HAMPEL_FLOOR_M)
+    flagged = np.zeros(n, dtype=bool)
+    flagged[tested] = np.abs(residual) > HAMPEL_SIGMAS * spread
+    return flagged
+
+
+def _nanmedian(values: np.ndarray) -> np.ndarray:
+    """Row medians ignoring NaN; NaN for a row without a value (without numpy's warning)."""
+    out = np.full(len(values), np.nan)
+    some = np.isfinite(values).any(axis=1)
+    out[some] = np.nanmedian(values[some], axis=1)
+    return out
 
 
 def ranges_to_tdoa(ranges: pd.DataFrame, reference: str | None = None, window_s: float = WINDOW_S) -> pd.DataFrame:
