@@ -13,6 +13,9 @@ them from the run itself, in three passes of the same filter:
    (estimators.range_calibration) for the next passes. On range differences (>= 4 anchors in
    the pairs) the same in TDOA form (tdoa_correction: scale and offset differences b_a - b_ref,
    a pair's bias, against a plain first pass's track, refitted once on the corrected track).
+   With poor geometry (receivers clustered, the tag far) that track can be too poor to fit
+   them, so the plain pass stays a candidate of step 3: the corrected differences z' = (z -
+   b_a + b_ref) / s score their innovations' likelihood minus n log s (the density of z).
 2. **Noise, by maximum likelihood of the innovations.** Two passes with the configured
    (range_sigma_m, accel_sigma_mps2) and with a livelier candidate (sigma / 2, accel x 3: a
    six times larger process-to-measurement noise ratio, i.e. a higher gain). Each pass records
@@ -22,7 +25,8 @@ them from the run itself, in three passes of the same filter:
        L(c) = sum_i log[(1 - eps) N(y_i; 0, c S_i) + eps / span],
    a Gaussian with a uniform outlier component (eps = OUTLIER_SHARE over span = 2 max_range_m:
    reflections and NLOS ranges do not decide the noise), c on a log grid (CLAMP).
-3. The pass with the larger max_c L(c) is the output; attrs `self_fit_*` give the candidate and
+3. The pass with the larger max_c L(c) is the output (attrs `self_fit_rejected_scale` where the
+   uncalibrated TDOA pass wins); attrs `self_fit_*` give the candidate and
    the fitted noise, range_sigma_m sqrt(c*) (floored at SIGMA_FLOOR_M) and accel sqrt(c*), and
    the range scale. Because the likelihood is that of the innovations, which carry the state's
    own uncertainty H P H', the fitted sigma does not collapse onto the track the way residuals
@@ -244,7 +248,7 @@ def two_pass(data, p: dict, run_pass) -> pd.DataFrame:
     (y, S)) runs one pass of the filter and returns its innovations."""
     span = 2.0 * p["max_range_m"]
     q = dict(p, self_fit="none")
-    run, fitted = data, {}
+    run, fitted, uncalibrated = data, {}, None
     if p["measurements"] in ("toa", "hybrid") and p["range_calibration"] == "none" \
             and p["range_self_calibration"] == "none" and _anchors_ranged(data, p) >= MIN_ANCHORS_FOR_OFFSETS:
         scaled, _ = run_pass(data, dict(q, range_self_calibration="scale"))
@@ -255,26 +259,31 @@ def two_pass(data, p: dict, run_pass) -> pd.DataFrame:
             fitted["self_fit_range_scale"] = model["scale"]
     elif p["measurements"] == "tdoa" and p["range_calibration"] == "none" \
             and _anchors_in_tdoa(data, p) >= MIN_ANCHORS_FOR_OFFSETS:
-        track, _ = run_pass(data, q)
+        plain = track = run_pass(data, q)
         for refit in range(TDOA_FITS):
-            model = tdoa_correction(data, track, p)
+            model = tdoa_correction(data, track[0], p)
             if model is None or refit == TDOA_FITS - 1:
                 break
-            track, _ = run_pass(replace(data, range_model=model, _cache=data._cache),
-                                dict(q, range_calibration="other_run"))
+            track = run_pass(replace(data, range_model=model, _cache=data._cache), dict(q, range_calibration="other_run"))
         if model is not None:
+            uncalibrated = (q, plain, 1.0)
             run = replace(data, range_model=model, _cache=data._cache)
             q = dict(q, range_calibration="other_run")
             fitted["self_fit_range_scale"] = model["scale"]
-    first, innovations = run_pass(run, q)
+    scale = run.range_model["scale"] if run is not data else 1.0
     livelier = dict(q, range_sigma_m=q["range_sigma_m"] * LIVELIER[0],
                     accel_sigma_mps2=q["accel_sigma_mps2"] * LIVELIER[1])
+    candidates = [(q, run_pass(run, q), scale), (livelier, run_pass(run, livelier), scale)]
+    if uncalibrated is not None:
+        candidates.append(uncalibrated)
     scored = []
-    for candidate, (estimates, (y, S)) in ((q, (first, innovations)), (livelier, run_pass(run, livelier))):
+    for candidate, (estimates, (y, S)), s in candidates:
         ok = np.isfinite(y) & (S > 0)
         ll, c = profile_likelihood(y[ok], S[ok], span) if ok.sum() >= MIN_INNOVATIONS else (-np.inf, 1.0)
-        scored.append((ll, c, candidate, estimates))
+        scored.append((ll - ok.sum() * np.log(s), c, candidate, estimates))    # innovations of z / s: density x 1/s
     ll, c, best, out = max(scored, key=lambda s: s[0])
+    if uncalibrated is not None and best is uncalibrated[0]:
+        fitted = {"self_fit_rejected_scale": fitted.pop("self_fit_range_scale")}
     if np.isfinite(ll):
         fitted.update(self_fit_candidate="livelier" if best is livelier else "configured",
                       self_fit_range_sigma_m=max(best["range_sigma_m"] * np.sqrt(c), SIGMA_FLOOR_M),
