@@ -406,7 +406,8 @@ def batched_ekf(anchors: np.ndarray, ranges: np.ndarray, F: np.ndarray, Q: np.nd
     filterpy ends on the same ranges."""
     from filterpy.kalman import ExtendedKalmanFilter as FpEKF
 
-    from wsnloc.estimators.array_ekf import Measurements, predict, update
+    from wsnloc.estimators.array_ekf import Measurements, update
+    from wsnloc.filters.kalman import predict
     from wsnloc.filters.measurement_models import RangeModel
 
     runs, steps, m = ranges.shape
@@ -419,7 +420,7 @@ def batched_ekf(anchors: np.ndarray, ranges: np.ndarray, F: np.ndarray, Q: np.nd
         x, P = np.tile([5.0, 5.0, 0.0, 0.0], (runs, 1)), np.tile(np.eye(4), (runs, 1, 1))
         for epoch in epochs:
             x, P = predict(x, P, F, Q)
-            x, P, _ = update(x, P, epoch)
+            x, P, _, _ = update(x, P, epoch)
         return x
 
     model = RangeModel(anchors, np.full(m, 0.3))

@@ -12,6 +12,8 @@ from wsnloc.campaign import Campaign
 from wsnloc.estimators import array_ekf, batched, bayes, core, registry
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import paper_a, paper_c
+from wsnloc.filters.kalman import KalmanFilter
+from wsnloc.filters.measurement_models import RangeModel
 from wsnloc.io.cricket import ingest_run as ingest_cricket
 from wsnloc.metrics.tracking import score
 from wsnloc.io.newcom import ingest_run
@@ -145,20 +147,34 @@ def test_padded_measurements_change_nothing():
 
 
 @pytest.mark.parametrize("dim", [2, 4, 6])
-def test_position_update_equals_the_full_joseph_update(dim):
-    """The 2 x 2 form of the update (H = [H_p, 0], diagonal R) gives joseph_update's x, P and
-    NIS with the m x m innovation covariance, for P, PV and PVA states and mixed variances."""
+def test_array_update_is_each_filters_update(dim):
+    """The array EKF's update (filters.kalman.joseph_update over a run axis) gives, run by run,
+    what one filter's update (KalmanFilter.update, the same function without a batch axis)
+    gives with that run's H = [H_p, 0] and R = diag(variance): x, P and NIS, for P, PV and
+    PVA states and mixed variances; a run whose measurement is not finite keeps its prior."""
     rng = np.random.default_rng(dim)
     runs, width = 5, 7
     x = rng.normal(0.0, 3.0, (runs, dim))
     root = rng.normal(0.0, 1.0, (runs, dim, dim))
     P = root @ np.swapaxes(root, 1, 2) + 0.1 * np.eye(dim)
-    H_p, y = rng.normal(0.0, 1.0, (runs, width, 2)), rng.normal(0.0, 2.0, (runs, width))
-    variance = rng.choice([0.09, 25.0], (runs, width))
-    H = np.concatenate([H_p, np.zeros((runs, width, dim - 2))], axis=2)
-    full = array_ekf.joseph_update(x, P, y, H, variance[:, :, None] * np.eye(width))
-    for a, b in zip(array_ekf.position_update(x, P, y, H_p, 1.0 / variance), full):
-        np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-12)
+    m = array_ekf.Measurements.empty(runs, 1, width)
+    m.count[:, 0] = [7, 3, 1, 7, 5]
+    m.anchors[:, 0] = rng.uniform(-10, 10, (runs, width, 2))
+    m.variance[:, 0] = rng.choice([0.09, 25.0], (runs, width))
+    m.z[:, 0] = rng.uniform(1, 15, (runs, width))
+    m.z[3, 0, 2] = np.nan
+    new_x, new_P, nis, ok = array_ekf.update(x, P, m.at(0, np.arange(runs)))
+    np.testing.assert_array_equal(ok, [True, True, True, False, True])
+    for r in range(runs):
+        n = m.count[r, 0]
+        filt = KalmanFilter(x[r], P[r], np.eye(dim), np.zeros((dim, dim)), np.zeros((n, dim)), np.eye(n))
+        model = RangeModel(m.anchors[r, 0, :n], np.sqrt(m.variance[r, 0, :n]))
+        filt.update(m.z[r, 0, :n], model.jacobian(x[r]), model.R(), model.h(x[r]))
+        assert filt.guards.skipped == (not ok[r])
+        np.testing.assert_allclose(new_x[r], filt.x, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(new_P[r], filt.P, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(nis[r], filt.nis if ok[r] else np.nan, rtol=1e-12)
+    np.testing.assert_array_equal(new_x[3], x[3])
 
 
 def test_cells_of_different_kinds_subsets_and_models_in_one_call_equal_registry_run(campaign, simulated_runs):

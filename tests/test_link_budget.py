@@ -147,3 +147,28 @@ def test_a_resting_cart_keeps_each_links_impulse_response(campaign, uwb, simulat
     spread = rest.groupby("anchor_id")["error_m"].std()
     assert len(spread) >= 8 and spread.max() < 4 * uwb["timing_noise_ns"] * 1e-9 * C
     assert (rest.groupby("anchor_id")["error_m"].mean() > 0.5).any()      # a constant NLOS bias among them
+
+
+def test_pl0_sensitivity_counts_rounds_links_and_anchors_from_the_logs(campaign, simulated_run):
+    """round_links has one row per (ranging round, UWB anchor); its valid links are the log's
+    status-0 ranges; a higher CM4 path loss at 1 m closes fewer NLOS links and no fewer LOS ones,
+    and nothing changes where no PL0 is replaced."""
+    from wsnloc.analysis import pl0_sensitivity as pl0
+    from wsnloc.analysis.simulated_runs import simulate_tables
+
+    tables, _ = ingest_run(simulated_run, campaign)
+    links = pl0.round_links(tables, campaign)
+    n_anchors = len(campaign.anchors_of("uwb"))
+    assert len(links) == links["round"].nunique() * n_anchors
+    assert links["valid"].sum() == (tables["ranges"]["status"] == 0).sum()
+    assert links["linked"].sum() == len(tables["ranges"]) and (links["linked"] >= links["valid"]).all()
+    summary = pl0.run_summary(tables, campaign)
+    assert summary["anchors_per_epoch"] == pytest.approx(links["valid"].sum() / links["round"].nunique())
+    assert pl0.variant_campaign(campaign, None, None).spec == campaign.spec
+    harsh = pl0.variant_campaign(campaign, None, 57.9)
+    assert harsh.section("radio", "uwb", "channel_models", "CM4", "path_loss_db_at_1m") == 57.9
+    assert harsh.section("radio", "uwb", "channel_models", "CM3") == campaign.section("radio", "uwb", "channel_models", "CM3")
+    base, alt = (pl0.run_summary(simulate_tables(c, "constant", 1, 7)["run-01"], c) for c in (campaign, harsh))
+    assert alt["link_share_nlos"] < base["link_share_nlos"] and alt["link_share_los"] == base["link_share_los"]
+    bins = pl0.nlos_bins({"r": tables}, campaign)
+    assert bins["link_share"].between(0, 1).all() and (bins["median_m"].dropna() > 0).all()   # NLOS: late, not early

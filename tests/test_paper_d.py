@@ -325,3 +325,37 @@ def test_track_of_an_estimator_frame_is_registry_finish():
     finished = registry.finish(frame)
     np.testing.assert_array_equal(track.rows, finished[core.COLUMNS].to_numpy(float))
     assert track.rows[:, 1].tolist() == [1.0, 2.0, 0.0, 3.0] and track.attrs == {"resets": 2}
+
+
+def test_speed_input_metrics_measure_the_fed_speed_against_truth_and_the_kf_without_it(campaign, simulated_run):
+    """speed_input_metrics: per KF cell the velocity algorithm's speed (what the KF is fed)
+    against the true speed at the same fixes, and the KF's RMSE without that input, which is
+    the speed_input: false cell's own RMSE; noisy fixes make the fed speed too high (eq. 1 adds
+    every step's noise to the path length). No speed input: no rows. The results rows carry
+    them in Table 3 and explain_d quotes them in the KF claim's mechanism."""
+    from wsnloc.experiments import why
+    from wsnloc.io.newcom import ingest_run
+
+    tables, _ = ingest_run(simulated_run, campaign)
+    data = RunData(tables, campaign, RSS_MODEL)
+    fed = {**SPEC, "estimators": {**SPEC["estimators"], "kalman": {**SPEC["estimators"]["kalman"], "speed_input": True}}}
+    speed = paper_d.speed_input_metrics([data], fed, LABEL)[0]
+    assert len(speed) == 8 and set(speed["stage"]) == {"kalman"}
+    assert (speed["true_speed_mps"].between(0.0, 0.6)).all()              # the campaign's carts: 0-0.5 m/s
+    assert (speed["speed_bias_mps"] > 0.1).all(), speed                   # metre-level fixes every 0.5 s
+    np.testing.assert_allclose(speed["speed_bias_mps"], speed["speed_input_mps"] - speed["true_speed_mps"], atol=1e-12)
+    plain = paper_d.run_metrics(paper_d.run(data, SPEC, LABEL, ("kalman",)), tables["truth"])
+    np.testing.assert_allclose(speed["rmse_without_speed_m"], plain["rmse"], rtol=1e-12)
+    assert paper_d.speed_input_metrics([data], SPEC, LABEL)[0].empty
+
+    metrics = paper_d.run_metrics(paper_d.run(data, fed, LABEL), tables["truth"]).merge(speed, how="left")
+    frame = results.frame(paper_d.results_rows(metrics.assign(run="run-01"), LABEL))
+    table3 = frame[(frame["table"] == "Table 3") & (frame["column"] == "F-mix")]
+    assert table3[table3["row"] == paper_d.SPEEDLESS_ROW]["value"].iloc[0] == pytest.approx(
+        plain[(plain["localizer"] == "minmax") & (plain["technique"] == "fmix")]["rmse"].iloc[0])
+    assert set(table3[table3["row"] == "Kalman filter"]["metric"]) >= set(paper_d.SPEED_INPUT_METRICS[:-1])
+    per_run = {LABEL: metrics.assign(run="run-01")}
+    records = [{"claim": c["claim"], "verdict": "does not hold"} for c in paper_d.claims(per_run)]
+    kf = [r for r in why.explain_d(records, per_run, 0.5, 6) if r["claim"].startswith("The Kalman filter")][0]
+    fmix = speed[(speed["localizer"] == "minmax") & (speed["technique"] == "fmix")].iloc[0]
+    assert f"speed fed {fmix['speed_input_mps']:.2f} m/s against a true {fmix['true_speed_mps']:.2f} m/s" in kf["why"]

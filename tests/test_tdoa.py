@@ -297,6 +297,30 @@ def test_tdoa_bias_fit_recovers_scale_and_offset_differences():
     assert fit["offsets_m"] == pytest.approx({a: b - offsets["A1"] for a, b in offsets.items()}, abs=0.05)
 
 
+def test_calibrate_tdoa_fits_the_differences_against_the_true_distances_of_both_anchors():
+    """calibrate_tdoa on noise-free differences of biased ranges (scale 1.07, per-anchor offsets)
+    recovers the scale and offsets: metrics.ranging.tdoa_with_distances gives each pair's true
+    distances to its anchor and its reference at the row's time (rows outside the truth span
+    left out)."""
+    from wsnloc.campaign import Campaign
+    from wsnloc.experiments.calibration import calibrate_tdoa
+    from wsnloc.metrics.ranging import tdoa_with_distances
+
+    times = np.arange(0.1, 60.0, 0.1)
+    tables = tables_for(times, np.full(len(times), "A1", dtype=object), walk, SQUARE)
+    tdoa = tdoa_table(np.append(times, 1e3), walk, SQUARE)             # the last group after the truth ends
+    offsets = {"A1": 0.3, "A2": -0.2, "A3": 0.6, "A4": 0.0}
+    site = Campaign("square", "generic", {})
+    samples = tdoa_with_distances(tdoa, tables["truth"], site, tables["anchors"])
+    assert len(samples) == len(tdoa) - 3 and samples["t"].max() < 60.0
+    np.testing.assert_allclose(samples["true_distance_m"] - samples["true_ref_distance_m"], samples["tdoa_m"],
+                               atol=1e-9)
+    tdoa["tdoa_m"] = 1.07 * tdoa["tdoa_m"] + tdoa["anchor_id"].map(offsets) - tdoa["ref_anchor_id"].map(offsets)
+    fit = calibrate_tdoa(tdoa, tables["truth"], site, tables["anchors"])
+    assert fit["scale"] == pytest.approx(1.07, abs=1e-6)
+    assert fit["offsets_m"] == pytest.approx({a: b - offsets["A1"] for a, b in offsets.items()}, abs=1e-6)
+
+
 def test_estimate_calibrates_a_tdoa_run_on_a_tdoa_donor(tmp_path):
     """`wsnloc estimate --calibration DONOR --set range_calibration=other_run` on TDOA runs made
     from biased ranges (scale 1.07, per-anchor offsets): the donor's differences give the fit."""

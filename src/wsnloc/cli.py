@@ -1,5 +1,6 @@
-"""Command line for use outside Snakemake: simulate, ingest, convert, validate-config,
-estimators (the registry) and estimate (one estimator on one run).
+"""Command line for use outside Snakemake: simulate, ingest, convert, estimators, estimate, validate-config.
+
+`estimators` lists the registry; `estimate` runs one estimator on one run.
 
 Exit codes: 0 success, 2 bad input (unreadable log, invalid config) with a one-line
 message naming the file/line or key.
@@ -125,8 +126,8 @@ def cmd_estimate(args) -> int:
     for note in notes:
         print(f"note: {note}")
     print(f"{args.estimator}: {metrics.pop('n_estimates')} estimates written to {Path(args.out) / 'estimates.parquet'}")
-    if metrics:
-        print("  " + ", ".join(f"{k} {v:.3f}" for k, v in metrics.items()))
+    if metrics:  # n: the estimates scored against truth (inside its time span)
+        print("  " + ", ".join(f"n scored {v:.0f}" if k == "n" else f"{k} {v:.3f}" for k, v in metrics.items()))
     print(diagnosis)
     return 0
 

@@ -28,7 +28,8 @@ KEY = COLUMNS[:6]      # the labels that name a number: no two rows of a file sh
 
 # signed per-run values (and difference_*); a range scale fitted by regression (diag_range_scale) can come
 # out of any sign on a degenerate run, so its interval is not forced positive
-SIGNED_METRICS = ("P0_dBm", "range_error_m", "rmse_gain_m", "range_offset_m", "verdict", "diag_range_scale_1")
+SIGNED_METRICS = ("P0_dBm", "range_error_m", "rmse_gain_m", "range_offset_m", "verdict", "diag_range_scale_1",
+                  "speed_bias_mps")
 
 
 def metric_domain(metric: str) -> str:

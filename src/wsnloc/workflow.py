@@ -161,13 +161,19 @@ RESULTS = "reports/results.csv"
 
 def finished_build() -> str:
     """The last lines of a successful build (the Snakefile's onsuccess): where the report and
-    the results table are, with their size."""
+    the results table are, with their size (the report: its pages and PNG figures under
+    `pages/` beside the index, and the bytes of all of them)."""
     lines = []
     for label, path in (("report", REPORT), ("results", RESULTS)):
         file = Path(path)
         if file.exists():
-            detail = f"{file.stat().st_size / 1e6:.1f} MB" if label == "report" \
-                else f"{sum(1 for _ in file.open()) - 1} rows"
+            if label == "report":
+                pages = list((file.parent / "pages").glob("*.html"))
+                figures = list((file.parent / "pages").glob("**/*.png"))
+                size = sum(f.stat().st_size for f in [file, *pages, *figures])
+                detail = f"{len(pages) + 1} pages, {len(figures)} figures, {size / 1e6:.1f} MB"
+            else:
+                detail = f"{sum(1 for _ in file.open()) - 1} rows"
             lines.append(f"{label + ':':9}{path} ({detail})")
     return "\n".join(lines) if lines else "done (the report was not among the targets)"
 

@@ -222,13 +222,15 @@ def sweep_campaign(spec, key):
 
 
 def sweep_tables(spec, key):
-    """The workflow's table folders of an experiment's sweep scenario when its dataset is
-    simulated (a sweep level without changes reuses those runs); [] when off or real logs."""
+    """The workflow's table folders of an experiment's sweep scenario when the workflow simulates
+    it (a sweep level without changes reuses those runs); [] when off, real logs or a scenario
+    the dataset does not list (the sweep then simulates all its runs itself)."""
     sweep = (spec or {}).get(key) or {}
     if not sweep.get("runs"):
         return []
     dataset, scenario = sweep["scenario"].split("/", 1)
-    return tables_of(dataset, scenario) if config["datasets"][dataset]["source"] == "simulate" else []
+    spec = config["datasets"][dataset]
+    return tables_of(dataset, scenario) if spec["source"] == "simulate" and scenario in spec["scenarios"] else []
 
 
 def campaign_of_label(label):

@@ -31,9 +31,10 @@ def run_scenario(label: str, campaign: Campaign, out: dict) -> None:
     models = paper_d.rss_models_for_runs(runs, campaign, spec, label)
     data = {name: RunData(run_tables, campaign, models[name], name) for name, run_tables in runs.items()}
     estimates = [est.assign(run=name) for name, est in zip(runs, paper_d.run_all(list(data.values()), spec, label))]
+    speed = paper_d.speed_input_metrics(list(data.values()), spec, label)      # the KF's speed input, checked
     metrics = []
-    for (name, run_tables), est in zip(runs.items(), estimates):
-        metrics.append(paper_d.run_metrics(est, run_tables["truth"])
+    for (name, run_tables), est, fed in zip(runs.items(), estimates, speed):
+        metrics.append(paper_d.run_metrics(est, run_tables["truth"]).merge(fed, how="left")
                        .assign(run=name, **{f"rss_{k}": v for k, v in models[name].items()}))
         log.info("%s: RSS model %s", name, json.dumps(models[name]))
     tables.write("estimates_paper_d", pd.concat(estimates, ignore_index=True), out["estimates"])

@@ -57,7 +57,7 @@ for study, spec in sm.params.studies.items():
                                                                          for path in pngs},
                                             config["report"]["cell_stats"]))
 
-numbers = explanations.Numbers(final_results, {summary["label"]: summary for summary in summaries})
+numbers = explanations.Numbers(final_results, {summary["label"]: summary for summary in summaries}, config)
 for paper, labels in sm.params.papers.items():   # each paper's section: wsnloc.experiments.<paper>.report
     spec = config["experiments"][paper]
     outputs = {Path(p).name: Path(p) for p in sm.input.paper_files if Path(p).parts[2] == paper}

@@ -6,13 +6,14 @@ is a batch of one.
 
 Runs whose epoch grids and measurement sets differ:
 - the measurements of epoch k of all runs (any kinds and anchor subsets) are padded to
-  the largest count M_k: a padded row has H = 0, y = 0 and R = 1, so it adds nothing to
-  H^T R^-1 H, H^T R^-1 y or y^T R^-1 y and changes neither x, P nor NIS = y^T S^-1 y;
+  the largest count M_k: a padded row has H = 0, y = 0 and R = 1, so S = H P H^T + R is
+  block-diagonal with an identity block for the padding, K is 0 on it, and neither x, P nor
+  NIS = y^T S^-1 y changes;
 - per run, measurement i of an epoch is a range or an RSS value, h and H by
   filters.measurement_models (range_rows, rss_rows: distances with the anchor's height offset
   dz, RSS floored at d0) on the whole padded array; R is diagonal (range sigma^2, RSS sigma_dB^2).
-Predict x <- F x + B u, P <- F P F^T + Q; Joseph-form update (filters.kalman), computed in
-2 x 2 algebra as H sees the position only (position_update), so its cost hardly grows with M_k.
+Predict and update are filters.kalman's (predict, joseph_update: the same functions as one
+filter's, here with a leading run axis).
 """
 
 from __future__ import annotations
@@ -23,7 +24,9 @@ import numpy as np
 
 from wsnloc.estimators import filter_options
 from wsnloc.estimators.core import RunInputs
+from wsnloc.filters.kalman import joseph_update, nis, predict
 from wsnloc.filters.measurement_models import range_rows, rss_rows
+from wsnloc.filters.numerics import Guards
 
 RANGE, RSS = 0, 1
 
@@ -57,63 +60,24 @@ class Measurements:
                             take(self.exponent), take(self.d0), take(self.variance), take(self.z))
 
 
-def predict(x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray, Bu: np.ndarray | None = None):
-    """x <- F x (+ B u), P <- F P F^T + Q for x (runs, n), P (runs, n, n); Bu (runs, n)."""
-    x = x @ F.T
-    if Bu is not None:
-        x = x + Bu
-    return x, F @ P @ F.T + Q
-
-
 def update(x: np.ndarray, P: np.ndarray, m: Measurements):
-    """Joseph-form EKF update of every run with its (padded) measurements; returns (x, P, NIS).
-    h and the position columns of H are filters.measurement_models' (range_rows, rss_rows);
-    only those columns are non-zero: position_update."""
-    width = m.z.shape[1]
+    """The EKF update (filters.kalman.joseph_update) of every run with its (padded) measurements;
+    returns (x, P, NIS, ok). h and the position columns of H are filters.measurement_models'
+    (range_rows, rss_rows), the other columns 0; R = diag(variance). A run whose update is
+    not finite (ok False) keeps its prior, NIS NaN."""
+    runs, width = m.z.shape
     diff = x[:, None, :2] - m.anchors
-    h, H = range_rows(diff, m.dz)
+    h, H_p = range_rows(diff, m.dz)
     is_rss = m.kind == RSS
     if is_rss.any():                          # the RSS model's rows (range-only epochs skip it)
         h_rss, H_rss = rss_rows(diff, m.p0, m.exponent, m.d0, m.dz)
-        h, H = np.where(is_rss, h_rss, h), np.where(is_rss[..., None], H_rss, H)
+        h, H_p = np.where(is_rss, h_rss, h), np.where(is_rss[..., None], H_rss, H_p)
     real = np.arange(width)[None, :] < m.count[:, None]
-    H = np.where(real[..., None], H, 0.0)
+    H = np.zeros((runs, width, x.shape[1]))
+    H[..., :2] = np.where(real[..., None], H_p, 0.0)
     y = np.where(real, m.z - h, 0.0)
-    return position_update(x, P, y, H, 1.0 / m.variance)
-
-
-def position_update(x: np.ndarray, P: np.ndarray, y: np.ndarray, H: np.ndarray, r_inv: np.ndarray):
-    """joseph_update with H = [H_p, 0] (H_p (runs, m, 2): the measurements see the position
-    only) and R = diag(1 / r_inv) (r_inv (runs, m)), in 2 x 2 algebra whatever m:
-    with C = P[:, :2], A = H_p^T R^-1 H_p, b = H_p^T R^-1 y and G = (I + A P_pp)^-1 the
-    push-through identity H_p^T S^-1 = G H_p^T R^-1 gives K = C G H_p^T R^-1, so
-    x <- x + C G b, K H = [C G A, 0], K R K^T = C G A G^T C^T,
-    P <- (I - K H) P (I - K H)^T + K R K^T, and S^-1 y = R^-1 (y - H_p P_pp G b), so
-    NIS = sum_i y_i (y - H_p dp)_i / R_ii with dp = P_pp G b the position correction."""
-    weighted = np.swapaxes(H * r_inv[..., None], 1, 2)           # H_p^T R^-1 (runs, 2, m)
-    A, b = weighted @ H, (weighted @ y[..., None])[..., 0]
-    CG = P[:, :, :2] @ np.linalg.inv(np.eye(2) + A @ P[:, :2, :2])
-    correction = (CG @ b[..., None])[..., 0]
-    KH = np.zeros_like(P)
-    KH[:, :, :2] = CG @ A
-    joseph = np.eye(x.shape[1]) - KH
-    P = joseph @ P @ np.swapaxes(joseph, 1, 2) + KH[:, :, :2] @ np.swapaxes(CG, 1, 2)
-    residual = y - (H @ correction[:, :2, None])[..., 0]
-    return x + correction, P, np.sum(y * residual * r_inv, axis=1)
-
-
-def joseph_update(x: np.ndarray, P: np.ndarray, y: np.ndarray, H: np.ndarray, R: np.ndarray):
-    """Kalman update of every run with innovation y (runs, m), H (runs or 1, m, n), R (runs or 1, m, m):
-    S = H P H^T + R, K = P H^T S^-1, x <- x + K y, P <- (I - K H) P (I - K H)^T + K R K^T;
-    returns (x, P, NIS = y^T S^-1 y)."""
-    PHt = P @ np.swapaxes(H, -1, -2)
-    S_inv = np.linalg.inv(H @ PHt + R)
-    K = PHt @ S_inv
-    x = x + (K @ y[..., None])[..., 0]
-    joseph = np.eye(x.shape[1]) - K @ H
-    P = joseph @ P @ np.swapaxes(joseph, 1, 2) + K @ R @ np.swapaxes(K, 1, 2)
-    nis = (y[:, None, :] @ S_inv @ y[..., None])[:, 0, 0]
-    return x, P, nis
+    new = joseph_update(x, P, y, H, m.variance[..., None] * np.eye(width))
+    return new.x, new.P, np.where(new.ok, nis(y, new.S_inv), np.nan), new.ok
 
 
 def pack(runs: list[RunInputs], period: float) -> tuple[Measurements, np.ndarray]:
@@ -179,10 +143,13 @@ def supports(p: dict) -> bool:
 
 class ArrayEKF:
     """The bare EKF of several runs as a filter bank (estimators.core): state x (runs, n),
-    covariance P (runs, n, n), the runs' epochs packed (pack)."""
+    covariance P (runs, n, n), the runs' epochs packed (pack); guards: each run's counters
+    (filters.numerics; an update that is not finite is skipped and counted)."""
 
-    def __init__(self, runs: list[RunInputs], period: float, dim: int, bounds: list | None = None):
+    def __init__(self, runs: list[RunInputs], period: float, dim: int, bounds: list | None = None,
+                 guards: list[Guards] | None = None):
         self.measurements, self.row_of = pack(runs, period)
+        self.guards = guards or [Guards() for _ in runs]       # per run: updates skipped
         bounds = bounds or [None] * len(runs)
         self.bounded = np.array([b is not None for b in bounds])
         self.low = np.array([b[0] if b is not None else [-np.inf, -np.inf] for b in bounds]).reshape(-1, 2)
@@ -211,8 +178,10 @@ class ArrayEKF:
         nis = np.full(len(rows), np.nan)
         measured = rows[used > 0]
         if len(measured):
-            self.x[measured], self.P[measured], nis[used > 0] = update(
+            self.x[measured], self.P[measured], nis[used > 0], ok = update(
                 self.x[measured], self.P[measured], self.measurements.at(k, self.row_of[measured]))
+            for i in measured[~ok]:
+                self.guards[i].skipped += 1
             if self.bounded.any():
                 self.x[measured, :2] = np.clip(self.x[measured, :2], self.low[measured], self.high[measured])
         return used, nis, np.zeros(len(rows), bool)

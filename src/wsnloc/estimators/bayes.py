@@ -267,7 +267,7 @@ def run_filters(cells: list[tuple[RunData, dict]], forward: ForwardPass | None =
         if key[0] == "sequential":
             out = [sequential_loop(makes[0], runs[0], motion, initiator, deleter, forward)]
         else:
-            bank = array_ekf.ArrayEKF(runs, p["epoch_s"], motion.dim, bounds) \
+            bank = array_ekf.ArrayEKF(runs, p["epoch_s"], motion.dim, bounds, guards) \
                 if key[0] and len(runs) >= ARRAY_MIN_CELLS \
                 else FilterBank(makes, [r.source.epoch_models(r.times, p["epoch_s"]) for r in runs])
             out = epoch_loop(bank, runs, motion, p["epoch_s"], initiator, deleter, forward)

@@ -26,23 +26,24 @@ import numpy as np
 import pandas as pd
 
 from wsnloc.estimators import core, fixes
-from wsnloc.estimators.array_ekf import joseph_update, predict
 from wsnloc.estimators.motion import MotionModel
 from wsnloc.estimators.run_data import RunData
-from wsnloc.filters.motion_models import constant_velocity
+from wsnloc.filters.kalman import joseph_update, nis, predict
 from wsnloc.tracking.velocity_bounded import VelocityBoundedTracker
 
 MIN_SPEED_MPS = 1e-3     # below this predicted speed ||v|| has no direction: the speed component is left out
 
 
-def kalman_matrices(epoch_s: float, accel_sigma_mps2: float, position_sigma_m: float,
-                    initial_speed_sigma_mps: float) -> tuple:
-    """(F, Q, H, R, P0) of the KF over fixes."""
-    F, Q = constant_velocity(epoch_s, accel_sigma_mps2)
-    H = np.hstack([np.eye(2), np.zeros((2, 2))])
-    R = np.eye(2) * position_sigma_m**2
-    P0 = np.diag([position_sigma_m**2] * 2 + [initial_speed_sigma_mps**2] * 2)
-    return F, Q, H, R, P0
+def fix_motion(epoch_s: float, accel_sigma_mps2: float, position_sigma_m: float,
+               initial_speed_sigma_mps: float) -> MotionModel:
+    """The KF's motion model: PV (estimators.motion, filters.motion_models.constant_velocity) with
+    P0 = diag(sigma_fix^2, sigma_fix^2, sigma_v^2, sigma_v^2)."""
+    return MotionModel("pv", epoch_s, 0.0, accel_sigma_mps2, 0.0, position_sigma_m, initial_speed_sigma_mps, 0.0)
+
+
+def fix_measurement(position_sigma_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """(H, R) of a fix as the KF's measurement: z = [x, y] = H x + v, R = sigma_fix^2 I."""
+    return np.hstack([np.eye(2), np.zeros((2, 2))]), np.eye(2) * position_sigma_m**2
 
 
 def velocity_track(fixes: pd.DataFrame, window: int, speed_from: str) -> pd.DataFrame:
@@ -104,8 +105,9 @@ def _position_and_speed_jacobian(state: np.ndarray) -> np.ndarray:
 
 class FixBank:
     """The KF over fixes of several runs as arrays (a core filter bank): x (runs, 4), P (runs, 4, 4);
-    predict x <- F x, P <- F P F^T + Q and the Joseph update with the epoch's fix, or with the
-    fix and the speed v_hat where the run has one (module docstring) (array_ekf.joseph_update)."""
+    filters.kalman's predict and update (joseph_update) with the epoch's fix, or with the fix
+    and the speed v_hat where the run has one (module docstring). An update that is not finite
+    is skipped (the prior kept, NIS NaN) and counted in `skipped` (per run)."""
 
     def __init__(self, sources: list[FixSource], position_sigma_m: float, speed_sigma_mps: float):
         n_epochs = max([len(s.t) for s in sources] + [0])
@@ -113,9 +115,10 @@ class FixBank:
         for i, s in enumerate(sources):
             self.z[i, :len(s.t)], self.speed[i, :len(s.t)] = s.xy, s.speed
         self.fixed = np.isfinite(self.z).all(axis=2)
-        self.H, self.R = np.hstack([np.eye(2), np.zeros((2, 2))]), np.eye(2) * position_sigma_m**2
+        self.H, self.R = fix_measurement(position_sigma_m)
         self.R_speed = np.diag([position_sigma_m**2] * 2 + [speed_sigma_mps**2])
         self.x, self.P = np.zeros((len(sources), 4)), np.zeros((len(sources), 4, 4))
+        self.skipped = np.zeros(len(sources), int)
 
     def start(self, i: int, x0: np.ndarray, P0: np.ndarray, motion) -> None:
         self.x[i], self.P[i] = x0, P0
@@ -138,14 +141,19 @@ class FixBank:
         plain, fed = fixed[~with_speed], fixed[with_speed]
         if len(plain):
             r = rows[plain]
-            y = self.z[r, k] - self.x[r] @ self.H.T
-            self.x[r], self.P[r], nis[plain] = joseph_update(self.x[r], self.P[r], y, self.H[None], self.R[None])
+            nis[plain] = self._update(r, self.z[r, k] - self.x[r] @ self.H.T, self.H, self.R)
         if len(fed):
             r = rows[fed]
             y = np.column_stack([self.z[r, k], self.speed[r, k]]) - _position_and_speed(self.x[r])
-            self.x[r], self.P[r], nis[fed] = joseph_update(self.x[r], self.P[r], y,
-                                                           _position_and_speed_jacobian(self.x[r]), self.R_speed[None])
+            nis[fed] = self._update(r, y, _position_and_speed_jacobian(self.x[r]), self.R_speed)
         return used, nis, np.zeros(len(rows), bool)
+
+    def _update(self, r: np.ndarray, y: np.ndarray, H: np.ndarray, R: np.ndarray) -> np.ndarray:
+        """joseph_update of runs r with innovations y; their NIS (NaN where skipped)."""
+        new = joseph_update(self.x[r], self.P[r], y, H, R)
+        self.x[r], self.P[r] = new.x, new.P
+        self.skipped[r[~new.ok]] += 1
+        return np.where(new.ok, nis(y, new.S_inv), np.nan)
 
     def estimates(self, rows) -> np.ndarray:
         x, P = self.x[rows], self.P[rows]
@@ -156,12 +164,12 @@ def fix_tracks(sources: list[FixSource], epoch_s: float, accel_sigma_mps2: float
                initial_speed_sigma_mps: float, speed_sigma_mps: float) -> list[core.Track]:
     """The KF over the fixes of every source, stepped together by one core.epoch_loop;
     output at the epochs with a fix (module docstring)."""
-    motion = MotionModel("pv", epoch_s, 0.0, accel_sigma_mps2, 0.0, position_sigma_m, initial_speed_sigma_mps, 0.0)
+    motion = fix_motion(epoch_s, accel_sigma_mps2, position_sigma_m, initial_speed_sigma_mps)
     runs = [core.RunInputs(s.t, s, np.zeros(len(s.t), bool), None) for s in sources]
-    out = core.epoch_loop(FixBank(sources, position_sigma_m, speed_sigma_mps), runs, motion, epoch_s,
-                          FixInitiator(), core.CoastingDeleter(np.inf))
-    return [core.Track(rows[np.isin(rows[:, 0], source.t[source.has_fix()])], {"resets": resets})
-            for source, (rows, resets) in zip(sources, out)]
+    bank = FixBank(sources, position_sigma_m, speed_sigma_mps)
+    out = core.epoch_loop(bank, runs, motion, epoch_s, FixInitiator(), core.CoastingDeleter(np.inf))
+    return [core.Track(rows[np.isin(rows[:, 0], source.t[source.has_fix()])], {"resets": resets, "skipped": int(skipped)})
+            for source, (rows, resets), skipped in zip(sources, out, bank.skipped)]
 
 
 def kalman_tracks(datas: list[RunData], params: list[dict]) -> list[core.Track]:

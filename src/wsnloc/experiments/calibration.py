@@ -8,8 +8,8 @@ from __future__ import annotations
 import pandas as pd
 
 from wsnloc.campaign import Campaign
-from wsnloc.metrics.ranging import (_with_geometry, fit_path_loss, fit_range_bias, fit_tdoa_bias, range_errors,
-                                    rss_with_distance)
+from wsnloc.metrics.ranging import (fit_path_loss, fit_range_bias, fit_tdoa_bias, range_errors, rss_with_distance,
+                                    tdoa_with_distances)
 
 
 def calibrate(rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign, d0_m: float,
@@ -56,9 +56,6 @@ def calibrate_tdoa(tdoa: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign,
     """Range scale and per-anchor offsets (relative to the most frequent reference anchor;
     metrics.ranging.fit_tdoa_bias) fitted on the range differences of one run with ground
     truth: the true (3-D) distance of each pair's two anchors at its time."""
-    rows = tdoa.reset_index(drop=True)
-    to_anchor = _with_geometry(rows[["t", "anchor_id"]], truth, campaign, anchors)
-    to_ref = _with_geometry(rows[["t"]].assign(anchor_id=rows["ref_anchor_id"]), truth, campaign, anchors)
-    rows = rows.loc[to_anchor.index]
-    return fit_tdoa_bias(rows["tdoa_m"], to_anchor["true_distance_m"], to_ref["true_distance_m"],
-                         rows["anchor_id"], rows["ref_anchor_id"])
+    samples = tdoa_with_distances(tdoa, truth, campaign, anchors)
+    return fit_tdoa_bias(samples["tdoa_m"], samples["true_distance_m"], samples["true_ref_distance_m"],
+                         samples["anchor_id"], samples["ref_anchor_id"])

@@ -162,7 +162,7 @@ def explain_c(records: list[dict], metrics: dict[str, pd.DataFrame], speeds: dic
 
 # ---- paper D -----------------------------------------------------------------------------------
 def explain_d(records: list[dict], metrics: dict[str, pd.DataFrame], pmix_weight: float, k_smallest: int) -> list[dict]:
-    fusion, fmix, minmax, kalman, tracked = [], [], [], [], []
+    fusion, fmix, minmax, kalman, tracked, speed = [], [], [], [], [], []
     for label, per_run in metrics.items():
         for loc, name in (("minmax", "Min-Max"), ("multilateration", "Multilateration")):
             u, n, p, f = (_mean(per_run, localizer=loc, technique=t, stage="raw")
@@ -174,6 +174,13 @@ def explain_d(records: list[dict], metrics: dict[str, pd.DataFrame], pmix_weight
         minmax.append(f"{label} UWB: Min-Max {mm:.2f}, multilateration {ml:.2f}")
         kf, vel = (_mean(per_run, localizer="minmax", technique="fmix", stage=s) for s in ("kalman", "velocity"))
         kalman.append(f"{label}: KF {kf:.3f}, velocity tracker {vel:.3f}")
+        if "speed_input_mps" in per_run:          # the KF fed the velocity algorithm's speed
+            v_hat, v, bias, spread, without = (
+                _mean(per_run, metric, localizer="minmax", technique="fmix", stage="kalman")
+                for metric in ("speed_input_mps", "true_speed_mps", "speed_bias_mps", "speed_rmse_mps",
+                               "rmse_without_speed_m"))
+            speed.append(f"{label}: speed fed {v_hat:.2f} m/s against a true {v:.2f} m/s (bias {bias:+.2f}, RMS error "
+                         f"{spread:.2f} m/s); KF {kf:.3f} with it, {without:.3f} without it")
         tracked.append(f"{label}: " + ", ".join(
             f"{loc} {t} {_mean(per_run, localizer=loc, technique=t, stage='velocity'):.2f}"
             for loc in ("minmax", "multilateration") for t in ("uwb", "fmix")))
@@ -191,6 +198,12 @@ def explain_d(records: list[dict], metrics: dict[str, pd.DataFrame], pmix_weight
     why_kalman = ("The KF (PV model, fixes as measurements) smooths the Min-Max F-mix fixes over several epochs while "
                   "the velocity tracker only clips outliers to the speed bound; the ranking of the two depends on how "
                   "large and how correlated the fix errors are: " + "; ".join(kalman) + ".")
+    if speed:
+        why_kalman += (" The KF is also fed the velocity algorithm's speed (seed 004 4.2). That speed (eq. 1) is the "
+                       "path length of the last raw fixes over its duration: each step's length adds the fixes' "
+                       "noise, so it is biased high whenever the fix errors per epoch exceed the distance moved, "
+                       "and the KF, told that speed within speed_sigma_mps, carries it in its velocity state: its "
+                       "predictions run ahead of the slower target and each fix pulls them back: " + "; ".join(speed) + " (Min-Max F-mix, mean over runs).")
     return _attach(records, {
         "Fusion beats a single source": why_fusion,
         "F-mix is the best fusion and technique": why_fmix,

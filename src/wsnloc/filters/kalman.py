@@ -13,17 +13,77 @@ a degenerate geometry, a non-finite model) is skipped, the prior kept, and count
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
-from wsnloc.filters.numerics import Guards, usable
+from wsnloc.filters.numerics import Guards
 
 
 def inverse(S: np.ndarray) -> np.ndarray:
-    """S^-1 of a square S; a 1 x 1 S gives [[1 / s]] directly (the value LAPACK's LU solve in
-    numpy.linalg.inv computes, without its call overhead)."""
-    if S.shape == (1, 1):
+    """S^-1 of square matrices S (..., m, m); a 1 x 1 S gives 1 / s directly (the value LAPACK's LU
+    solve in numpy.linalg.inv computes, without its call overhead); a singular S gives NaN (its
+    update is then skipped), the others of a stack their inverse."""
+    if S.shape[-2:] == (1, 1):
         return 1.0 / S
-    return np.linalg.inv(S)
+    try:
+        return np.linalg.inv(S)
+    except np.linalg.LinAlgError:
+        out = np.full_like(S, np.nan)
+        for i in np.ndindex(S.shape[:-2]):
+            try:
+                out[i] = np.linalg.inv(S[i])
+            except np.linalg.LinAlgError:
+                pass                              # singular: NaN
+        return out
+
+
+def predict(x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray, Bu: np.ndarray | None = None):
+    """The Kalman prediction x <- F x (+ B u), P <- F P F^T + Q, for one filter and for a bank
+    (leading axes a batch, as joseph_update): x (..., n), P (..., n, n), F and Q (..., n, n),
+    Bu (..., n) the input term B u (None: none). Returns (x, P)."""
+    x = (F @ x[..., None])[..., 0]
+    if Bu is not None:
+        x = x + Bu
+    return x, F @ P @ np.swapaxes(F, -1, -2) + Q
+
+
+class Update(NamedTuple):
+    """What joseph_update computes; `ok` (...,) is False where the result is not finite (the
+    update is then skipped: x, P keep the prior)."""
+
+    x: np.ndarray
+    P: np.ndarray
+    S: np.ndarray
+    S_inv: np.ndarray
+    K: np.ndarray
+    ok: np.ndarray
+
+
+def joseph_update(x: np.ndarray, P: np.ndarray, y: np.ndarray, H: np.ndarray, R: np.ndarray) -> Update:
+    """The Kalman measurement update (module docstring), written once for one filter and for a
+    bank of them: any leading axes are a batch (one run: none; many runs: (runs,)), broadcast
+    between the arguments: x (..., n), P (..., n, n), innovation y = z - h(x) (..., m),
+    H (..., m, n), R (..., m, m). S = H P H^T + R, K = P H^T S^-1, x <- x + K y,
+    P <- (I - K H) P (I - K H)^T + K R K^T. Where S is singular or the result not finite,
+    `ok` is False and x, P are the prior's (guarded)."""
+    PHt = P @ np.swapaxes(H, -1, -2)
+    S = H @ PHt + R
+    S_inv = inverse(S)
+    K = PHt @ S_inv
+    x_new = x + (K @ y[..., None])[..., 0]
+    joseph = np.eye(x.shape[-1]) - K @ H
+    P_new = joseph @ P @ np.swapaxes(joseph, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
+    ok = np.isfinite(x_new).all(axis=-1) & np.isfinite(P_new).all(axis=(-2, -1))
+    if not ok.all():
+        x_new = np.where(ok[..., None], x_new, x)
+        P_new = np.where(ok[..., None, None], P_new, P)
+    return Update(x_new, P_new, S, S_inv, K, ok)
+
+
+def nis(y: np.ndarray, S_inv: np.ndarray) -> np.ndarray:
+    """Normalised innovation squared y^T S^-1 y (...,) of innovations y (..., m)."""
+    return (y[..., None, :] @ S_inv @ y[..., None])[..., 0, 0]
 
 
 class KalmanFilter:
@@ -38,44 +98,31 @@ class KalmanFilter:
         self.S = np.eye(self.H.shape[0])
         self.K = np.zeros((len(self.x), self.H.shape[0]))
         self._S_inv = None
-        self._eye = np.eye(len(self.x))
         self.guards = guards if guards is not None else Guards()
 
     def predict(self, F=None, Q=None, u=None, B=None) -> None:
-        """x <- F x (+ B u), P <- F P F^T + Q; F and Q default to the filter's own (a step of
-        another length passes its own matrices)."""
+        """x <- F x (+ B u), P <- F P F^T + Q (predict); F and Q default to the filter's own (a
+        step of another length passes its own matrices)."""
         F = self.F if F is None else F
         Q = self.Q if Q is None else Q
-        self.x = F @ self.x
-        if u is not None:
-            self.x = self.x + B @ u
-        self.P = F @ self.P @ F.T + Q
+        self.x, self.P = predict(self.x, self.P, F, Q, None if u is None else B @ u)
 
     def update(self, z, H=None, R=None, hx=None) -> None:
-        """Measurement update; `hx` is the predicted measurement h(x) of a linearised model
-        (default H x). The measurement size may change from call to call."""
+        """Measurement update (joseph_update); `hx` is the predicted measurement h(x) of a
+        linearised model (default H x). The measurement size may change from call to call."""
         H = self.H if H is None else H
         R = self.R if R is None else R
         y = z - (H @ self.x if hx is None else hx)
-        PHt = self.P @ H.T
-        S = H @ PHt + R
-        try:
-            S_inv = inverse(S)
-        except np.linalg.LinAlgError:
-            S_inv = np.full_like(S, np.nan)
-        K = PHt @ S_inv
-        x = self.x + K @ y
-        joseph = self._eye - K @ H
-        P = joseph @ self.P @ joseph.T + K @ R @ K.T
-        if not usable(x, P):
+        new = joseph_update(self.x, self.P, y, H, R)
+        if not new.ok:
             self.guards.skipped += 1
             return
-        self.y, self.S, self.K, self.x, self.P, self._S_inv = y, S, K, x, P, S_inv
+        self.y, self.S, self.K, self.x, self.P, self._S_inv = y, new.S, new.K, new.x, new.P, new.S_inv
 
     @property
     def nis(self) -> float:
         """Normalised innovation squared y^T S^-1 y of the last update (NaN before any)."""
-        return float("nan") if self._S_inv is None else float(self.y @ self._S_inv @ self.y)
+        return float("nan") if self._S_inv is None else float(nis(self.y, self._S_inv))
 
 
 class ExtendedKalmanFilter(KalmanFilter):

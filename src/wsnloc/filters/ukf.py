@@ -12,8 +12,9 @@ the current (x, P), i.e. after any predict (Q included), as in Wan & van der Mer
   Z_i = h(chi_i),  z_hat = sum Wm_i Z_i,  S = sum Wc_i (Z_i - z_hat)(Z_i - z_hat)^T + R
   Pxz = sum Wc_i (chi_i - x)(Z_i - z_hat)^T,  K = Pxz S^-1,  y = z - z_hat
   x <- x + K y,  P <- P - K S K^T,  NIS = y^T S^-1 y
-computed as the linear update of the sigma points' statistical linear regression (`linearise`:
-H = Pxz^T P^-1, R + Omega), so the EKF's gate and robust updates apply to it unchanged.
+computed as the Kalman update (filters.kalman.joseph_update, whose Joseph form equals P - K S K^T
+here) of the sigma points' statistical linear regression (`linearise`: H = Pxz^T P^-1, R + Omega),
+so the EKF's gate and robust updates apply to it unchanged.
 On real data (filters.numerics): an indefinite P is regularised before its Cholesky factor
 is taken, and an update with a singular S or a non-finite result is skipped; both counted.
 With predict/update pairs this is exactly filterpy.kalman.UnscentedKalmanFilter with
@@ -24,7 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from wsnloc.filters.numerics import Guards, safe_cholesky, usable
+from wsnloc.filters.kalman import joseph_update, nis
+from wsnloc.filters.numerics import Guards, safe_cholesky
 
 
 class UnscentedKalmanFilter:
@@ -90,21 +92,14 @@ class UnscentedKalmanFilter:
 
     def update(self, z, H, R, hx) -> None:
         """Linear update with the predicted measurement hx and the regression H (R includes
-        linearise's Omega): y = z - hx, S = H P H^T + R, K = P H^T S^-1, x <- x + K y,
-        P <- P - K S K^T."""
-        PHt = self.P @ H.T
-        S = H @ PHt + R
-        try:
-            S_inv = np.linalg.inv(S)
-        except np.linalg.LinAlgError:
-            S_inv = np.full_like(S, np.nan)
-        K = PHt @ S_inv
+        linearise's Omega): y = z - hx and the Kalman update of filters.kalman.joseph_update,
+        whose S = H P H^T + R is Pzz + R and whose Joseph-form P equals P - K S K^T (K = Pxz S^-1)."""
         y = z - hx
-        x, P = self.x + K @ y, self.P - K @ S @ K.T
-        if not usable(x, P):                   # a singular S or a non-finite model: the prior is kept
+        new = joseph_update(self.x, self.P, y, H, R)
+        if not new.ok:                         # a singular S or a non-finite model: the prior is kept
             self.guards.skipped += 1
             return
-        self.S, self._S_inv, self.y, self.x, self.P = S, S_inv, y, x, P
+        self.S, self._S_inv, self.y, self.x, self.P = new.S, new.S_inv, y, new.x, new.P
 
     def update_model(self, model) -> None:
         """Unscented update with model.z, model.h and model.R() (the size of z may vary):
@@ -115,4 +110,4 @@ class UnscentedKalmanFilter:
     @property
     def nis(self) -> float:
         """Normalised innovation squared y^T S^-1 y of the last update (NaN before any)."""
-        return float("nan") if self._S_inv is None else float(self.y @ self._S_inv @ self.y)
+        return float("nan") if self._S_inv is None else float(nis(self.y, self._S_inv))

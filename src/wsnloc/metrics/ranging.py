@@ -84,6 +84,18 @@ def rss_with_distance(rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign
     return _with_geometry(rss, truth, campaign, anchors)
 
 
+def tdoa_with_distances(tdoa: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign,
+                        anchors: pd.DataFrame | None = None) -> pd.DataFrame:
+    """TDOA rows (range difference tdoa_m between anchor_id and ref_anchor_id) inside the truth
+    span with the true (3-D) distance from the true position to each anchor of the pair:
+    true_distance_m (anchor_id) and true_ref_distance_m (ref_anchor_id), in m."""
+    rows = tdoa.reset_index(drop=True)
+    to_anchor = _with_geometry(rows[["t", "anchor_id"]], truth, campaign, anchors)
+    to_ref = _with_geometry(rows[["t"]].assign(anchor_id=rows["ref_anchor_id"]), truth, campaign, anchors)
+    return rows.loc[to_anchor.index].assign(true_distance_m=to_anchor["true_distance_m"],
+                                            true_ref_distance_m=to_ref["true_distance_m"])
+
+
 def fit_path_loss(rss_dbm, distance_m, d0_m: float = 1.0) -> dict[str, float]:
     """Least-squares fit of P = P0 - 10 n log10(d / d0) + e; sigma = std of the residual e (dB).
 

@@ -1,8 +1,12 @@
 """"Why it differs": the look-ups behind the short explanations under each paper's tables of
 its large differences from the paper (each paper's sentences: wsnloc.experiments.paper_x.report).
 The sentences are written by hand; every number in them is read from the workflow's results
-(results.csv rows) or data summaries (data_summary.json), and a sentence whose numbers are
-missing (e.g. no NLOS links in the data) is left out.
+(results.csv rows), data summaries (data_summary.json) or the campaign files, and a sentence
+whose numbers are missing (e.g. no NLOS links in the data) is left out.
+
+Each RMSE cell outside our interval also gets an account of its gap (gap_account): the
+contribution to our RMSE predicted by each mechanism that can be quantified from the build's
+own numbers, their sum beside the gap, and the part the sum leaves unexplained.
 """
 
 from __future__ import annotations
@@ -21,9 +25,10 @@ from wsnloc.experiments import claims as claims_of
 class Numbers:
     """Look-ups in results.csv rows and per-scenario data summaries; NaN when absent."""
 
-    def __init__(self, results: pd.DataFrame, summaries: dict[str, dict]):
+    def __init__(self, results: pd.DataFrame, summaries: dict[str, dict], config: dict | None = None):
         self.results = results
         self.summaries = summaries
+        self.config = config          # the workflow config: the scenarios' campaigns (campaign_of)
 
     def value(self, experiment: str, table: str, row: str, column: str, field: str = "value", **keys) -> float:
         """`field` of the first results row with these experiment, table, row, column and keys
@@ -45,6 +50,25 @@ class Numbers:
         return {"nlos_share": (nlos.get("n") or 0) / total if total else math.nan,
                 "nlos_bias_m": _number(nlos.get("bias")), "los_median_m": _number(los.get("median")),
                 "nlos_p95_m": _number(nlos.get("p95"))}
+
+    def duration_s(self, scenario: str) -> float:
+        """Mean run duration (s) of a scenario (data summary per run)."""
+        return _mean([_number(r.get("duration_s")) for r in self.summaries.get(scenario, {}).get("per_run", [])])
+
+    def accel_bias_sigma(self, scenario: str) -> float:
+        """Per-axis sigma (m/s^2) of the simulated accelerometer's per-run turn-on bias of a scenario
+        (campaign imu.accel_bias_sigma_mps2 under the `mems` noise model); NaN without a campaign,
+        a simulated IMU or a bias (paper B's `snr` model has none)."""
+        dataset, _, name = scenario.partition("/")
+        if self.config is None or dataset not in self.config.get("datasets", {}):
+            return math.nan
+        campaign = campaign_of(self.config, scenario)
+        imu = campaign.spec.get("imu")
+        if imu is None or name not in campaign.spec.get("scenarios", {}):
+            return math.nan
+        model = campaign.section("scenarios", name).get("overrides", {}).get("imu_noise_model") \
+            or imu.get("noise_model", "mems")
+        return _number(imu.get("accel_bias_sigma_mps2")) if model == "mems" else math.nan
 
     def rss_fit(self, scenario: str) -> dict[str, float]:
         """Path-loss fit over all links (mean over runs): exponent n and residual sigma (dB)."""
@@ -136,6 +160,59 @@ def cell_mechanism(n: Numbers, experiment: str, scenario: str, *labels: str) -> 
     return "; ".join(parts)
 
 
+DEAD_RECKONING_WORDS = ("dead", "reckoning")
+FUSION_WORDS = ("fusion", "fused", "kf", "sskf", "mix", "hybrid")
+
+
+def contributions(n: Numbers, experiment: str, scenario: str, table: dict, row: str, value: float,
+                  *labels: str) -> list[tuple[str, float]]:
+    """(text with its arithmetic, predicted contribution in m) to our RMSE of one cell from each
+    mechanism that the build's own numbers quantify, chosen by the cell's kind (its `labels`):
+
+    - NLOS bias (range-based cells): a bias b (the NLOS ranges' median excess, m) on the share x
+      of the ranges that are NLOS adds sqrt(x b^2) = sqrt(x) b (m) of RMS range error;
+    - rests (cells whose results hold a moving-epoch RMSE, `<table> detail` / rmse_moving): the
+      static epochs change our RMSE by RMSE - RMSE over the moving epochs (negative: rests help);
+    - uncalibrated accelerometer bias (dead reckoning alone, no rest to measure it in): a
+      horizontal bias of RMS |b| = sqrt(2) sigma_b (sigma_b per axis, campaign) integrates to
+      |b| t^2 / 2, whose RMS over a run of T s is |b| T^2 / (2 sqrt 5).
+    None for other tables than RMSE ones."""
+    words = _words(*labels)
+    if "rmse" not in words:
+        return []
+    out = []
+    r = n.ranging(scenario)
+    if words & set(RANGING_WORDS) and finite(r["nlos_share"], r["nlos_bias_m"]) and r["nlos_share"] > 0:
+        x, b = r["nlos_share"], r["nlos_bias_m"]
+        out.append((f"NLOS bias sqrt(x b^2) = sqrt({x:.3f} x {b:.3f}^2) = {math.sqrt(x) * b:+.3f} m",
+                    math.sqrt(x) * b))
+    moving = n.value(experiment, f"{table['table']} detail", row, "rmse_moving", scenario=scenario) \
+        if table.get("table") else math.nan
+    if finite(moving):
+        out.append((f"rests: RMSE - moving-epoch RMSE = {value:.3f} - {moving:.3f} = {value - moving:+.3f} m",
+                    value - moving))
+    static = n.fact(experiment, "static share of epochs", scenario)
+    sigma_b, duration = n.accel_bias_sigma(scenario), n.duration_s(scenario)
+    if (words & set(DEAD_RECKONING_WORDS) and not words & set(FUSION_WORDS) and finite(static, sigma_b, duration)
+            and static < STILL_SHARE):
+        drift = math.sqrt(2.0) * sigma_b * duration**2 / (2.0 * math.sqrt(5.0))
+        out.append((f"accelerometer bias without a rest to measure it: |b| T^2 / (2 sqrt 5) with |b| = sqrt(2) x "
+                    f"{sigma_b:g} m/s^2, T = {duration:.1f} s: {drift:+.3f} m", drift))
+    return out
+
+
+def gap_account(gap: float, parts: list[tuple[str, float]]) -> str:
+    """The gap (ours - paper, m) against the mechanisms' predicted contributions (contributions):
+    their sum (linear: for independent errors, which add in quadrature, an upper bound) and the
+    unexplained rest, gap - sum (negative: the mechanisms predict more than the gap, i.e. the
+    paper's data carry part of them too)."""
+    if not parts:
+        return f"No mechanism quantified for this cell: the gap {gap:+.3f} m is not accounted for by a computed contribution."
+    total = sum(value for _, value in parts)
+    return ("Account of the gap: " + "; ".join(text for text, _ in parts)
+            + f"; predicted {total:+.3f} m against the gap {gap:+.3f} m: {gap - total:+.3f} m unexplained.")
+
+
 def outside_cells(tables: list[dict]) -> list[tuple[dict, dict, str, dict]]:
     """(table, row, column, cell) of every table cell with a paper value outside our interval."""
     return [(table, row, column, cell) for table in tables for row in table["rows"]
@@ -145,8 +222,9 @@ def outside_cells(tables: list[dict]) -> list[tuple[dict, dict, str, dict]]:
 
 def cell_whys(n: Numbers, experiment: str, tables: list[dict]) -> list[str]:
     """One sentence per table cell whose paper value lies outside our interval: our value with
-    the interval it was compared with, the paper's, and the cell's measured error sources
-    (cell_mechanism of the cell's scenario)."""
+    the interval it was compared with, the paper's, the cell's measured error sources
+    (cell_mechanism of the cell's scenario) and, for RMSE cells, the account of the gap
+    (contributions, gap_account)."""
     out = []
     for table, row, column, cell in outside_cells(tables):
         scenario = cell.get("scenario") or table.get("scenario", "")
@@ -157,8 +235,12 @@ def cell_whys(n: Numbers, experiment: str, tables: list[dict]) -> list[str]:
         side = "below" if cell["value"] < cell["paper"] else "above"
         name = table["title"].split(":")[0].split(" (")[0]
         where = f"{column} ({scenario})" if scenario and scenario != column else column
+        parts = contributions(n, experiment, scenario, table, row["label"], cell["value"], table["title"],
+                              row["label"], column)
         out.append(f"{name}, {row['label']} / {where}: ours {cell['value']:.3f} "
                    f"({interval}) is {side} the paper's {cell['paper']:.3f} by {abs(cell['delta']):.3f}; "
                    + (f"measured here: {mechanism}." if mechanism else
-                      "no data-quality figures for this scenario in the build."))
+                      "no data-quality figures for this scenario in the build.")
+                   + (f" {gap_account(cell['delta'], parts)}" if "rmse" in _words(table["title"], row["label"],
+                                                                                       column) else ""))
     return out

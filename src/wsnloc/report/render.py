@@ -1,4 +1,5 @@
-"""Render the self-contained HTML report (jinja2, autoescaped, images inlined as base64)."""
+"""Render the HTML report pages (jinja2, autoescaped); each figure goes through `figure`: a PNG data
+URI by default, a PNG file beside the pages in the workflow (report.smk)."""
 
 from __future__ import annotations
 

@@ -85,9 +85,10 @@ def paper_section(experiment: str, paper: dict, spec: dict, claims: dict, figure
 
 def grid_table(results: pd.DataFrame, *, experiment: str, table: str, rows: list[str], columns: list[str],
                metric: str, title: str, scenario: str = "") -> dict:
-    """A paper table whose cells are found by (table, row, column) across scenarios."""
+    """A paper table whose cells are found by (table, row, column) across scenarios; `table` (the
+    results.csv table) is kept for the look-ups of its detail rows (explanations.contributions)."""
     sel = results[(results["experiment"] == experiment) & (results["table"] == table)]
-    return {"title": title, "scenario": scenario, "columns": columns,
+    return {"title": title, "scenario": scenario, "columns": columns, "table": table,
             "rows": [{"label": r, "cells": [cell_of(sel, row=r, column=c, metric=metric) for c in columns]} for r in rows]}
 
 

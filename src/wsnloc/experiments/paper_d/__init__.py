@@ -9,6 +9,7 @@ table layout, its claims, the cost comparison and figures.
 
 from __future__ import annotations
 
+import copy
 import time
 
 import numpy as np
@@ -18,13 +19,14 @@ from wsnloc import results
 from wsnloc.analysis import setup_facts
 from wsnloc.campaign import Campaign
 from wsnloc.experiments import calibration
-from wsnloc.estimators import batched
+from wsnloc.estimators import batched, fixes
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import cells, claims as claims_of
-from wsnloc.estimators.trackers import kalman_matrices
+from wsnloc.estimators.trackers import FixSource, fix_measurement, fix_motion
 from wsnloc.filters.kalman import KalmanFilter
 from wsnloc.metrics import op_counts, verdicts
-from wsnloc.metrics.tracking import cell_metrics, score
+from wsnloc.metrics.ranging import truth_at
+from wsnloc.metrics.tracking import cell_metrics, score, true_speeds
 from wsnloc.tracking.velocity_bounded import VelocityBoundedTracker
 
 PAPER = "paper_d"
@@ -91,6 +93,50 @@ def run_metrics(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
     return cell_metrics(estimates, ["localizer", "technique", "stage"], truth)
 
 
+SPEEDLESS_ROW = "Kalman filter without speed input"      # Table 3's counterfactual row (speed_input_metrics)
+SPEED_INPUT_METRICS = ("true_speed_mps", "speed_input_mps", "speed_bias_mps", "speed_rmse_mps",
+                       "rmse_without_speed_m")
+
+
+def speed_input_metrics(datas: list[RunData], spec: dict, label: str) -> list[pd.DataFrame]:
+    """Per run, for every KF cell (stage "kalman") fed the velocity algorithm's speed
+    (`speed_input`, seed 004 4.2): the speed it is fed against the truth at the same fixes, and
+    the same KF without it (a counterfactual). Columns: localizer, technique, stage and
+    SPEED_INPUT_METRICS: mean true speed ||p(t_k) - p(t_k-1)|| / (t_k - t_k-1) at the fixes that
+    have a speed estimate (metrics.tracking.true_speeds, m/s), mean v_hat (eq. 1, m/s), mean and
+    RMS of v_hat - v (m/s), and the RMSE (m) of the KF with speed_input false. An empty frame
+    per run when the KF cell has no speed input."""
+    kalman = [cell for cell in cell_list(spec, label, ("kalman",)) if cell[4]["speed_input"]]
+    if not kalman:
+        return [pd.DataFrame(columns=["localizer", "technique", "stage", *SPEED_INPUT_METRICS]) for _ in datas]
+    variant = copy.deepcopy(spec)
+    variant["estimators"]["kalman"]["speed_input"] = False
+    without = [run_metrics(est, data.table("truth")) for data, est in zip(datas, run_all(datas, variant, label,
+                                                                                          ("kalman",)))]
+    out = []
+    for data, plain in zip(datas, without):
+        truth, rows = data.table("truth"), []
+        for localizer, technique, stage, _, p in kalman:
+            source = FixSource.of(fixes.epoch_fixes(data, p, p["fixes"]), (p["window"], p["speed_from"]))
+            fixed = source.has_fix()
+            t, v_hat = source.t[fixed], source.speed[fixed]
+            v = true_speeds(t, *truth_at(truth, t).T)
+            fed = np.isfinite(v_hat) & np.isfinite(v)
+            v, v_hat = v[fed], v_hat[fed]
+            cell = plain[(plain["localizer"] == localizer) & (plain["technique"] == technique)]
+            rows.append({"localizer": localizer, "technique": technique, "stage": stage,
+                         "true_speed_mps": _mean_or_nan(v), "speed_input_mps": _mean_or_nan(v_hat),
+                         "speed_bias_mps": _mean_or_nan(v_hat - v),
+                         "speed_rmse_mps": float(np.sqrt(_mean_or_nan((v_hat - v) ** 2))),
+                         "rmse_without_speed_m": float(cell["rmse"].iloc[0]) if len(cell) else np.nan})
+        out.append(pd.DataFrame(rows))
+    return out
+
+
+def _mean_or_nan(values: np.ndarray) -> float:
+    return float(values.mean()) if len(values) else float("nan")
+
+
 def rss_models_for_runs(run_tables: dict[str, dict], campaign: Campaign, spec: dict, label: str) -> dict[str, dict]:
     """RSS model per run (see wsnloc.experiments.calibration), fitted on the ZigBee anchors of
     the cells' `anchors` (the F-mix cell's parameters: every cell shares them)."""
@@ -138,6 +184,11 @@ def results_rows(metrics: pd.DataFrame, scenario: str) -> list[dict]:
             for metric in ("rmse", "median", "p95", "max"):
                 rows.append(results.row_over_runs(sel[metric], table="Table 3", row=row, column=tech_label,
                                                   metric=f"{metric}_m", **common))
+            if stage == "kalman" and "speed_input_mps" in sel and sel["speed_input_mps"].notna().any():
+                rows += [results.row_over_runs(sel[metric], table="Table 3", row=row, column=tech_label,
+                                               metric=metric, **common) for metric in SPEED_INPUT_METRICS[:-1]]
+                rows.append(results.row_over_runs(sel["rmse_without_speed_m"], table="Table 3",
+                                                  row=SPEEDLESS_ROW, column=tech_label, metric="rmse_m", **common))
     return rows
 
 
@@ -153,8 +204,11 @@ def measure_cost(spec: dict, label: str, repeats: int = 5) -> dict[str, float]:
     n = spec["cost_iterations"]
     t = np.arange(n) * kalman["epoch_s"]
     fixes = np.column_stack([0.3 * t, np.zeros(n)]) + rng.normal(0, 1.0, (n, 2))
-    F, Q, H, R, P0 = kalman_matrices(kalman["epoch_s"], kalman["accel_sigma_mps2"], kalman["position_sigma_m"],
-                                     kalman["initial_speed_sigma_mps"])
+    motion = fix_motion(kalman["epoch_s"], kalman["accel_sigma_mps2"], kalman["position_sigma_m"],
+                        kalman["initial_speed_sigma_mps"])
+    F, Q, _ = motion.matrices(kalman["epoch_s"])
+    H, R = fix_measurement(kalman["position_sigma_m"])
+    P0 = motion.initial_covariance()
     per_step = {"velocity": [], "kalman": []}
     for _ in range(repeats):
         tracker = VelocityBoundedTracker(velocity["window"], velocity["speed_from"])
