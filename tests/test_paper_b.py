@@ -166,9 +166,10 @@ def _matrix_fuse(displacements, fixes, start, Q_step, R, gain=None, P0=None):
 @pytest.mark.parametrize("q, r, p0", [((0.0025, 0.0025), (1.0, 1.0), (0.0, 0.0)),
                                       ((0.01, 0.003), (0.7, 2.5), (10.0, 0.5))])
 def test_per_axis_filters_equal_the_matrix_recursion_bitwise(q, r, p0):
-    """Diagonal Q, R, P0 and gain: the per-axis float loops are the matrix products' operations
-    on diagonal matrices, so the positions are bitwise the 2 x 2 recursion's (fixes missing in
-    one coordinate, or both, are not used)."""
+    """Diagonal Q, R, P0 and gain: the steady-state filter's per-axis float loops are the matrix
+    products' operations on a diagonal gain, and the classical filter (filters.kalman's predict
+    and joseph_update with F = H = I) adds only exact zeros, so the positions are bitwise the
+    2 x 2 recursion's (fixes missing in one coordinate, or both, are not used)."""
     rng = np.random.default_rng(5)
     n = 500
     displacements = rng.normal(0, 0.1, (n, 2))

@@ -8,7 +8,7 @@ import pytest
 
 from wsnloc import references
 from wsnloc.cli import main
-from wsnloc.diagnosis import diagnose_run, findings
+from wsnloc.diagnosis import diagnose_run, findings, metrics_of, report
 from wsnloc.errors import IngestError
 from wsnloc.estimators.auto import measurements_for
 from wsnloc.estimators.run_data import RunData
@@ -142,6 +142,21 @@ def test_diagnosis_flags_gate_restarts_and_a_nis_above_its_band():
     d = diagnose_run(data, estimates, {"update": "sequential"})
     text = " ".join(findings(d, {"range_sigma_m": 0.1}))
     assert "rejected 40%" in text and "restarted 3 time(s)" in text and "range_sigma_m about 0.2" in text
+
+
+def test_diagnosis_explains_the_nis_of_a_self_fitted_run():
+    """The self-fit runs a wider sigma than the innovations' core on purpose: a NIS below its band then
+    names both sigmas and what a consistent covariance would take, instead of 'noise set too large'."""
+    data, truth = _range_run(1.0)
+    estimates = truth.assign(nis=0.2, n_meas=1)
+    estimates.attrs = {"gated_share": 0.0, "resets": 0, "self_fit_run_sigma_m": 0.15, "self_fit_range_sigma_m": 0.07,
+                       "self_fit_accel_sigma_mps2": 0.7, "self_fit_range_correction": "not supported"}
+    d = diagnose_run(data, estimates, {"update": "sequential"})
+    text = " ".join(findings(d, {"range_sigma_m": 0.3}))
+    assert "self-fit ran with range sigma 0.15 m" in text and "core is about 0.07 m" in text
+    assert "pessimistic by about 2.2x" in text and "range_sigma_m=0.07 accel_sigma_mps2=0.7 with self_fit=none" in text
+    assert "range correction not supported" in report(d, {"range_sigma_m": 0.3})
+    assert metrics_of(d)["diag_self_fit_range_corrected"] == 0.0
 
 
 def test_rss_only_runs_are_estimated_on_their_rss():

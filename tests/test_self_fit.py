@@ -39,6 +39,7 @@ def test_default_tracker_absorbs_a_seven_percent_scale_offsets_and_two_gaps(seed
     assert median <= 1.3 * clean
     assert estimates.attrs["gated_share"] < 0.05
     assert estimates.attrs["resets"] <= len(GAPS)
+    assert estimates.attrs["self_fit_range_correction"] == "applied"
     assert estimates.attrs["self_fit_range_scale"] == pytest.approx(1.07, abs=0.02)
     offsets = estimates.attrs["calibrated_offsets_m"]
     assert max(abs(offsets[a] - b) for a, b in OFFSETS.items()) < 0.2
@@ -46,11 +47,13 @@ def test_default_tracker_absorbs_a_seven_percent_scale_offsets_and_two_gaps(seed
     assert plain > 1.3 * clean            # without the self-fit the errors matter
 
 
-def test_given_the_true_sigma_the_tracker_is_within_1_2x_of_the_best_sigma_of_a_grid():
-    tables = _run(3)
+@pytest.mark.parametrize("seed", [1, 3])
+def test_given_the_true_sigma_the_tracker_is_within_1_2x_of_the_best_sigma_of_a_grid(seed):
+    """Acceptance: range noise 0.1 m; the configured sigma 0.1 (with the default accel) is no worse
+    than 1.2x the best of the grid (it was 1.33x-1.36x when the self-fit could only go livelier)."""
+    tables = _run(seed)
     grid = {sigma: _median(tables, {"range_sigma_m": sigma})[0] for sigma in (0.05, 0.1, 0.2, 0.3, 0.5)}
-    # the issue asks for 1.2x; measured 1.33x on this run (the self-fit re-fits the noise anyway)
-    assert grid[0.1] <= 1.5 * min(grid.values())
+    assert grid[0.1] <= 1.2 * min(grid.values())
 
 
 def test_profile_likelihood_recovers_the_innovation_scale_despite_outliers():
@@ -96,3 +99,22 @@ def test_the_self_fit_does_not_hurt_a_run_without_errors(seed):
     fitted, _ = _median(tables)
     plain, _ = _median(tables, {"self_fit": "none"})
     assert fitted <= 1.15 * plain
+
+
+def test_a_range_correction_the_innovations_do_not_support_is_not_applied():
+    """Four anchors clustered within 2.6 m, the target 5-15 m away, ranges one anchor at a time,
+    no range error: a common scale and offsets trade off against the target's distance and cannot
+    be told apart; the likelihood-ratio test on the innovations leaves the ranges as measured
+    (applied, the spurious correction made the median 1.1x worse than none on this run)."""
+    cluster = {"A1": (2.2, 0.2), "A2": (-0.4, -0.5), "A3": (0.7, -0.9), "A4": (0.0, 0.9)}
+    rng = np.random.default_rng(3)
+    times = np.cumsum(rng.exponential(0.25, 1500))
+    times = times[times < 300.0]
+    ids = rng.choice(np.array(list(cluster), dtype=object), len(times))
+    tables = tables_for(times, ids, lambda t: walk(t) - 1.0, cluster, noise_m=0.1, rng=rng)
+    median, estimates = _median(tables)
+    plain, _ = _median(tables, {"self_fit": "none"})
+    assert estimates.attrs["self_fit_range_correction"] == "not supported"
+    assert estimates.attrs["self_fit_range_ll_gain"] < estimates.attrs["self_fit_range_ll_penalty"]
+    assert estimates.attrs["calibrated_scale"] == 1.0 and not estimates.attrs["calibrated_offsets_m"]
+    assert median <= 1.05 * plain

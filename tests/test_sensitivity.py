@@ -346,8 +346,19 @@ def test_the_gap_account_is_computed_from_the_builds_numbers_and_its_arithmetic_
     assert check_gap_account(line, 25.0, 1.22) == ["drift"]
     sigma = explanations.campaign_of(config, "newcom/b_real").section("imu", "accel_bias_sigma_mps2")
     assert f"T = 61.0 s: {math.sqrt(2) * sigma * 61.0**2 / (2 * math.sqrt(5)):+.3f} m" in line
-    # paper B's simulation scenario has no accelerometer bias (snr model): no drift predicted
-    assert math.isnan(numbers.accel_bias_sigma("newcom/b_simulation")) and math.isnan(numbers.accel_bias_sigma("x/y"))
+    # paper B's simulation scenario has no accelerometer bias (snr model): no drift, no rest missed
+    assert numbers.accel_bias_sigma("newcom/b_simulation") == 0.0 and math.isnan(numbers.accel_bias_sigma("x/y"))
+    simulation = explanations.Numbers(results.frame([
+        results.row_over_runs([1.5, 1.6, 1.55] * 4, experiment="B", table="RMSE", row=paper_b.METHODS["imu"],
+                              column="newcom/b_simulation", scenario="newcom/b_simulation", metric="rmse_m",
+                              paper_value=1.42),
+        setup_facts.fact_row("B", "static share of epochs", "newcom/b_simulation", pd.Series([0.0, 0.0]), "share")]),
+        {"newcom/b_simulation": {"per_run": [{"duration_s": 60.0}]}}, config)
+    [line] = explanations.cell_whys(simulation, "B", [grid_table(
+        simulation.results, experiment="B", table="RMSE", rows=[paper_b.METHODS["imu"]],
+        columns=["newcom/b_simulation"], metric="rmse_m", title="RMSE [m]")])
+    assert "static share of epochs 0%" in line and "no rest to measure" not in line
+    assert "No mechanism quantified for this cell: the gap +0.130 m" in line
     # without the mechanisms' numbers: the gap is stated as not accounted for, not explained away
     bare = explanations.Numbers(frame, {}, None)
     [line] = explanations.cell_whys(bare, "B", [table_b])

@@ -111,9 +111,10 @@ FILTER = (
     Param("range_calibration", "none", "", "correct the ranges before filtering: other_run = scale and per-anchor "
           "offsets fitted on a donor run with truth of the same dataset (configured values without one), "
           "configured = the campaign file's range_calibration, none = as measured", str, range_calibration.SOURCES),
-    Param("self_fit", "none", "", "two_pass: fit the range noise and process noise by maximum likelihood of the "
-          "innovations, then the range scale and per-anchor offsets against the track, and run again with them "
-          "(offline, no truth; 3 passes; estimators.self_fit); none: the configured values", str, self_fit.MODES),
+    Param("self_fit", "none", "", "two_pass: fit the range scale and per-anchor offsets against the track (kept when "
+          "a likelihood-ratio test supports them) and the range and process noise by maximum likelihood of the "
+          "innovations, then run with them (offline, no truth; under 3x one pass; estimators.self_fit); none: the "
+          "configured values", str, self_fit.MODES),
 ) + filter_options.PARAMS
 UKF = (
     Param("alpha", 1.0, "1", "UKF sigma-point spread; 1 with kappa = 0 gives lambda = 0: non-negative weights, "

@@ -3,7 +3,7 @@
 Real data break a filter's assumptions in a few common ways: the range noise is not the
 configured one, the motion is livelier or calmer than the process noise says, the ranges carry
 a common scale error and per-anchor offsets. `self_fit: two_pass` (the `tracker` default) learns
-them from the run itself, in three passes of the same filter:
+them from the run itself, with passes of the same filter:
 
 1. **Range scale and per-anchor offsets** (ranges, >= 4 anchors ranged, no configured or donor
    calibration, which wins): a first pass with the state augmented by a common range scale
@@ -12,28 +12,50 @@ them from the run itself, in three passes of the same filter:
    each window's geometry, undoing what the track absorbed). The ranges are corrected
    (estimators.range_calibration) for the next passes. On range differences (>= 4 anchors in
    the pairs) the same in TDOA form (tdoa_correction: scale and offset differences b_a - b_ref,
-   a pair's bias, against a plain first pass's track, refitted once on the corrected track).
-   With poor geometry (receivers clustered, the tag far) that track can be too poor to fit
-   them, so the plain pass stays a candidate of step 3: the corrected differences z' = (z -
-   b_a + b_ref) / s score their innovations' likelihood minus n log s (the density of z).
-2. **Noise, by maximum likelihood of the innovations.** Two passes with the configured
-   (range_sigma_m, accel_sigma_mps2) and with a livelier candidate (sigma / 2, accel x 3: a
-   six times larger process-to-measurement noise ratio, i.e. a higher gain). Each pass records
-   every innovation y_i = z_i - h_i(x-) and its variance S_i = (H P- H' + R)_ii, gated ones
-   included. Scaling Q and R together by c leaves a linear filter's track unchanged and scales
-   every S_i by c, so per candidate the likelihood is profiled over c:
+   a pair's bias, against a plain first pass's track, refitted once on the corrected track);
+   step 4 tests it as it tests the range correction, the corrected differences z' = (z - b_a +
+   b_ref) / s paying n log s (the density of z).
+2. **Noise, by maximum likelihood of the innovations.** Three candidates, the configured
+   (range_sigma_m, accel_sigma_mps2), a calmer (sigma x 2, accel / 3) and a livelier one
+   (sigma / 2, accel x 3): the ratio accel / sigma, which sets the filter's gain, x 1/6, 1 and 6.
+   Each runs on the central SEARCH_SHARE of the run's measurements (segment(); a sub-run, so the
+   search costs a fraction of a pass) and records every innovation y_i = z_i - h_i(x-) and its
+   variance S_i = (H P- H' + R)_ii, gated ones included. Scaling Q and R together by c leaves a
+   linear filter's track unchanged and scales every S_i by c, so per candidate the likelihood is
+   profiled over c:
        L(c) = sum_i log[(1 - eps) N(y_i; 0, c S_i) + eps / span],
    a Gaussian with a uniform outlier component (eps = OUTLIER_SHARE over span = 2 max_range_m:
    reflections and NLOS ranges do not decide the noise), c on a log grid (CLAMP).
-3. The pass with the larger max_c L(c) is the output (attrs `self_fit_rejected_scale` where the
-   uncalibrated TDOA pass wins); attrs `self_fit_*` give the candidate and
-   the fitted noise, range_sigma_m sqrt(c*) (floored at SIGMA_FLOOR_M) and accel sqrt(c*), and
-   the range scale. Because the likelihood is that of the innovations, which carry the state's
-   own uncertainty H P H', the fitted sigma does not collapse onto the track the way residuals
-   against the filter's own output do.
+3. **The ratio**: the best candidate's, or, when the middle (configured) one is the best, the
+   maximum of the parabola through the three max_c L(c) against log(ratio) (refine()); sigma
+   and accel interpolated in log between the candidates. One full pass with them is the output.
+   The candidates' absolute sigma is kept for the run (not scaled by c*): the gate then keeps
+   the candidate's width, and on real ranges with NLOS errors the Gaussian core's c* is too
+   narrow a gate. attrs `self_fit_*`: the ratio factor, the sigma and accel the pass ran with
+   (`self_fit_run_*`) and the fitted noise range_sigma_m sqrt(c*) (floored at SIGMA_FLOOR_M) and
+   accel sqrt(c*), and the range scale. Because the likelihood is that of the innovations, which
+   carry the state's own uncertainty H P H', the fitted sigma does not collapse onto the track
+   the way residuals against the filter's own output do.
+4. **Is the range correction supported?** A common scale and per-anchor offsets are separable
+   from the position only with enough geometry: with anchors clustered a few metres apart and
+   the target further away, a scale, a common offset and the target's distance trade off, and
+   the fit of step 1 returns a correction the data do not support (on a real run thinned to one
+   range per round it made the RMSE 2.7x worse).
+   So the best candidate also runs on the segment with the ranges as measured, and the correction
+   is kept only when it raises max_c L(c) by more than the BIC penalty of its parameters,
+   (1 + n_anchors) / 2 ln(n_innovations) (a likelihood-ratio test: the likelihood of nested
+   models, the extra parameters paid for); else the output pass reads the ranges as measured.
+   attrs `self_fit_range_correction` (applied / not supported), `self_fit_range_ll_gain`,
+   `self_fit_range_ll_penalty`.
 
-Cost: three passes of the filter plus the fits (milliseconds); about 3x one plain pass (four on
-range differences: the offsets are fitted twice).
+Why three candidates: with only the configured one and a livelier one, a configured sigma
+smaller than the default (e.g. the true 0.1 m with the default accel) could never go calmer
+and tracked the noise (1.33x the best sigma of a grid on a synthetic walk); now the outcome
+hardly depends on where the configured values start.
+
+Cost: one augmented pass (step 1), four passes on 12% of the run, one full pass and the fits:
+about 2.7x one plain pass in CPU time on the shared real cases (benchmarks/realdata.py); on
+range differences two full passes in step 1 (the offsets are fitted twice).
 Online (live) use has no second pass: `range_self_calibration` (state augmentation) and the
 gate's widening (filter_options) adapt as the data come.
 """
@@ -46,10 +68,14 @@ import numpy as np
 import pandas as pd
 
 MODES = ("none", "two_pass")
-LIVELIER = (0.5, 3.0)                  # candidate: sigma x 0.5, accel x 3 (ratio q / r x 36 in variance)
+# noise candidates (sigma factor, accel factor): calmer, configured, livelier; the ratio accel / sigma
+# x 1/6, 1, 6 (the process-to-measurement noise variance ratio x 1/36, 1, 36)
+CANDIDATES = ((2.0, 1.0 / 3.0), (1.0, 1.0), (0.5, 3.0))
+SEARCH_SHARE = 0.12                    # the candidates are scored on the central 12% of the measurements
+MEASUREMENT_TABLES = ("ranges", "rss", "tdoa")
 OUTLIER_SHARE = 0.05                   # eps of the uniform outlier component
-CLAMP = (0.05, 20.0)                   # c* searched on a log grid in this range
-GRID = np.exp(np.linspace(np.log(CLAMP[0]), np.log(CLAMP[1]), 121))
+CLAMP = (0.01, 100.0)                  # c* searched on a log grid in this range
+GRID = np.exp(np.linspace(np.log(CLAMP[0]), np.log(CLAMP[1]), 161))
 SIGMA_FLOOR_M = 0.01
 MIN_INNOVATIONS = 50
 MIN_ANCHORS_FOR_OFFSETS = 4
@@ -243,12 +269,45 @@ def _anchors_in_tdoa(data, p) -> int:
     return len((set(rows["anchor_id"]) | set(rows["ref_anchor_id"])) & members)
 
 
+def segment(data, p: dict, share: float):
+    """The run cut to the central `share` of its usable measurements (ranges, RSS, TDOA) by time:
+    the sub-run the noise candidates and the range correction are scored on (module docstring)."""
+    stamps = np.sort(np.concatenate([data.usable_ranges(p["preliminary_filter"], p["max_range_m"])["t"].to_numpy(float),
+                                     data.usable_rss()["t"].to_numpy(float), data.usable_tdoa()["t"].to_numpy(float)]))
+    if share >= 1.0 or len(stamps) < 2:
+        return data
+    lo, hi = stamps[int((0.5 - share / 2) * (len(stamps) - 1))], stamps[int((0.5 + share / 2) * (len(stamps) - 1))]
+    tables = {name: (frame[(frame["t"] >= lo) & (frame["t"] <= hi)] if name in MEASUREMENT_TABLES else frame)
+              for name, frame in data.tables.items()}
+    return replace(data, tables=tables, _cache={})
+
+
+def refine(x: np.ndarray, ll: np.ndarray) -> float:
+    """The maximum of the parabola through three points (x_i, ll_i) (x increasing) when the middle
+    one is the best (a bracketed maximum), else the best point: an edge is not extrapolated."""
+    best = int(np.argmax(ll))
+    if best != 1 or not np.all(np.isfinite(ll)):
+        return float(x[best])
+    a, b, _ = np.polyfit(x, ll, 2)
+    return float(np.clip(-b / (2 * a), x[0], x[-1])) if a < 0 else float(x[1])
+
+
+def _score(run_pass, part, p: dict, span: float) -> tuple[float, float, int]:
+    """(max_c L(c), c*, innovations used) of one pass with parameters p on the sub-run `part`;
+    -inf with fewer than MIN_INNOVATIONS."""
+    _, (y, S) = run_pass(part, p)
+    ok = np.isfinite(y) & (S > 0)
+    if ok.sum() < MIN_INNOVATIONS:
+        return -np.inf, 1.0, int(ok.sum())
+    return (*profile_likelihood(y[ok], S[ok], span), int(ok.sum()))
+
+
 def two_pass(data, p: dict, run_pass) -> pd.DataFrame:
     """The self-fitted estimates of one run (module docstring); run_pass(data, p) -> (estimates,
     (y, S)) runs one pass of the filter and returns its innovations."""
     span = 2.0 * p["max_range_m"]
     q = dict(p, self_fit="none")
-    run, fitted, uncalibrated = data, {}, None
+    run, model, fitted = data, None, {}
     if p["measurements"] in ("toa", "hybrid") and p["range_calibration"] == "none" \
             and p["range_self_calibration"] == "none" and _anchors_ranged(data, p) >= MIN_ANCHORS_FOR_OFFSETS:
         scaled, _ = run_pass(data, dict(q, range_self_calibration="scale"))
@@ -256,37 +315,51 @@ def two_pass(data, p: dict, run_pass) -> pd.DataFrame:
         if model is not None:
             run = replace(data, range_model=model, _cache=data._cache)
             q = dict(q, range_calibration="other_run")
-            fitted["self_fit_range_scale"] = model["scale"]
     elif p["measurements"] == "tdoa" and p["range_calibration"] == "none" \
             and _anchors_in_tdoa(data, p) >= MIN_ANCHORS_FOR_OFFSETS:
-        plain = track = run_pass(data, q)
+        track, _ = run_pass(data, q)
         for refit in range(TDOA_FITS):
-            model = tdoa_correction(data, track[0], p)
+            model = tdoa_correction(data, track, p)
             if model is None or refit == TDOA_FITS - 1:
                 break
-            track = run_pass(replace(data, range_model=model, _cache=data._cache), dict(q, range_calibration="other_run"))
+            track, _ = run_pass(replace(data, range_model=model, _cache=data._cache),
+                                dict(q, range_calibration="other_run"))
         if model is not None:
-            uncalibrated = (q, plain, 1.0)
             run = replace(data, range_model=model, _cache=data._cache)
             q = dict(q, range_calibration="other_run")
+    part = segment(run, q, SEARCH_SHARE)
+    candidates = [dict(q, range_sigma_m=q["range_sigma_m"] * k_sigma, accel_sigma_mps2=q["accel_sigma_mps2"] * k_accel)
+                  for k_sigma, k_accel in CANDIDATES]
+    scores = [_score(run_pass, part, candidate, span) for candidate in candidates]
+    ll = np.array([score[0] for score in scores])
+    if not np.isfinite(ll).any():          # too few innovations on the segment: the configured noise
+        out, _ = run_pass(run, q)
+        if model is not None:
+            out.attrs.update(self_fit_range_correction="applied untested (too few measurements)",
+                             self_fit_range_scale=model["scale"])
+        return out
+    best = int(np.argmax(ll))
+    if model is not None:                  # likelihood-ratio test of the range correction (module docstring, 4)
+        ll_plain = _score(run_pass, replace(part, range_model=None, _cache={}),
+                          dict(candidates[best], range_calibration="none"), span)[0]
+        penalty = 0.5 * (1 + len(model["offsets_m"])) * np.log(scores[best][2])
+        if p["measurements"] == "tdoa":    # innovations of z' = (z - b) / s: the density of z is that of z' / s
+            ll_plain += scores[best][2] * np.log(model["scale"])
+        supported = ll[best] - ll_plain > penalty
+        fitted.update(self_fit_range_correction="applied" if supported else "not supported",
+                      self_fit_range_ll_gain=float(ll[best] - ll_plain), self_fit_range_ll_penalty=float(penalty))
+        if supported:
             fitted["self_fit_range_scale"] = model["scale"]
-    scale = run.range_model["scale"] if run is not data else 1.0
-    livelier = dict(q, range_sigma_m=q["range_sigma_m"] * LIVELIER[0],
-                    accel_sigma_mps2=q["accel_sigma_mps2"] * LIVELIER[1])
-    candidates = [(q, run_pass(run, q), scale), (livelier, run_pass(run, livelier), scale)]
-    if uncalibrated is not None:
-        candidates.append(uncalibrated)
-    scored = []
-    for candidate, (estimates, (y, S)), s in candidates:
-        ok = np.isfinite(y) & (S > 0)
-        ll, c = profile_likelihood(y[ok], S[ok], span) if ok.sum() >= MIN_INNOVATIONS else (-np.inf, 1.0)
-        scored.append((ll - ok.sum() * np.log(s), c, candidate, estimates))    # innovations of z / s: density x 1/s
-    ll, c, best, out = max(scored, key=lambda s: s[0])
-    if uncalibrated is not None and best is uncalibrated[0]:
-        fitted = {"self_fit_rejected_scale": fitted.pop("self_fit_range_scale")}
-    if np.isfinite(ll):
-        fitted.update(self_fit_candidate="livelier" if best is livelier else "configured",
-                      self_fit_range_sigma_m=max(best["range_sigma_m"] * np.sqrt(c), SIGMA_FLOOR_M),
-                      self_fit_accel_sigma_mps2=best["accel_sigma_mps2"] * np.sqrt(c))
+        else:
+            run, q = data, dict(q, range_calibration="none")
+    x = np.log([k_accel / k_sigma for k_sigma, k_accel in CANDIDATES])
+    used = np.log([[c["range_sigma_m"], c["accel_sigma_mps2"]] for c in candidates])
+    fit = used + 0.5 * np.log([[score[1]] for score in scores])
+    chosen = refine(x, ll)
+    sigma, accel = (float(np.exp(np.interp(chosen, x, used[:, k]))) for k in range(2))
+    out, _ = run_pass(run, dict(q, range_sigma_m=sigma, accel_sigma_mps2=accel))
+    fitted.update(self_fit_ratio_factor=float(np.exp(chosen)), self_fit_run_sigma_m=sigma, self_fit_run_accel_mps2=accel,
+                  self_fit_range_sigma_m=max(float(np.exp(np.interp(chosen, x, fit[:, 0]))), SIGMA_FLOOR_M),
+                  self_fit_accel_sigma_mps2=float(np.exp(np.interp(chosen, x, fit[:, 1]))))
     out.attrs.update(fitted)
     return out

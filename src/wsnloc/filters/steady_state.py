@@ -7,12 +7,12 @@ State p = [x, y]; H = I.  Predict: p <- p + delta_DR, P <- P + Q.  Update with a
                 (A = I, H = I), solved offline with scipy.linalg.solve_discrete_are.
 Q is the process noise accumulated between two updates (per step Q times steps per update).
 
-With diagonal Q, R, P0 and gain (paper B: sigma^2 I) every matrix stays diagonal, so the
+The classical filter is filters.kalman's predict and update (joseph_update) with F = H = I and
+the displacement as the input term. With a diagonal gain (paper B: sigma^2 I) the steady-state
 filter is two independent scalar filters, one per axis, run in plain floats: per axis
-  p <- p + d,  P <- P + q;  on a fix  k = P * (1 / (P + r)),  P <- (1 - k) P (1 - k) + k r k,
-  p <- p + k (z - p),
-the operations (and their order) of the matrix products on diagonal matrices, so the
-positions are bitwise those of the 2 x 2 matrix recursion (tests/test_paper_b.py).
+  p <- p + d;  on a fix  p <- p + k (z - p),
+the operations (and their order) of the matrix products on a diagonal gain, so the positions
+are bitwise those of the 2 x 2 matrix recursion (tests/test_paper_b.py).
 """
 
 from __future__ import annotations
@@ -20,6 +20,8 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
+
+from wsnloc.filters.kalman import joseph_update, predict
 
 
 def steady_state_gain(Q, R) -> np.ndarray:
@@ -47,20 +49,21 @@ def fuse(displacements: np.ndarray, fixes: np.ndarray, start, Q_step, R, gain=No
     displacements: (N, 2) dead-reckoning displacement of each step (m); fixes: (N, 2) fix
     available at the end of the step, NaN when none (a fix is used when both coordinates
     are finite); start: initial position. With `gain` the steady-state filter runs;
-    otherwise the classical filter from covariance P0 (default 0). Q_step, R (m^2), P0 and
+    otherwise the classical filter from covariance P0 (default 0). Q_step, R, P0 in m^2; the
     gain must be diagonal (one scalar filter per axis). Returns (N + 1, 2) positions (m),
     start included.
     """
-    q, r, k_or_p0 = (_diagonal(m, name) for m, name in ((Q_step, "Q_step"), (R, "R"),
-                                                         (gain if gain is not None else P0, "gain or P0")))
     displacements, fixes = np.asarray(displacements, dtype=float), np.asarray(fixes, dtype=float)
-    has_fix = np.isfinite(fixes).all(axis=1).tolist()
+    has_fix = np.isfinite(fixes).all(axis=1)
     start = np.asarray(start, dtype=float)
+    if gain is None:
+        return _classical(displacements, fixes, has_fix, start, np.asarray(Q_step, dtype=float),
+                          np.asarray(R, dtype=float), np.zeros((2, 2)) if P0 is None else np.asarray(P0, dtype=float))
+    k = _diagonal(gain, "gain")
     out = np.empty((len(displacements) + 1, 2))
     for axis in range(2):
-        args = (displacements[:, axis].tolist(), fixes[:, axis].tolist(), has_fix, float(start[axis]))
-        out[:, axis] = (_steady_axis(*args, k_or_p0[axis]) if gain is not None
-                        else _classical_axis(*args, q[axis], r[axis], k_or_p0[axis]))
+        out[:, axis] = _steady_axis(displacements[:, axis].tolist(), fixes[:, axis].tolist(), has_fix.tolist(),
+                                    float(start[axis]), k[axis])
     return out
 
 
@@ -83,17 +86,17 @@ def _steady_axis(deltas: list, fixes: list, has_fix: list, p: float, k: float) -
     return out
 
 
-def _classical_axis(deltas: list, fixes: list, has_fix: list, p: float, q: float, r: float,
-                    P: float) -> list[float]:
-    """One axis of the classical filter: p <- p + d, P <- P + q; on a fix k = P (1 / (P + r)),
-    P <- (1 - k) P (1 - k) + k r k, p <- p + k (z - p)."""
-    out = [p]
-    for delta, z, fix in zip(deltas, fixes, has_fix):
-        p += delta
-        P += q
+def _classical(displacements: np.ndarray, fixes: np.ndarray, has_fix: np.ndarray, start: np.ndarray,
+               Q_step: np.ndarray, R: np.ndarray, P0: np.ndarray) -> np.ndarray:
+    """The classical filter (module docstring): predict with the step's displacement, then the
+    Kalman update (joseph_update, H = I) where the step has a fix; (N + 1, 2) positions (m)."""
+    eye = np.eye(2)
+    x, P = start.copy(), P0.copy()
+    out = [x]
+    for delta, z, fix in zip(displacements, fixes, has_fix):
+        x, P = predict(x, P, eye, Q_step, delta)
         if fix:
-            k = P * (1.0 / (P + r))
-            P = (1.0 - k) * P * (1.0 - k) + k * r * k
-            p += k * (z - p)
-        out.append(p)
-    return out
+            new = joseph_update(x, P, z - x, eye, R)
+            x, P = new.x, new.P
+        out.append(x)
+    return np.array(out)

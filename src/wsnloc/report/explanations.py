@@ -57,8 +57,8 @@ class Numbers:
 
     def accel_bias_sigma(self, scenario: str) -> float:
         """Per-axis sigma (m/s^2) of the simulated accelerometer's per-run turn-on bias of a scenario
-        (campaign imu.accel_bias_sigma_mps2 under the `mems` noise model); NaN without a campaign,
-        a simulated IMU or a bias (paper B's `snr` model has none)."""
+        (campaign imu.accel_bias_sigma_mps2 under the `mems` noise model; 0 under paper B's `snr`
+        model, which has none); NaN without a campaign or a simulated IMU."""
         dataset, _, name = scenario.partition("/")
         if self.config is None or dataset not in self.config.get("datasets", {}):
             return math.nan
@@ -68,7 +68,7 @@ class Numbers:
             return math.nan
         model = campaign.section("scenarios", name).get("overrides", {}).get("imu_noise_model") \
             or imu.get("noise_model", "mems")
-        return _number(imu.get("accel_bias_sigma_mps2")) if model == "mems" else math.nan
+        return _number(imu.get("accel_bias_sigma_mps2")) if model == "mems" else 0.0
 
     def rss_fit(self, scenario: str) -> dict[str, float]:
         """Path-loss fit over all links (mean over runs): exponent n and residual sigma (dB)."""
@@ -154,7 +154,8 @@ def cell_mechanism(n: Numbers, experiment: str, scenario: str, *labels: str) -> 
     for fact, value in zip(facts["row"], facts["value"]):
         if pd.notna(value):
             shown = f"{value:.0%}" if "share" in fact else f"{value:.1f}"
-            at_rest = "static" in fact and value < STILL_SHARE and words & set(DRIFT_WORDS)
+            at_rest = "static" in fact and value < STILL_SHARE and words & set(DRIFT_WORDS) \
+                and n.accel_bias_sigma(scenario) != 0.0          # a simulated IMU without bias: nothing to measure
             parts.append(f"{fact} {shown}" + (" (no rest to measure the IMU biases in: dead reckoning integrates them)"
                                               if at_rest else ""))
     return "; ".join(parts)
@@ -194,7 +195,7 @@ def contributions(n: Numbers, experiment: str, scenario: str, table: dict, row: 
     static = n.fact(experiment, "static share of epochs", scenario)
     sigma_b, duration = n.accel_bias_sigma(scenario), n.duration_s(scenario)
     if (words & set(DEAD_RECKONING_WORDS) and not words & set(FUSION_WORDS) and finite(static, sigma_b, duration)
-            and static < STILL_SHARE):
+            and static < STILL_SHARE and sigma_b > 0):
         drift = math.sqrt(2.0) * sigma_b * duration**2 / (2.0 * math.sqrt(5.0))
         out.append((f"accelerometer bias without a rest to measure it: |b| T^2 / (2 sqrt 5) with |b| = sqrt(2) x "
                     f"{sigma_b:g} m/s^2, T = {duration:.1f} s: {drift:+.3f} m", drift))
