@@ -16,8 +16,9 @@ them from the run itself, with passes of the same filter:
    step 4 tests it as it tests the range correction, the corrected differences z' = (z - b_a +
    b_ref) / s paying n log s (the density of z).
 2. **Noise, by maximum likelihood of the innovations.** Three candidates, the configured
-   (range_sigma_m, accel_sigma_mps2), a calmer (sigma x 2, accel / 3) and a livelier one
-   (sigma / 2, accel x 3): the ratio accel / sigma, which sets the filter's gain, x 1/6, 1 and 6.
+   (range_sigma_m, accel_sigma_mps2; p_sigma_m in its place for the P model), a calmer (sigma x 2,
+   accel / 3) and a livelier one (sigma / 2, accel x 3): the ratio accel / sigma, which sets the
+   filter's gain, x 1/6, 1 and 6.
    Each runs on the central SEARCH_SHARE of the run's measurements (segment(); a sub-run, so the
    search costs a fraction of a pass) and records every innovation y_i = z_i - h_i(x-) and its
    variance S_i = (H P- H' + R)_ii, gated ones included. Scaling Q and R together by c leaves a
@@ -73,6 +74,9 @@ MODES = ("none", "two_pass")
 CANDIDATES = ((2.0, 1.0 / 3.0), (1.0, 1.0), (0.5, 3.0))
 SEARCH_SHARE = 0.12                    # the candidates are scored on the central 12% of the measurements
 MEASUREMENT_TABLES = ("ranges", "rss", "tdoa")
+PROCESS_NOISE = ("accel_sigma_mps2", "p_sigma_m")   # the process noise the candidates scale: PV / PVA, P (random walk)
+FITTED_NOISE_KEYS = {"accel_sigma_mps2": ("self_fit_run_accel_mps2", "self_fit_accel_sigma_mps2"),
+                     "p_sigma_m": ("self_fit_run_p_sigma_m", "self_fit_p_sigma_m")}
 OUTLIER_SHARE = 0.05                   # eps of the uniform outlier component
 CLAMP = (0.01, 100.0)                  # c* searched on a log grid in this range
 GRID = np.exp(np.linspace(np.log(CLAMP[0]), np.log(CLAMP[1]), 161))
@@ -328,7 +332,8 @@ def two_pass(data, p: dict, run_pass) -> pd.DataFrame:
             run = replace(data, range_model=model, _cache=data._cache)
             q = dict(q, range_calibration="other_run")
     part = segment(run, q, SEARCH_SHARE)
-    candidates = [dict(q, range_sigma_m=q["range_sigma_m"] * k_sigma, accel_sigma_mps2=q["accel_sigma_mps2"] * k_accel)
+    noise = PROCESS_NOISE[q.get("motion") == "p"]
+    candidates = [dict(q, range_sigma_m=q["range_sigma_m"] * k_sigma, **{noise: q[noise] * k_accel})
                   for k_sigma, k_accel in CANDIDATES]
     scores = [_score(run_pass, part, candidate, span) for candidate in candidates]
     ll = np.array([score[0] for score in scores])
@@ -353,13 +358,14 @@ def two_pass(data, p: dict, run_pass) -> pd.DataFrame:
         else:
             run, q = data, dict(q, range_calibration="none")
     x = np.log([k_accel / k_sigma for k_sigma, k_accel in CANDIDATES])
-    used = np.log([[c["range_sigma_m"], c["accel_sigma_mps2"]] for c in candidates])
+    used = np.log([[c["range_sigma_m"], c[noise]] for c in candidates])
     fit = used + 0.5 * np.log([[score[1]] for score in scores])
     chosen = refine(x, ll)
     sigma, accel = (float(np.exp(np.interp(chosen, x, used[:, k]))) for k in range(2))
-    out, _ = run_pass(run, dict(q, range_sigma_m=sigma, accel_sigma_mps2=accel))
-    fitted.update(self_fit_ratio_factor=float(np.exp(chosen)), self_fit_run_sigma_m=sigma, self_fit_run_accel_mps2=accel,
-                  self_fit_range_sigma_m=max(float(np.exp(np.interp(chosen, x, fit[:, 0]))), SIGMA_FLOOR_M),
-                  self_fit_accel_sigma_mps2=float(np.exp(np.interp(chosen, x, fit[:, 1]))))
+    out, _ = run_pass(run, dict(q, range_sigma_m=sigma, **{noise: accel}))
+    ran, fitted_key = FITTED_NOISE_KEYS[noise]
+    fitted.update({"self_fit_ratio_factor": float(np.exp(chosen)), "self_fit_run_sigma_m": sigma, ran: accel,
+                   "self_fit_range_sigma_m": max(float(np.exp(np.interp(chosen, x, fit[:, 0]))), SIGMA_FLOOR_M),
+                   fitted_key: float(np.exp(np.interp(chosen, x, fit[:, 1])))})
     out.attrs.update(fitted)
     return out
