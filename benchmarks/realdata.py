@@ -17,6 +17,7 @@ issue 28 fails (ours >= LS.csv on a cucudasluv case; calibrated BLE not below bo
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from pathlib import Path
@@ -95,7 +96,28 @@ def ble_rows(src: Path, out: Path) -> list[str]:
             FAILED.append(f"{run_dir.name}: calibrated {calibrated:.3f} not below both references")
         rows.append(f"| {run_dir.name} ({donor.name}) | {plain:.3f} | {calibrated:.3f} | {refs[EKF_REF]:.3f} | "
                     f"{refs[CENTROID_REF]:.3f} | {'yes' if wins else 'no'} |")
-    return rows
+    return rows + [""] + every_donor_rows(runs, out)
+
+
+def every_donor_rows(runs: list[Path], out: Path) -> list[str]:
+    """Every (track, donor) pair: whether the calibration is fitted to one donor choice (no check)."""
+    rows = ["Every donor (not only the next track): ours `--calibration donor` / gated EKF, donor path loss / "
+            "weighted centroid, and the exponent the donor chose (experiments.calibration.donor_rss_model):", "",
+            "| track | donor | ours | gated EKF | centroid | below both | exponent chosen |", "|---|---|---|---|---|---|---|"]
+    wins = 0
+    for run_dir in runs:
+        tables, _ = ingest_run(run_dir)
+        for donor in (d for d in runs if d != run_dir):
+            metrics = estimate_run("generic", run_dir, run_campaign(run_dir), out / "estimates" / "philotuxo" /
+                                   run_dir.name / f"donor-{donor.name}", "tracker", {}, donor)
+            refs = reference_scores(run_dir, tables, ingest_run(donor)[0], run_campaign(run_dir))
+            ok = metrics["rmse_m"] < min(refs[EKF_REF], refs[CENTROID_REF])
+            wins += ok
+            choice = json.loads((out / "estimates" / "philotuxo" / run_dir.name / f"donor-{donor.name}" /
+                                 "metrics.json").read_text()).get("rss_exponent_choice", "")
+            rows.append(f"| {run_dir.name} | {donor.name} | {metrics['rmse_m']:.3f} | {refs[EKF_REF]:.3f} | "
+                        f"{refs[CENTROID_REF]:.3f} | {'yes' if ok else 'no'} | {choice} |")
+    return rows + ["", f"Below both references on {wins} of {len(runs) * (len(runs) - 1)} (track, donor) pairs."]
 
 
 def main(argv=None) -> int:

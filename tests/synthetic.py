@@ -6,6 +6,8 @@ ranges one anchor at a time, unsorted rows, gaps.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 
@@ -105,3 +107,51 @@ def tdoa_table(times: np.ndarray, positions, anchors: dict = SQUARE, reference: 
     return pd.DataFrame({"t": np.repeat(times, len(others)), "anchor_id": np.tile(np.array(others, dtype=object),
                          len(times)), "ref_anchor_id": reference, "tdoa_m": values,
                          "line": np.arange(2, n + 2, dtype=np.int32)})
+
+
+HALL = {f"H{i + 1}": xy for i, xy in enumerate([(0.0, 0.0), (10.0, -1.0), (20.0, 0.0), (21.0, 8.0), (20.0, 16.0),
+                                                 (10.0, 17.0), (0.0, 16.0), (-1.0, 8.0)])}
+
+
+def lissajous(t: np.ndarray) -> np.ndarray:
+    """(N, 2) a closed walk inside HALL (m): up to ~1.6 m/s, turning all the time."""
+    t = np.asarray(t, dtype=float)
+    return np.column_stack([10.0 + 7.0 * np.sin(t / 7.0), 8.0 + 5.0 * np.sin(2.0 * t / 7.0 + 0.5)])
+
+
+def write_real_like_run(folder, seed: int, duration_s: float = 60.0, rate_hz: float = 85.0,
+                        order: str = "round_robin", scale: float = 1.0, bias_sd_m: float = 0.15,
+                        noise_m: float = 0.05, nlos_share: float = 0.08, nlos_mean_m: float = 0.8,
+                        failed_share: float = 0.05):
+    """A generic run (anchors.csv, ranges.csv, truth.csv) in `folder` of two-way ranges with the
+    errors of real indoor UWB: 8 anchors around a 22 m x 18 m hall (HALL), the tag on `lissajous`,
+    one anchor ranged at a time (`round_robin`: in turn at rate_hz in all with 1 ms jitter;
+    `poisson`: a random anchor, Poisson arrivals at rate_hz), failed_share of exchanges lost,
+    r = scale d + b_a + noise + NLOS excess: per-anchor offsets b_a ~ N(0, bias_sd_m) (antenna
+    delays: 1 ns is 0.3 m), Gaussian noise, and on nlos_share of the ranges an exponential excess
+    (mean nlos_mean_m; heavy-tailed, positive: a longer path). Returns the folder."""
+    rng = np.random.default_rng(seed)
+    ids = np.array(list(HALL), dtype=object)
+    if order == "round_robin":
+        t = np.arange(0.0, duration_s, 1.0 / rate_hz)
+        t, a = np.sort(t + rng.normal(0.0, 0.001, len(t))), ids[np.arange(len(t)) % len(ids)]
+    else:
+        t = np.cumsum(rng.exponential(1.0 / rate_hz, int(duration_s * rate_hz * 1.5)))
+        t = t[t < duration_s]
+        a = rng.choice(ids, len(t))
+    kept = rng.random(len(t)) >= failed_share
+    t, a = t[kept], a[kept]
+    bias = dict(zip(ids, rng.normal(0.0, bias_sd_m, len(ids))))
+    d = np.hypot(*(lissajous(t) - np.array([HALL[x] for x in a])).T)
+    r = scale * d + np.array([bias[x] for x in a]) + rng.normal(0.0, noise_m, len(t))
+    nlos = rng.random(len(t)) < nlos_share
+    r[nlos] += rng.exponential(nlos_mean_m, nlos.sum())
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    pd.DataFrame({"anchor_id": ids, "tech": "uwb", "x": [HALL[i][0] for i in ids],
+                  "y": [HALL[i][1] for i in ids]}).to_csv(folder / "anchors.csv", index=False)
+    pd.DataFrame({"t": t, "anchor_id": a, "range_m": r}).to_csv(folder / "ranges.csv", index=False)
+    t_truth = np.arange(0.0, duration_s, 0.05)
+    xy = lissajous(t_truth)
+    pd.DataFrame({"t": t_truth, "x": xy[:, 0], "y": xy[:, 1]}).to_csv(folder / "truth.csv", index=False)
+    return folder

@@ -23,7 +23,8 @@ from wsnloc.filters.ukf import UnscentedKalmanFilter
 from wsnloc.metrics.tracking import run_metrics, score
 
 # ekf_p (paper C's P model: a random walk without velocity) is not among them: on a walk ranged
-# one anchor at a time it lags by construction (about 3.4x tracker's median whatever p_sigma_m)
+# one anchor at a time it lags by construction (2.3x tracker's median at best over p_sigma_m
+# 0.5-4 m and range_sigma_m 0.1-0.3 m on benchmarks/async_estimators.py's 600 s walk)
 FILTERS_AND_SMOOTHERS = ("ekf", "ukf", "pf", "ekf_filterpy", "ekf_rts", "ukf_rts", "sliding_window")
 
 

@@ -231,3 +231,17 @@ def test_datasets_without_their_source_are_skipped_with_their_study_scenarios(tm
     assert len(messages) == 1 and "'real' skipped" in messages[0]
     assert list(config["datasets"]) == ["sim"] and list(config["studies"]) == ["b"]
     assert config["studies"]["b"] == {"scenarios": ["sim/x"], "overrides": {"sim": {}}}
+
+
+def test_quarantine_notes_show_the_offending_values_cut_to_a_readable_width():
+    from wsnloc.metrics.data_quality import quarantine_by_reason
+
+    long = "x" * 60
+    quarantine = pd.DataFrame({"file": ["ranges.csv"] * 4 + ["rss.csv"],
+                               "reason": ["range_m '-1.5' is negative", "range_m '-0.2' is negative",
+                                          "range_m '-1.5' is negative", f"range_m '{long}' is not a number",
+                                          "unknown anchor 'A9' (not in anchors.csv)"]})
+    notes = {(file, reason): n for file, reason, n in quarantine_by_reason(quarantine)}
+    assert notes[("ranges.csv", "range_m '…' is negative (e.g. '-1.5', '-0.2')")] == 3
+    assert notes[("ranges.csv", f"range_m '{long[:23]}…' is not a number")] == 1
+    assert notes[("rss.csv", "unknown anchor 'A9' (not in anchors.csv)")] == 1

@@ -110,3 +110,14 @@ def test_browser_check_catches_external_requests_and_broken_images(tmp_path):
     assert "network request beyond the report: http://127.0.0.1:9/x.png" in text
     assert "image does not decode: 'remote'" in text and "image does not decode: 'broken'" in text
     assert "console error" in text and "section paper-A is missing" in text
+
+
+def test_trajectory_panels_frame_the_truth_not_a_diverged_estimate():
+    import pandas as pd
+
+    from wsnloc.report.figures import trajectories, trajectory_frame
+
+    truth = pd.DataFrame({"t": [0.0, 1.0, 2.0], "x": [0.0, 10.0, 10.0], "y": [0.0, 0.0, 4.0]})
+    assert trajectory_frame(truth) == (-5.0, 15.0, -5.0, 9.0)      # half of the larger side (10 m) each way
+    diverged = pd.DataFrame({"t": [0.0, 1.0], "x": [1.0, 3.0e4], "y": [1.0, -3.0e4]})
+    assert trajectories({"run": (truth, {"pf": diverged})})[:4] == b"\x89PNG"

@@ -75,11 +75,10 @@ def cmd_ingest(args) -> int:
     quarantine = tables.read(quarantine_path)
     if len(quarantine):
         print("quarantine by reason:")
-        from wsnloc.metrics.data_quality import reason_category
+        from wsnloc.metrics.data_quality import quarantine_by_reason
 
-        kinds = quarantine.assign(kind=quarantine["reason"].map(reason_category)).groupby(["file", "kind"]).size()
-        for (file, kind), count in kinds.items():
-            print(f"  {count:>6}  {file}: {kind}")
+        for file, reason, count in quarantine_by_reason(quarantine):
+            print(f"  {count:>6}  {file}: {reason}")
     print(f"quarantined share: {quarantine_share(inventory):.2%}; tables written to {args.out_dir}")
     limits = QuarantineLimits(per_run=args.max_quarantine_share, per_file=args.max_quarantine_share_per_file)
     check_quarantine_limits(args.run_dir, inventory, quarantine, limits, quarantine_path)

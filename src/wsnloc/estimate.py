@@ -22,7 +22,7 @@ from wsnloc.diagnosis import diagnose_run, metrics_of as diagnosis_metrics, repo
 from wsnloc.estimators import registry
 from wsnloc.estimators.auto import measurements_for, motion_for
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments.calibration import calibrate, calibrate_ranges, calibrate_tdoa
+from wsnloc.experiments.calibration import calibrate_ranges, calibrate_tdoa, donor_model_for
 from wsnloc.io import tables
 from wsnloc.io.convert import QUARANTINE_FILE
 from wsnloc.io.ingest import ingest_one
@@ -51,10 +51,9 @@ def quarantine_summary(quarantine: pd.DataFrame, where: Path) -> str | None:
     """'N row(s) quarantined (count reason per file ...); table: where', or None when none was."""
     if not len(quarantine):
         return None
-    from wsnloc.metrics.data_quality import reason_category
+    from wsnloc.metrics.data_quality import quarantine_by_reason
 
-    kinds = quarantine.assign(kind=quarantine["reason"].map(reason_category)).groupby(["file", "kind"]).size()
-    listed = "; ".join(f"{count} {file}: {kind}" for (file, kind), count in kinds.items())
+    listed = "; ".join(f"{count} {file}: {reason}" for file, reason, count in quarantine_by_reason(quarantine))
     return f"{len(quarantine)} row(s) quarantined ({listed}); table: {where}"
 
 
@@ -66,15 +65,19 @@ def converted_quarantine(run_dir: Path) -> str | None:
     rows = pd.read_csv(path)
     if not len(rows):
         return None
-    reasons = rows["reason"].str.replace(r"'[^']*'", "...", regex=True).value_counts()
-    return (f"{len(rows)} source line(s) were not converted ({'; '.join(f'{n} {r}' for r, n in reasons.items())}); "
+    from wsnloc.metrics.data_quality import quarantine_by_reason
+
+    listed = "; ".join(f"{count} {file}: {reason}" for file, reason, count in quarantine_by_reason(rows))
+    return (f"{len(rows)} source line(s) were not converted ({listed}); "
             f"table: {path}")
 
 
-def donor_models(fmt: str, donor_dir: Path, campaign: Campaign | None, out_dir: Path, p: dict,
+def donor_models(fmt: str, donor_dir: Path, campaign: Campaign | None, out_dir: Path, name: str, p: dict,
                  reads_rss: bool) -> tuple[dict | None, dict | None]:
     """(RSS model, range calibration) fitted on a donor run with truth (same site): the RSS
-    model P0, n, sigma when the estimator reads RSS; the range scale and per-anchor offsets
+    model when the estimator reads RSS (experiments.calibration.donor_model_for: by default
+    per-receiver P0s, sigma, and the exponent, the donor's or the configured one, whichever
+    makes estimator `name` track the donor better); the range scale and per-anchor offsets
     when it asks for `range_calibration=other_run` (fitted on the donor's ranges, or on its
     range differences when it has none: offsets relative to its main reference anchor)."""
     wants_ranges = p.get("range_calibration") == "other_run"
@@ -89,8 +92,9 @@ def donor_models(fmt: str, donor_dir: Path, campaign: Campaign | None, out_dir: 
             raise WsnlocError(f"{donor_dir}: a calibration donor needs the {table} it calibrates, and has none")
     site = campaign or Campaign(name="generic", format="generic", spec={}, source="(no campaign file)")
     source = f"fitted on {donor_dir}"
-    rss = dict(calibrate(donor["rss"], donor["truth"], site, p.get("d0_m", 1.0), donor["anchors"]),
-               source=source) if reads_rss else None
+    rss = dict(donor_model_for(p, donor["rss"], donor["truth"], site,
+                               lambda model: registry.run(name, RunData(donor, campaign, model, str(donor_dir)), p),
+                               donor["anchors"]), source=source) if reads_rss else None
     fit_ranges = calibrate_ranges if len(donor["ranges"]) else calibrate_tdoa
     ranges = dict(fit_ranges(donor["ranges" if len(donor["ranges"]) else "tdoa"], donor["truth"], site,
                              donor["anchors"]), source=source) if wants_ranges else None
@@ -122,8 +126,10 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
     if calibration_dir is not None and "range_calibration" in p and "range_calibration" not in overrides \
             and len(run_tables["ranges"]) and p.get("measurements", "toa") != "rss":
         p = dict(p, range_calibration="other_run")       # the donor calibrates the ranges too
-    rss_model, range_model = donor_models(fmt, calibration_dir, campaign, out / "calibration", p,
+    rss_model, range_model = donor_models(fmt, calibration_dir, campaign, out / "calibration", name, p,
                                           reads_rss(name, p)) if calibration_dir else (None, None)
+    if rss_model and "exponent_choice" in rss_model:
+        notes.append(f"RSS model from the donor: per-receiver P0 offsets, exponent {rss_model['exponent_choice']}")
     data = RunData(run_tables, campaign, rss_model, str(run_dir), range_model)
     estimates = registry.run(name, data, p)
     if not np.isfinite(estimates["x"]).any():
@@ -141,6 +147,9 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
         summary.update({METRIC_KEYS[k]: float(v) for k, v in values.items()})
         summary.update(resets=int(estimates.attrs.get("resets", 0)),
                        rss_model=(rss_model or {}).get("source", "configured"),
+                       **({"rss_exponent_choice": rss_model["exponent_source"],
+                           "rss_path_loss_exponent": rss_model["path_loss_exponent"]}
+                          if rss_model and "exponent_choice" in rss_model else {}),
                        **{k: v for k, v in calibration_metrics(estimates).items() if pd.notna(v)})
         metrics.update({METRIC_KEYS[k]: float(v) for k, v in values.items()})
         metrics["gated"] = float(summary["gated"])

@@ -141,16 +141,20 @@ def donor_of(runs: dict[str, dict], donors: dict[str, dict], table: str) -> dict
     return out
 
 
-def donor_models(runs: dict[str, dict], donors: dict[str, dict], campaign: Campaign | None, p: dict,
+def donor_models(runs: dict[str, dict], donors: dict[str, dict], campaign: Campaign | None, name: str, p: dict,
                  needed: bool) -> dict[str, dict | None]:
-    """RSS model of each run fitted on its donor (donor_of), else None (configured model)."""
-    if not needed or p.get("rss_calibration") != "other_run":
-        return {name: None for name in runs}
+    """RSS model of each run fitted on its donor (donor_of; calibration.donor_model_for, estimator
+    `name` tracking the donor where the exponent is chosen), else None (configured model)."""
+    if not needed or p.get("rss_calibration", "configured") == "configured":
+        return {run: None for run in runs}
     pool = {**runs, **donors}
-    return {name: None if donor is None else
-            dict(calibration.calibrate(pool[donor]["rss"], pool[donor]["truth"], campaign, p.get("d0_m", 1.0),
-                                       pool[donor]["anchors"]), source=f"fitted on {donor}")
-            for name, donor in donor_of(runs, donors, "rss").items()}
+
+    def fitted(donor: str) -> dict:
+        def track(model: dict) -> pd.DataFrame:
+            return registry.run(name, RunData(pool[donor], campaign, model, donor), p)
+        return dict(calibration.donor_model_for(p, pool[donor]["rss"], pool[donor]["truth"], campaign, track,
+                                                pool[donor]["anchors"]), source=f"fitted on {donor}")
+    return {run: None if donor is None else fitted(donor) for run, donor in donor_of(runs, donors, "rss").items()}
 
 
 def range_donor_models(runs: dict[str, dict], donors: dict[str, dict], campaign: Campaign | None,
@@ -202,7 +206,7 @@ def run_cell(label: str, cell: str, name: str, p: dict, subsets: list[str], runs
 
     For a Bayesian filter the estimates also carry pcrb_m2 and nees, and the metrics sqrt_pcrb
     and efficiency (analysis.filter_quality)."""
-    models = donor_models(runs, donors or {}, campaign, p, reads_rss(name, p))
+    models = donor_models(runs, donors or {}, campaign, name, p, reads_rss(name, p))
     range_models = range_donor_models(runs, donors or {}, campaign, p)
     bayesian = is_bayesian(registry.get(name).function)
     estimates, metrics = [], []

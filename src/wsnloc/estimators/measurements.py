@@ -31,22 +31,34 @@ KINDS = {"toa": ("ranges",), "rss": ("rss",), "hybrid": ("ranges", "rss"), "tdoa
 
 @dataclass(frozen=True)
 class RssParams:
-    """Log-distance path-loss model: P(d) = P0 - 10 n log10(d / d0) + N(0, sigma^2) [dBm]."""
+    """Log-distance path-loss model: P(d) = P0 + o_a - 10 n log10(d / d0) + N(0, sigma^2) [dBm],
+    o_a the receiver's P0 offset (dB; `offsets_db` pairs (anchor, o_a), 0 for others: a model
+    fitted on a donor, experiments.calibration.donor_rss_model). The models use the common P0
+    and the measurements are corrected by their receiver's offset (`correct`)."""
 
     p0_dbm: float
     path_loss_exponent: float
     sigma_db: float
     d0_m: float = 1.0
+    offsets_db: tuple[tuple[str, float], ...] = ()
 
     @classmethod
     def of(cls, model: dict) -> "RssParams":
-        return cls(model["p0_dbm"], model["path_loss_exponent"], model["sigma_db"], model.get("d0_m", 1.0))
+        return cls(model["p0_dbm"], model["path_loss_exponent"], model["sigma_db"], model.get("d0_m", 1.0),
+                   tuple(sorted((model.get("p0_offsets_db") or {}).items())))
+
+    def correct(self, rss: pd.DataFrame) -> pd.DataFrame:
+        """RSS rows with rss_dbm - o_a (dBm): what a receiver with the common P0 would read."""
+        if not self.offsets_db:
+            return rss
+        return rss.assign(rss_dbm=rss["rss_dbm"] - rss["anchor_id"].map(dict(self.offsets_db)).fillna(0.0))
 
 
 def rss_params(data: RunData, p: dict) -> RssParams:
-    """The run's calibrated model (fitted on a donor run, `rss_calibration: other_run`) when
-    the caller provided one, else the configured p0_dbm, path_loss_exponent, sigma_db, d0_m."""
-    if p["rss_calibration"] == "other_run" and data.rss_model:
+    """The run's calibrated model (fitted on a donor run, `rss_calibration: other_run` or
+    `other_run_common`) when the caller provided one, else the configured p0_dbm,
+    path_loss_exponent, sigma_db, d0_m."""
+    if p["rss_calibration"] != "configured" and data.rss_model:
         return RssParams.of(data.rss_model)
     return RssParams(p["p0_dbm"], p["path_loss_exponent"], p["sigma_db"], p["d0_m"])
 
@@ -93,9 +105,10 @@ class MeasurementSource:
             raise ValueError("RSS measurements need an RSS model")
         self._tables = {"ranges": (("ranges", apply_filter, max_range_m, correction),
                                    lambda: correction.apply(data.usable_ranges(apply_filter, max_range_m)), "range_m"),
-                        "rss": (("rss",), data.usable_rss, "rss_dbm")}
+                        "rss": (("rss", rss.offsets_db if rss else ()),
+                                lambda: rss.correct(data.usable_rss()) if rss else data.usable_rss(), "rss_dbm")}
         self._members = data.members(anchors)
-        self._data_key = (kinds, anchors, apply_filter, max_range_m, correction)
+        self._data_key = (kinds, anchors, apply_filter, max_range_m, correction, rss.offsets_db if rss else ())
         self._key = (kinds, anchors, range_sigma_m, apply_filter, max_range_m, rss, correction, dimensions)
 
     def _coded(self, kind: str) -> Coded:

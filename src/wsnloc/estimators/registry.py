@@ -40,9 +40,10 @@ COMMON = (
     Param("max_range_m", 100.0, "m", "longest physically possible range at the site", minimum=0.0),
 )
 RSS = (
-    Param("rss_calibration", "other_run", "", "RSS model: 'other_run' = fitted on a donor run with truth of the "
-          "same dataset (when the caller has one), 'configured' = the values below", str,
-          ("other_run", "configured")),
+    Param("rss_calibration", "other_run", "", "RSS model from a donor run with truth of the same site (when the "
+          "caller has one): 'other_run' = a P0 per receiver and the exponent (the donor's fit or the configured "
+          "one) that tracks the donor better, 'other_run_common' = one P0, n, sigma by least squares (the papers'); "
+          "'configured' = the values below", str, ("other_run", "other_run_common", "configured")),
     Param("p0_dbm", -60.0, "dBm", "configured RSS at the reference distance d0"),
     Param("path_loss_exponent", 2.0, "1", "configured path-loss exponent n", minimum=0.1),
     Param("sigma_db", 4.0, "dB", "configured shadowing standard deviation", minimum=1e-3),
@@ -272,8 +273,10 @@ ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
     Estimator("ekf", "EKF: motion model p / pv / pva, toa / rss / hybrid measurements, epoch or sequential "
               "updates, optional motion detection, innovation gate at 0.999 (papers A and C: their cells have no gate)",
               COMMON + RSS + GATED_FILTER, bayes.run_filter, _filter_inputs),
-    Estimator("ekf_p", "EKF with the P (random walk) model (paper C)",
-              COMMON + RSS + _with(FILTER, motion="p"), bayes.run_filter, _filter_inputs),
+    Estimator("ekf_p", "EKF with the P (random walk) model (paper C), gated at 0.999 and self-fitted as the "
+              "tracker (its random walk's p_sigma_m is a speed, which differs from run to run)",
+              COMMON + RSS + _with(GATED_FILTER, motion="p", self_fit=TRACKER_DEFAULTS["self_fit"]),
+              bayes.run_filter, _filter_inputs),
     Estimator("ekf_pva", "EKF with the PVA model: measured acceleration as input, bias states (paper C)",
               COMMON + RSS + _with(FILTER, motion="pva"), bayes.run_filter, _filter_inputs),
     Estimator("ekf_motion_detection", "PV EKF that skips the prediction while the accelerometer says static "

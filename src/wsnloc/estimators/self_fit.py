@@ -12,10 +12,15 @@ estimator's own filter or smoother then runs once with the fitted values (`outpu
    (estimators.self_calibration; observable while the target moves among >= 4 anchors); then
    the per-anchor offsets against that pass's track (range_correction: least squares through
    each window's geometry, undoing what the track absorbed). The ranges are corrected
-   (estimators.range_calibration) for the next passes.
+   (estimators.range_calibration) for the next passes. On range differences (>= 4 anchors in
+   the pairs) the same in TDOA form (tdoa_correction: scale and offset differences b_a - b_ref,
+   a pair's bias, against a plain first pass's track, refitted once on the corrected track);
+   step 4 tests it as it tests the range correction, the corrected differences z' = (z - b_a +
+   b_ref) / s paying n log s (the density of z).
 2. **Noise, by maximum likelihood of the innovations.** Three candidates, the configured
-   (range_sigma_m, accel_sigma_mps2), a calmer (sigma x 2, accel / 3) and a livelier one
-   (sigma / 2, accel x 3): the ratio accel / sigma, which sets the filter's gain, x 1/6, 1 and 6.
+   (range_sigma_m, accel_sigma_mps2; p_sigma_m in its place for the P model), a calmer (sigma x 2,
+   accel / 3) and a livelier one (sigma / 2, accel x 3): the ratio accel / sigma, which sets the
+   filter's gain, x 1/6, 1 and 6.
    Each runs on the central SEARCH_SHARE of the run's measurements (segment(); a sub-run, so the
    search costs a fraction of a pass) and records every innovation y_i = z_i - h_i(x-) and its
    variance S_i = (H P- H' + R)_ii, gated ones included. Scaling Q and R together by c leaves a
@@ -52,9 +57,10 @@ and tracked the noise (1.33x the best sigma of a grid on a synthetic walk); now 
 hardly depends on where the configured values start.
 
 Cost: one augmented pass (step 1), four passes on 12% of the run, one full pass and the fits:
-about 2.7x one plain pass in CPU time on the shared real cases (benchmarks/realdata.py); for
-the UKF, particle filter and smoothers the fitting passes are EKF passes, so the overhead is
-that of the EKF's (about 1.7 EKF passes) on top of their own single pass.
+about 2.7x one plain pass in CPU time on the shared real cases (benchmarks/realdata.py); on
+range differences two full passes in step 1 (the offsets are fitted twice). For the UKF,
+particle filter and smoothers the fitting passes are EKF passes, so the overhead is that of
+the EKF's (about 1.7 EKF passes) on top of their own single pass.
 Online (live) use has no second pass: `range_self_calibration` (state augmentation) and the
 gate's widening (filter_options) adapt as the data come.
 """
@@ -72,6 +78,9 @@ MODES = ("none", "two_pass")
 CANDIDATES = ((2.0, 1.0 / 3.0), (1.0, 1.0), (0.5, 3.0))
 SEARCH_SHARE = 0.12                    # the candidates are scored on the central 12% of the measurements
 MEASUREMENT_TABLES = ("ranges", "rss", "tdoa")
+PROCESS_NOISE = ("accel_sigma_mps2", "p_sigma_m")   # the process noise the candidates scale: PV / PVA, P (random walk)
+FITTED_NOISE_KEYS = {"accel_sigma_mps2": ("self_fit_run_accel_mps2", "self_fit_accel_sigma_mps2"),
+                     "p_sigma_m": ("self_fit_run_p_sigma_m", "self_fit_p_sigma_m")}
 OUTLIER_SHARE = 0.05                   # eps of the uniform outlier component
 CLAMP = (0.01, 100.0)                  # c* searched on a log grid in this range
 GRID = np.exp(np.linspace(np.log(CLAMP[0]), np.log(CLAMP[1]), 161))
@@ -82,6 +91,8 @@ WINDOW_S = 1.0                         # windows of the offsets' projection fit
 MIN_SPREAD = 0.5                       # smallest singular value of a window's unit-vector matrix H
 MAX_CONDITION = 1e3
 OUTLIER_SIGMAS = 4.0
+MIN_SCALE_ERROR = 0.02                 # a TDOA scale fit within 2% of 1 is kept at 1 (track lag aliases into it)
+TDOA_FITS = 2                          # TDOA scale and offsets: fitted on the plain track, then refitted on the corrected one
 
 
 def profile_likelihood(y: np.ndarray, S: np.ndarray, span: float) -> tuple[float, float]:
@@ -154,6 +165,118 @@ def range_correction(data, estimates: pd.DataFrame, p: dict, scale: float) -> di
             "source": "self-fitted on the run (two-pass)"}
 
 
+def _tdoa_track_residuals(data, estimates: pd.DataFrame, p: dict) -> pd.DataFrame | None:
+    """The run's range differences of the subset's pairs against the estimated track: per row t,
+    anchor_id, ref_anchor_id, e = tdoa - (r_a - r_ref) and delta = r_a - r_ref (m, the track's
+    distances, 3-D with the anchors' height offsets) and hx, hy, the pair's gradient u_a - u_ref
+    (u: unit vector from the anchor to the track); None with too few rows."""
+    members = data.members(p["anchors"])
+    rows = data.usable_tdoa()
+    rows = rows[rows["anchor_id"].isin(members) & rows["ref_anchor_id"].isin(members)]
+    track = estimates.loc[np.isfinite(estimates["x"]) & np.isfinite(estimates["y"]), ["t", "x", "y"]]
+    if len(rows) < MIN_INNOVATIONS or len(track) < 2:
+        return None
+    t = rows["t"].to_numpy(float)
+    inside = (t >= track["t"].iloc[0]) & (t <= track["t"].iloc[-1])
+    rows, t = rows[inside], t[inside]
+    xy = np.column_stack([np.interp(t, track["t"], track[c]) for c in ("x", "y")])
+    r, u = {}, {}
+    for side in ("anchor_id", "ref_anchor_id"):
+        ids = rows[side].to_numpy(dtype=object)
+        diff = xy - data.positions(ids)
+        r[side] = np.sqrt(np.sum(diff**2, axis=1) + data.height_offsets(ids) ** 2)
+        u[side] = diff / np.maximum(r[side], 1e-3)[:, None]
+    delta = r["anchor_id"] - r["ref_anchor_id"]
+    gradient = u["anchor_id"] - u["ref_anchor_id"]
+    out = pd.DataFrame({"t": t, "anchor_id": rows["anchor_id"].to_numpy(dtype=object),
+                        "ref_anchor_id": rows["ref_anchor_id"].to_numpy(dtype=object),
+                        "e": rows["tdoa_m"].to_numpy(float) - delta, "delta": delta,
+                        "hx": gradient[:, 0], "hy": gradient[:, 1]})
+    return out if len(out) >= MIN_INNOVATIONS else None
+
+
+def tdoa_correction(data, estimates: pd.DataFrame, p: dict) -> dict | None:
+    """Range scale s and per-anchor offsets b_a of r = s d + b_a seen through range differences,
+    tdoa = s (d_a - d_ref) + b_a - b_ref, against the track of a first pass (no truth); None when
+    the windows do not determine them.
+
+    As range_correction, in TDOA form: over a short window the track is close to the
+    least-squares fix of the window's differences, so their residuals against it keep only
+    (I - P_w) X_w theta, with X_w = [delta_w, D_w] (delta: the track's distance differences, for
+    the scale error s - 1; D_w the pairs' incidence, +1 at the anchor, -1 at the reference) and
+    P_w the projector onto the columns of the window's gradients u_a - u_ref. theta = (s - 1, b)
+    is the least-squares solution of sum_w X_w' (I - P_w) X_w theta = sum_w X_w' (I - P_w) e_w over
+    windows of WINDOW_S with >= 3 pairs whose gradients fix a position (smallest singular value
+    >= MIN_SPREAD). A common offset cancels in differences: the most frequent reference is the
+    gauge (b = 0, as metrics.ranging.fit_tdoa_bias). Residuals further than OUTLIER_SIGMAS
+    normalised MADs from their pair's median (NLOS) are left out first. The scale is kept at 1
+    where it and the offsets together are ill-conditioned (condition number of G scaled to a unit
+    diagonal above MAX_CONDITION) or where it is within MIN_SCALE_ERROR of 1: the track's lag
+    behind a moving target aliases into a scale of that size (0.996 fitted on a run without
+    scale error, its offsets then off by ~2 cm; percent-level scale errors, e.g. a 7% one, are
+    found to ~0.5%). two_pass fits twice (TDOA_FITS): on the plain track, then on the track
+    corrected by the first fit, which a scale error had bent."""
+    samples = _tdoa_track_residuals(data, estimates, p)
+    if samples is None:
+        return None
+    error = samples["e"].to_numpy(float)
+    centre = samples.groupby(["anchor_id", "ref_anchor_id"])["e"].transform("median").to_numpy()
+    spread = 1.4826 * np.median(np.abs(error - centre))
+    samples = samples[np.abs(error - centre) <= OUTLIER_SIGMAS * max(spread, SIGMA_FLOOR_M)]
+    refs = samples["ref_anchor_id"].value_counts()
+    gauge = sorted(refs.index, key=lambda a: (-refs[a], str(a)))[0]
+    anchors = sorted((set(samples["anchor_id"]) | set(samples["ref_anchor_id"])) - {gauge}, key=str)
+    column = {a: k + 1 for k, a in enumerate(anchors)}
+    window = np.floor((samples["t"].to_numpy(float) - samples["t"].min()) / WINDOW_S).astype(int)
+    means = samples.assign(w=window).groupby(["w", "anchor_id", "ref_anchor_id"])[
+        ["e", "delta", "hx", "hy"]].median().reset_index()
+    n = 1 + len(anchors)
+    G, g = np.zeros((n, n)), np.zeros(n)
+    for _, rows in means.groupby("w"):
+        if len(rows) < 3:
+            continue
+        H = rows[["hx", "hy"]].to_numpy()
+        if np.linalg.svd(H, compute_uv=False)[-1] < MIN_SPREAD:
+            continue
+        X = np.zeros((len(rows), n))
+        X[:, 0] = rows["delta"].to_numpy()
+        for i, (a, b) in enumerate(zip(rows["anchor_id"], rows["ref_anchor_id"])):
+            for anchor, sign in ((a, 1.0), (b, -1.0)):
+                if anchor in column:                      # the gauge has no column (b = 0)
+                    X[i, column[anchor]] += sign
+        project = np.eye(len(rows)) - H @ np.linalg.pinv(H)
+        G += X.T @ project @ X
+        g += X.T @ project @ rows["e"].to_numpy()
+    theta = _solve_scaled(G, g)
+    if theta is None or abs(theta[0]) < MIN_SCALE_ERROR:
+        offsets = _solve_scaled(G[1:, 1:], g[1:])
+        if offsets is None:
+            return None
+        theta = np.r_[0.0, offsets]
+    return {"scale": 1.0 + float(theta[0]),
+            "offsets_m": {str(gauge): 0.0, **{str(a): float(theta[k]) for a, k in column.items()}},
+            "source": "self-fitted on the run's range differences (two-pass)"}
+
+
+def _solve_scaled(G: np.ndarray, g: np.ndarray) -> np.ndarray | None:
+    """G^-1 g, or None where G scaled to a unit diagonal (the unknowns' units apart) has a
+    condition number above MAX_CONDITION or a zero diagonal (an unknown no window sees)."""
+    diagonal = np.diag(G)
+    if not len(g) or np.any(diagonal <= 0):
+        return None
+    w = 1.0 / np.sqrt(diagonal)
+    scaled = G * w[:, None] * w[None, :]
+    if np.linalg.cond(scaled) >= MAX_CONDITION:
+        return None
+    return w * np.linalg.solve(scaled, w * g)
+
+
+def _anchors_in_tdoa(data, p) -> int:
+    members = data.members(p["anchors"])
+    rows = data.usable_tdoa()
+    return len((set(rows["anchor_id"]) | set(rows["ref_anchor_id"])) & members)
+
+
 def segment(data, p: dict, share: float):
     """The run cut to the central `share` of its usable measurements (ranges, RSS, TDOA) by time:
     the sub-run the noise candidates and the range correction are scored on (module docstring)."""
@@ -201,8 +324,21 @@ def two_pass(data, p: dict, run_pass, output) -> pd.DataFrame:
         if model is not None:
             run = replace(data, range_model=model, _cache=data._cache)
             q = dict(q, range_calibration="other_run")
+    elif p["measurements"] == "tdoa" and p["range_calibration"] == "none" \
+            and _anchors_in_tdoa(data, p) >= MIN_ANCHORS_FOR_OFFSETS:
+        track, _ = run_pass(data, q)
+        for refit in range(TDOA_FITS):
+            model = tdoa_correction(data, track, p)
+            if model is None or refit == TDOA_FITS - 1:
+                break
+            track, _ = run_pass(replace(data, range_model=model, _cache=data._cache),
+                                dict(q, range_calibration="other_run"))
+        if model is not None:
+            run = replace(data, range_model=model, _cache=data._cache)
+            q = dict(q, range_calibration="other_run")
     part = segment(run, q, SEARCH_SHARE)
-    candidates = [dict(q, range_sigma_m=q["range_sigma_m"] * k_sigma, accel_sigma_mps2=q["accel_sigma_mps2"] * k_accel)
+    noise = PROCESS_NOISE[q.get("motion") == "p"]
+    candidates = [dict(q, range_sigma_m=q["range_sigma_m"] * k_sigma, **{noise: q[noise] * k_accel})
                   for k_sigma, k_accel in CANDIDATES]
     scores = [_score(run_pass, part, candidate, span) for candidate in candidates]
     ll = np.array([score[0] for score in scores])
@@ -217,6 +353,8 @@ def two_pass(data, p: dict, run_pass, output) -> pd.DataFrame:
         ll_plain = _score(run_pass, replace(part, range_model=None, _cache={}),
                           dict(candidates[best], range_calibration="none"), span)[0]
         penalty = 0.5 * (1 + len(model["offsets_m"])) * np.log(scores[best][2])
+        if p["measurements"] == "tdoa":    # innovations of z' = (z - b) / s: the density of z is that of z' / s
+            ll_plain += scores[best][2] * np.log(model["scale"])
         supported = ll[best] - ll_plain > penalty
         fitted.update(self_fit_range_correction="applied" if supported else "not supported",
                       self_fit_range_ll_gain=float(ll[best] - ll_plain), self_fit_range_ll_penalty=float(penalty))
@@ -225,13 +363,14 @@ def two_pass(data, p: dict, run_pass, output) -> pd.DataFrame:
         else:
             run, q = data, dict(q, range_calibration="none")
     x = np.log([k_accel / k_sigma for k_sigma, k_accel in CANDIDATES])
-    used = np.log([[c["range_sigma_m"], c["accel_sigma_mps2"]] for c in candidates])
+    used = np.log([[c["range_sigma_m"], c[noise]] for c in candidates])
     fit = used + 0.5 * np.log([[score[1]] for score in scores])
     chosen = refine(x, ll)
     sigma, accel = (float(np.exp(np.interp(chosen, x, used[:, k]))) for k in range(2))
-    out = output(run, dict(q, range_sigma_m=sigma, accel_sigma_mps2=accel))
-    fitted.update(self_fit_ratio_factor=float(np.exp(chosen)), self_fit_run_sigma_m=sigma, self_fit_run_accel_mps2=accel,
-                  self_fit_range_sigma_m=max(float(np.exp(np.interp(chosen, x, fit[:, 0]))), SIGMA_FLOOR_M),
-                  self_fit_accel_sigma_mps2=float(np.exp(np.interp(chosen, x, fit[:, 1]))))
+    out = output(run, dict(q, range_sigma_m=sigma, **{noise: accel}))
+    ran, fitted_key = FITTED_NOISE_KEYS[noise]
+    fitted.update({"self_fit_ratio_factor": float(np.exp(chosen)), "self_fit_run_sigma_m": sigma, ran: accel,
+                   "self_fit_range_sigma_m": max(float(np.exp(np.interp(chosen, x, fit[:, 0]))), SIGMA_FLOOR_M),
+                   fitted_key: float(np.exp(np.interp(chosen, x, fit[:, 1])))})
     out.attrs.update(fitted)
     return out

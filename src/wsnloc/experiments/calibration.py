@@ -5,11 +5,14 @@ No run is evaluated with a model fitted on its own data.
 
 from __future__ import annotations
 
+from typing import Callable
+
 import pandas as pd
 
 from wsnloc.campaign import Campaign
-from wsnloc.metrics.ranging import (fit_path_loss, fit_range_bias, fit_tdoa_bias, range_errors, rss_with_distance,
-                                    tdoa_with_distances)
+from wsnloc.metrics.ranging import (fit_path_loss, fit_path_loss_per_anchor, fit_range_bias, fit_tdoa_bias,
+                                    range_errors, rss_with_distance, tdoa_with_distances)
+from wsnloc.metrics.tracking import run_metrics, score
 
 
 def calibrate(rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign, d0_m: float,
@@ -23,6 +26,49 @@ def calibrate(rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign, d0_m: 
     return {"p0_dbm": fit["P0_dBm"], "path_loss_exponent": fit["n"], "sigma_db": fit["sigma_dB"], "d0_m": d0_m}
 
 
+def donor_rss_model(rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign, d0_m: float, prior_exponent: float,
+                    track: Callable[[dict], pd.DataFrame], anchors: pd.DataFrame | None = None) -> dict:
+    """The RSS model a donor run with truth gives the tracked runs of its site: per-receiver P0
+    offsets (metrics.ranging.fit_path_loss_per_anchor; `p0_offsets_db`, applied by
+    estimators.measurements.RssParams) and the exponent chosen on the donor by what it is for.
+
+    The donor's own exponent fit is evidence, not the answer: on a walk the fitted n follows the
+    path's geometry and the shadowing met on it (indoors the mean RSS flattens far from a
+    receiver), and a model that predicts the donor's RSS best need not localise best. So two
+    candidates, each with the donor's per-receiver P0s and sigma refitted under its exponent:
+    the donor's fitted n and the configured prior n (`prior_exponent`); `track(model)` runs the
+    estimator on the donor with the candidate, and the one with the lower RMSE on the donor's
+    truth is kept (ties: the prior). The candidates share every other parameter, so the donor
+    scores one number, its exponent. Returns the registry's RSS model (RSS_MODEL) with
+    `p0_offsets_db`, `exponent_source` ("prior" or "donor fit") and `exponent_choice` (text: both
+    candidates' donor RMSE).
+    """
+    samples = rss_with_distance(rss, truth, campaign, anchors)
+    candidates = {}
+    for label, exponent in (("prior", prior_exponent), ("donor fit", None)):
+        fit = fit_path_loss_per_anchor(samples["rss_dbm"], samples["true_distance_m"], samples["anchor_id"], d0_m,
+                                       exponent)
+        model = {"p0_dbm": fit["P0_dBm"], "path_loss_exponent": fit["n"], "sigma_db": fit["sigma_dB"], "d0_m": d0_m,
+                 "p0_offsets_db": fit["offsets_dB"]}
+        estimates = track(model)
+        error = float(run_metrics(score(estimates, truth), truth)["rmse"]) if len(estimates) else float("inf")
+        candidates[label] = (error, model)
+    chosen = min(candidates, key=lambda k: candidates[k][0])      # "prior" first: kept on a tie
+    text = "; ".join(f"{k} n={m['path_loss_exponent']:.2f}: donor RMSE {e:.2f} m" for k, (e, m) in candidates.items())
+    return dict(candidates[chosen][1], exponent_source=chosen, exponent_choice=f"{chosen} ({text})")
+
+
+def donor_model_for(p: dict, rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign,
+                    track: Callable[[dict], pd.DataFrame], anchors: pd.DataFrame | None = None) -> dict:
+    """The RSS model a donor gives by the registry's `rss_calibration` in p: `other_run`
+    donor_rss_model (per-receiver P0s, the exponent chosen by `track` on the donor),
+    `other_run_common` calibrate (one P0, n and sigma by least squares: the papers' protocol)."""
+    d0 = p.get("d0_m", 1.0)
+    if p.get("rss_calibration") == "other_run_common":
+        return calibrate(rss, truth, campaign, d0, anchors)
+    return donor_rss_model(rss, truth, campaign, d0, p["path_loss_exponent"], track, anchors)
+
+
 RSS_MODEL = ("p0_dbm", "path_loss_exponent", "sigma_db", "d0_m")   # the registry's RSS model parameters
 
 
@@ -30,8 +76,10 @@ def rss_models_for_runs(run_tables: dict[str, dict], campaign: Campaign, members
                         p: dict) -> dict[str, dict]:
     """The RSS model each run is evaluated with, by a cell's registry parameters p.
 
-    rss_calibration `other_run`: fitted on the next run (cyclically) with its truth;
-    `configured`: p's model (RSS_MODEL). With a single run `other_run` falls back to p's model.
+    rss_calibration `other_run` or `other_run_common`: one P0, n, sigma fitted (calibrate) on the
+    next run (cyclically) with its truth, paper D's protocol (the static-share analysis and paper
+    D's own tables use it); `configured`: p's model (RSS_MODEL). With a single run the donor
+    choices fall back to p's model.
     """
     method, configured = p["rss_calibration"], {k: p[k] for k in RSS_MODEL}
     names = list(run_tables)

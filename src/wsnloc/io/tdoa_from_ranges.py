@@ -17,6 +17,15 @@ cannot (out of range, a gap), the next anchor by number of ranges at its own ran
 and so on, so a missing reference anchor does not drop the other anchors' ranges. Ranges
 with a non-zero status or not finite are not used.
 
+Before pairing, each anchor's isolated outliers are left out (a Hampel identifier): a range
+further than HAMPEL_SIGMAS normalised MADs (1.4826 x the median absolute residual over that
+anchor's ranges, at least 1 cm) from the robust (repeated-median) line through its HAMPEL_NEIGHBOURS
+neighbours on each side within two windows of it (`outliers`). An NLOS or multipath excess of one two-way range would
+otherwise reach every difference it is paired into: the interpolations on both sides of it and,
+for the reference, every pair of its group; the tracker on the ranges meets it once and
+gates it. A lasting excess (a blocked path for seconds) moves the neighbours' median with it
+and is kept. The ranges left out are listed in the run's convert_quarantine.csv.
+
 A converted run is the source run with `tdoa.csv` (t, anchor_id, ref_anchor_id, tdoa_m) in
 place of `ranges.csv` and without `rss.csv`; every other file (anchors, truth, meta.yaml,
 reference tables) is copied unchanged; ranges the generic reader quarantines are added to
@@ -38,6 +47,9 @@ from wsnloc.io.convert import QUARANTINE_FILE, Converted
 
 WINDOW_S = 0.25      # pairing window: a bracketing sample at most this far from t_ref (s); ~2.5 rounds at 10 Hz
 ROUND_WINDOWS = 1.5  # ... and at least 1.5 ranging round periods (anchors ranged one after the other, jitter)
+HAMPEL_NEIGHBOURS = 2   # outlier test: the line through up to 2 ranges of the same anchor on each side ...
+HAMPEL_SIGMAS = 3.0     # ... a range further than 3 normalised MADs from it is left out (Hampel identifier)
+HAMPEL_FLOOR_M = 0.01   # smallest spread of the test (m): ranges quantised or noise-free
 
 
 def reference_order(ranges: pd.DataFrame) -> list[str]:
@@ -70,18 +82,68 @@ def _at(t_query: np.ndarray, t: np.ndarray, r: np.ndarray, window_s: float) -> t
     return np.where(exact, r[after_c], r[before] + share * (r[after_c] - r[before])), exact | bracketed
 
 
+def outliers(t: np.ndarray, r: np.ndarray, span_s: float) -> np.ndarray:
+    """bool: the isolated outliers among one anchor's ranges r (m) at sorted times t (s) (module
+    docstring). The reference of range i is the repeated-median line through its neighbours (up
+    to HAMPEL_NEIGHBOURS on each side within span_s, i itself left out) at t_i: the slope s is
+    the median over neighbours j of the median of j's slopes to the others (Siegel), the value
+    the median of r_j - s (t_j - t_i), so the target's motion does not count as an outlier and
+    one outlier among the neighbours does not move it. Flagged: a
+    residual beyond HAMPEL_SIGMAS normalised MADs of the anchor's residuals (at least
+    HAMPEL_FLOOR_M); a range with fewer than two neighbours is not tested. At the onset and end
+    of a lasting excess one or two ranges may be flagged too."""
+    n = len(t)
+    steps = [k for k in range(-HAMPEL_NEIGHBOURS, HAMPEL_NEIGHBOURS + 1) if k]
+    dt = np.full((n, len(steps)), np.nan)
+    value = np.full((n, len(steps)), np.nan)
+    for j, k in enumerate(steps):
+        index = np.arange(n) + k
+        inside = (index >= 0) & (index < n)
+        index = np.clip(index, 0, n - 1)
+        near = inside & (np.abs(t[index] - t) <= span_s)
+        dt[near, j], value[near, j] = (t[index] - t)[near], r[index][near]
+    tested = np.sum(np.isfinite(value), axis=1) >= 2
+    if not tested.any():
+        return np.zeros(n, dtype=bool)
+    dt, value = dt[tested], value[tested]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        slopes = (value[:, None, :] - value[:, :, None]) / (dt[:, None, :] - dt[:, :, None])   # (rows, j, k)
+    slopes[~np.isfinite(slopes)] = np.nan
+    each = np.column_stack([_nanmedian(slopes[:, j]) for j in range(len(steps))])
+    slope = np.nan_to_num(_nanmedian(each))
+    residual = r[tested] - _nanmedian(value - slope[:, None] * dt)
+    spread = max(1.4826 * np.median(np.abs(residual)), HAMPEL_FLOOR_M)
+    flagged = np.zeros(n, dtype=bool)
+    flagged[tested] = np.abs(residual) > HAMPEL_SIGMAS * spread
+    return flagged
+
+
+def _nanmedian(values: np.ndarray) -> np.ndarray:
+    """Row medians ignoring NaN; NaN for a row without a value (without numpy's warning)."""
+    out = np.full(len(values), np.nan)
+    some = np.isfinite(values).any(axis=1)
+    out[some] = np.nanmedian(values[some], axis=1)
+    return out
+
+
 def ranges_to_tdoa(ranges: pd.DataFrame, reference: str | None = None, window_s: float = WINDOW_S) -> pd.DataFrame:
     """Range differences (t, anchor_id, ref_anchor_id, tdoa_m) from ranges (t, anchor_id, range_m
-    [, status]) (module docstring), sorted by t then anchor."""
+    [, status]) (module docstring), sorted by t then anchor; attrs["outliers"]: the ranges left
+    out as isolated outliers (rows of `ranges`)."""
     columns = ["t", "anchor_id", "ref_anchor_id", "tdoa_m"]
     ok = np.isfinite(ranges["range_m"]) & np.isfinite(ranges["t"])
     if "status" in ranges:
         ok &= ranges["status"].fillna(0) == 0
-    ranges = ranges[ok]
+    ranges = ranges[ok].sort_values("t", kind="stable")
     if not len(ranges):
         return pd.DataFrame(columns=columns)
     period = round_period(ranges)
     window_s = max(window_s, ROUND_WINDOWS * period) if np.isfinite(period) else window_s
+    flagged = np.zeros(len(ranges), dtype=bool)
+    for _, rows in ranges.groupby("anchor_id", sort=False).indices.items():
+        flagged[rows] = outliers(ranges["t"].to_numpy(float)[rows], ranges["range_m"].to_numpy(float)[rows],
+                                 2.0 * window_s)
+    dropped, ranges = ranges[flagged], ranges[~flagged]
     samples = {anchor: (rows["t"].to_numpy(float), rows["range_m"].to_numpy(float))
                for anchor, rows in ranges.sort_values("t", kind="stable").groupby("anchor_id", sort=True)}
     order = reference_order(ranges)
@@ -102,7 +164,9 @@ def ranges_to_tdoa(ranges: pd.DataFrame, reference: str | None = None, window_s:
             out.append(pd.DataFrame({"t": t_ref[use], "anchor_id": anchor, "ref_anchor_id": ref,
                                      "tdoa_m": value[use] - r_ref[use]}))
     frame = pd.concat(out, ignore_index=True) if out else pd.DataFrame(columns=columns)
-    return frame.sort_values(["t", "anchor_id"], kind="stable").reset_index(drop=True)
+    frame = frame.sort_values(["t", "anchor_id"], kind="stable").reset_index(drop=True)
+    frame.attrs["outliers"] = dropped
+    return frame
 
 
 def _run_dirs(src: Path) -> list[Path]:
@@ -112,6 +176,17 @@ def _run_dirs(src: Path) -> list[Path]:
     if not runs:
         raise IngestError(f"{src}: no generic run (a directory with ranges.csv or ranges.parquet) below it")
     return runs
+
+
+def outlier_rows(dropped: pd.DataFrame | None, file: str) -> pd.DataFrame:
+    """Quarantine rows (file, line, text, reason) of the ranges left out as outliers."""
+    if dropped is None or not len(dropped):
+        return pd.DataFrame(columns=["file", "line", "text", "reason"])
+    return pd.DataFrame({"file": file, "line": dropped["line"].to_numpy() if "line" in dropped else -1,
+                         "text": [f"{t:.6f},{a},{r:.4f}" for t, a, r in dropped[["t", "anchor_id", "range_m"]]
+                                  .itertuples(index=False)],
+                         "reason": f"isolated outlier: beyond {HAMPEL_SIGMAS:g} normalised MADs of the median of its "
+                                   "neighbours (not converted to TDOA)"})
 
 
 def convert_tdoa(src: str | Path, out: str | Path, reference: str | None = None,
@@ -130,7 +205,9 @@ def convert_tdoa(src: str | Path, out: str | Path, reference: str | None = None,
         if not len(tdoa):
             raise IngestError(f"{run}: no range pairs within {window_s} s to make TDOA from")
         tdoa.to_csv(target / "tdoa.csv", index=False, float_format="%.9f")
-        quarantine = tables["quarantine"][["file", "line", "text", "reason"]]
+        quarantine = pd.concat([tables["quarantine"][["file", "line", "text", "reason"]],
+                                outlier_rows(tdoa.attrs.get("outliers"), generic.find(run, "ranges").name)],
+                               ignore_index=True)
         if len(quarantine):                            # source rows not converted, beside the source's own
             kept = target / QUARANTINE_FILE
             earlier = pd.read_csv(kept) if kept.is_file() else None

@@ -32,6 +32,42 @@ def reason_category(reason: str) -> str:
     return re.sub(r"-?\d+(\.\d+)?(e-?\d+)?", "N", text)
 
 
+VALUE_WIDTH = 24          # characters of an offending value shown in a note (longer ones end with '…')
+VALUES_SHOWN = 3
+
+
+def _shown(value: str) -> str:
+    return repr(value if len(value) <= VALUE_WIDTH else value[:VALUE_WIDTH - 1] + "…")
+
+
+def reasons_with_values(reasons: pd.Series) -> pd.Series:
+    """{reason category (reason_category): text} with the offending values put back: the
+    reason itself when all of its rows say the same (values cut to VALUE_WIDTH characters), else
+    the category followed by its most frequent values
+    ('e.g. ...', at most VALUES_SHOWN, each cut to VALUE_WIDTH characters, '+N more')."""
+    out = {}
+    for category, group in reasons.groupby(reasons.map(reason_category), sort=False):
+        values = pd.Series([v for reason in group for v in re.findall(r"'([^']*)'", reason)], dtype=object).value_counts()
+        if group.nunique() == 1:
+            out[category] = re.sub(r"'([^']*)'", lambda m: _shown(m.group(1)), group.iloc[0])
+        elif len(values):
+            more = f", +{len(values) - VALUES_SHOWN} more" if len(values) > VALUES_SHOWN else ""
+            out[category] = f"{category} (e.g. {', '.join(map(_shown, values.index[:VALUES_SHOWN]))}{more})"
+        else:
+            out[category] = category
+    return pd.Series(out, dtype=object)
+
+
+def quarantine_by_reason(quarantine: pd.DataFrame) -> list[tuple[str, str, int]]:
+    """(file, reason with its values (reasons_with_values), rows) per file and reason category."""
+    rows = []
+    for file, group in quarantine.groupby("file", sort=True):
+        texts = reasons_with_values(group["reason"])
+        counts = group["reason"].map(reason_category).value_counts()
+        rows += [(file, texts[category], int(n)) for category, n in counts.items()]
+    return rows
+
+
 def load_runs(tables_dirs, names=tables.RAW_TABLES, imu_dirs=None, first: int | None = None
               ) -> dict[str, dict[str, pd.DataFrame]]:
     """{run: {table: DataFrame}} for every run directory under the (shard) folder(s), in run order.

@@ -113,6 +113,35 @@ def fit_path_loss(rss_dbm, distance_m, d0_m: float = 1.0) -> dict[str, float]:
             "samples": int(keep.sum())}
 
 
+def fit_path_loss_per_anchor(rss_dbm, distance_m, anchor_id, d0_m: float = 1.0,
+                             exponent: float | None = None) -> dict:
+    """Least-squares fit of P_i = P0 + o_a(i) - 10 n log10(d_i / d0) + e_i with one P0 per
+    receiver a (hardware gains differ by several dB): P0 the mean of the receivers' P0s, o_a
+    their offsets from it (dB, summing to 0), n common (fitted, or the given `exponent`) and
+    sigma the std of e (dB). With offsets free, n comes from the distance changes seen by each
+    receiver, not from which receivers happen to be far (a fit with one P0 confounds the two).
+    Samples closer than d0 are left out. Returns {P0_dBm, n, sigma_dB, offsets_dB: {a: o_a}, samples}.
+    """
+    p = np.asarray(rss_dbm, dtype=float)
+    d = np.asarray(distance_m, dtype=float)
+    ids = np.asarray(anchor_id, dtype=object)
+    keep = np.isfinite(p) & np.isfinite(d) & (d >= d0_m)
+    p, ids, loss = p[keep], ids[keep], -10.0 * np.log10(d[keep] / d0_m)
+    receivers, column = np.unique(ids, return_inverse=True) if len(ids) else (np.array([]), np.array([], int))
+    if len(p) < len(receivers) + 2:
+        return {"P0_dBm": float("nan"), "n": float("nan"), "sigma_dB": float("nan"), "offsets_dB": {},
+                "samples": int(len(p))}
+    if exponent is None:
+        n, p0s = _weighted_line(p, loss, column, np.ones(len(p)))
+    else:
+        n = float(exponent)
+        p0s = np.bincount(column, p - n * loss) / np.bincount(column)
+    residual = p - n * loss - p0s[column]
+    p0 = float(p0s.mean())
+    return {"P0_dBm": p0, "n": float(n), "sigma_dB": float(residual.std(ddof=len(receivers) + (exponent is None))),
+            "offsets_dB": {str(a): float(b - p0) for a, b in zip(receivers, p0s)}, "samples": int(len(p))}
+
+
 RANGE_FIT_TOLERANCE_M = 1e-11     # IRLS stops when no fitted range moves by more than this (m)
 RANGE_FIT_ROUNDING = 1e-12        # ... or at the rounding floor: steps below this share of the largest
                                   # range that no longer shrink (long ranges, many samples)

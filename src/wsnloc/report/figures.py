@@ -30,6 +30,7 @@ from wsnloc.campaign import Campaign  # noqa: E402
 
 TECH_STYLE = {"uwb": ("tab:red", "^"), "zigbee": ("tab:blue", "o"), "cricket": ("tab:green", "s")}
 LABEL_OFFSET = {"uwb": (4, -10), "zigbee": (4, 3)}   # points; keeps co-located anchors readable
+TRACK_FRAME_MARGIN = 0.5   # trajectory panels: the truth's box widened by half its larger side each way
 
 
 PNG_DPI = 110
@@ -258,8 +259,9 @@ def floor_plan(campaign: Campaign, track: pd.DataFrame | None = None, anchors: p
     for tech, group in anchors.groupby("tech"):
         color, marker = TECH_STYLE.get(tech, ("tab:gray", "D"))
         ax.scatter(group["x"], group["y"], c=color, marker=marker, s=45, label=f"{tech} ({len(group)})", zorder=3)
-        for _, a in group.iterrows():
-            ax.annotate(a["anchor_id"], (a["x"], a["y"]), xytext=LABEL_OFFSET.get(tech, (4, 3)),
+        # anchors at one (x, y) (e.g. two heights on one mast) share one label, "A5/A9", not two on top of each other
+        for (x, y), same in group.groupby([group["x"].round(2), group["y"].round(2)], sort=False):
+            ax.annotate("/".join(same["anchor_id"].astype(str)), (x, y), xytext=LABEL_OFFSET.get(tech, (4, 3)),
                         textcoords="offset points", fontsize=7, color=color)
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
@@ -376,17 +378,37 @@ def error_cdf(panels: dict[str, dict[str, np.ndarray]], xmax: float | None = 4.0
     return fitted_png(fig)
 
 
+def trajectory_frame(truth: pd.DataFrame) -> tuple[float, float, float, float]:
+    """(x0, x1, y0, y1) (m) a trajectory panel shows: the truth's bounding box widened on each
+    side by TRACK_FRAME_MARGIN of its larger side (at least 1 m), so one diverged estimate does
+    not shrink the site to a dot."""
+    x0, x1 = truth["x"].min(), truth["x"].max()
+    y0, y1 = truth["y"].min(), truth["y"].max()
+    margin = max(TRACK_FRAME_MARGIN * max(x1 - x0, y1 - y0), 1.0)
+    return x0 - margin, x1 + margin, y0 - margin, y1 + margin
+
+
 @gc_paused
 def trajectories(panels: dict[str, tuple[pd.DataFrame, dict[str, pd.DataFrame]]]) -> bytes:
-    """True path and estimated tracks (x, y in m), one panel per title."""
+    """True path and estimated tracks (x, y in m), one panel per title; the axes show the
+    trajectory_frame of the truth, and the title says how many estimates lie outside it."""
     fig, axes = plt.subplots(len(panels), 1, figsize=(10, 3.3 * len(panels)), squeeze=False)
     for ax, (title, (truth, tracks)) in zip(axes[:, 0], panels.items()):
         ax.plot(truth["x"], truth["y"], color="k", lw=2.2, label="truth")
+        x0, x1, y0, y1 = trajectory_frame(truth)
+        outside, total = 0, 0
         for label, track in tracks.items():
             ax.plot(track["x"], track["y"], lw=0.9, marker=".", ms=3, label=label)
+            finite = track[np.isfinite(track["x"]) & np.isfinite(track["y"])]
+            total += len(finite)
+            outside += int((~finite["x"].between(x0, x1) | ~finite["y"].between(y0, y1)).sum())
+        ax.set_xlim(x0, x1)
+        ax.set_ylim(y0, y1)
         ax.set_aspect("equal")
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
+        if outside:
+            title = f"{title}\n{outside} of {total} estimates outside the frame (truth + {TRACK_FRAME_MARGIN:.0%})"
         ax.set_title(title, fontsize=10)
         ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     return fitted_png(fig)
@@ -404,7 +426,7 @@ def error_over_time(panels: dict[str, dict[str, pd.DataFrame]]) -> bytes:
         ax.set_ylabel("error [m]")
         ax.set_title(title, fontsize=10)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, loc="upper left")
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))     # beside: many curves
     return fitted_png(fig)
 
 
