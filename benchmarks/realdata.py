@@ -25,6 +25,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
+from publish import publish  # noqa: E402
 from wsnloc.estimate import estimate_run  # noqa: E402
 from wsnloc.estimators import registry  # noqa: E402
 from wsnloc.estimators.run_data import RunData  # noqa: E402
@@ -57,7 +58,6 @@ def self_fit_cost(tables: dict, run_dir: Path) -> float:
 
 
 FAILED: list[str] = []
-BEGIN, END = "<!-- benchmarks/realdata.py: begin -->", "<!-- benchmarks/realdata.py: end -->"
 
 
 def uwb_rows(src: Path, out: Path) -> list[str]:
@@ -134,14 +134,7 @@ def main(argv=None) -> int:
         ["", f"Checks failed: {'; '.join(FAILED)}." if FAILED else "Every check passed.",
          "", f"(`python benchmarks/realdata.py`, {time.strftime('%Y-%m-%d', time.gmtime())}, "
              f"{time.perf_counter() - started:.0f} s)"]
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "realdata.md").write_text("\n".join(text) + "\n")
-    print("\n".join(text))
-    if args.docs:
-        docs = ROOT / "docs" / "realdata.md"
-        page = docs.read_text()
-        head, tail = page.split(BEGIN)[0], page.split(END)[1]
-        docs.write_text(head + BEGIN + "\n" + "\n".join(text) + "\n" + END + tail)
+    publish(text, out, "realdata", "docs/realdata.md" if args.docs else None)
     return 1 if FAILED else 0
 
 

@@ -37,6 +37,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 from synthetic import write_real_like_run  # noqa: E402
 
 from wsnloc.analysis.filter_bounds import filter_pcrb  # noqa: E402
+from publish import publish  # noqa: E402
 from wsnloc.estimate import estimate_run  # noqa: E402
 from wsnloc.estimators import registry  # noqa: E402
 from wsnloc.estimators.auto import measurements_for  # noqa: E402
@@ -47,7 +48,6 @@ from wsnloc.io.generic import ingest_run, run_campaign  # noqa: E402
 from wsnloc.io.tdoa_from_ranges import convert_tdoa  # noqa: E402
 from wsnloc.metrics.tracking import covered_share, truth_span  # noqa: E402
 
-BEGIN, END = "<!-- benchmarks/tdoa_geometry.py: begin -->", "<!-- benchmarks/tdoa_geometry.py: end -->"
 ESTIMATOR = "tracker"          # `wsnloc estimate`'s default
 
 
@@ -137,14 +137,7 @@ def main(argv=None) -> int:
         + simulated_rows(out, args.seeds) + [
         "", f"(`python benchmarks/tdoa_geometry.py`, {time.strftime('%Y-%m-%d', time.gmtime())}, "
             f"{time.perf_counter() - started:.0f} s)"]
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "tdoa_geometry.md").write_text("\n".join(text) + "\n")
-    print("\n".join(text))
-    if args.docs:
-        docs = ROOT / "docs" / "estimators.md"
-        page = docs.read_text()
-        head, tail = page.split(BEGIN)[0], page.split(END)[1]
-        docs.write_text(head + BEGIN + "\n" + "\n".join(text) + "\n" + END + tail)
+    publish(text, out, "tdoa_geometry", "docs/estimators.md" if args.docs else None)
     return 0
 
 
