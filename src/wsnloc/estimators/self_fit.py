@@ -47,7 +47,8 @@ estimator's own filter or smoother then runs once with the fitted values (`outpu
    So the best candidate also runs on the segment with the ranges as measured, and the correction
    is kept only when it raises max_c L(c) by more than the BIC penalty of its parameters,
    (1 + n_anchors) / 2 ln(n_innovations) (a likelihood-ratio test: the likelihood of nested
-   models, the extra parameters paid for); else the output pass reads the ranges as measured.
+   models, the extra parameters paid for; the corrected ranges (r - b) / s pay n log s, the
+   density of r); else the output pass reads the ranges as measured.
    attrs `self_fit_range_correction` (applied / not supported), `self_fit_range_ll_gain`,
    `self_fit_range_ll_penalty`.
 
@@ -353,7 +354,11 @@ def two_pass(data, p: dict, run_pass, output) -> pd.DataFrame:
         ll_plain = _score(run_pass, replace(part, range_model=None, _cache={}),
                           dict(candidates[best], range_calibration="none"), span)[0]
         penalty = 0.5 * (1 + len(model["offsets_m"])) * np.log(scores[best][2])
-        if p["measurements"] == "tdoa":    # innovations of z' = (z - b) / s: the density of z is that of z' / s
+        # The corrected measurements z' = (z - b) / s (ranges and range differences alike) have
+        # the density of z times s: the corrected pass pays n log s, or a scale above 1 would
+        # win by shrinking every residual. On `hybrid` the innovations mix ranges with RSS and
+        # the range count is not separated: the term is left out there.
+        if p["measurements"] in ("toa", "tdoa"):
             ll_plain += scores[best][2] * np.log(model["scale"])
         supported = ll[best] - ll_plain > penalty
         fitted.update(self_fit_range_correction="applied" if supported else "not supported",
