@@ -127,7 +127,8 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
             and len(run_tables["ranges"]) and p.get("measurements", "toa") != "rss":
         p = dict(p, range_calibration="other_run")       # the donor calibrates the ranges too
     rss_model, range_model = donor_models(fmt, calibration_dir, campaign, out / "calibration", name, p,
-                                          reads_rss(name, p)) if calibration_dir else (None, None)
+                                          reads_rss(name, p) and p.get("rss_calibration") != "configured") \
+        if calibration_dir else (None, None)
     if rss_model and "exponent_choice" in rss_model:
         notes.append(f"RSS model from the donor: per-receiver P0 offsets, exponent {rss_model['exponent_choice']}")
     data = RunData(run_tables, campaign, rss_model, str(run_dir), range_model)

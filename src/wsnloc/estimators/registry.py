@@ -271,11 +271,13 @@ ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
     Estimator("kf_tracker", "Constant-velocity Kalman filter over per-epoch fixes (paper D's comparison)",
               FIX_SOURCE + KALMAN_FIXES + VELOCITY, _kalman_run),
     Estimator("ekf", "EKF: motion model p / pv / pva, toa / rss / hybrid measurements, epoch or sequential "
-              "updates, optional motion detection, innovation gate at 0.999 (papers A and C: their cells have no gate)",
+              f"updates, optional motion detection, innovation gate at {filter_options.STANDARD_GATE} "
+              "(papers A and C: their cells have no gate)",
               COMMON + RSS + GATED_FILTER, bayes.run_filter, _filter_inputs),
-    Estimator("ekf_p", "EKF with the P (random walk) model (paper C), gated at 0.999 and self-fitted as the "
+    Estimator("ekf_p", f"EKF with the P (random walk) model (paper C), gated at {filter_options.STANDARD_GATE} and "
+              "self-fitted as the "
               "tracker (its random walk's p_sigma_m is a speed, which differs from run to run)",
-              COMMON + RSS + _with(GATED_FILTER, motion="p", self_fit=TRACKER_DEFAULTS["self_fit"]),
+              COMMON + RSS + _with(GATED_FILTER, motion="p"),
               bayes.run_filter, _filter_inputs),
     Estimator("ekf_pva", "EKF with the PVA model: measured acceleration as input, bias states (paper C)",
               COMMON + RSS + _with(FILTER, motion="pva"), bayes.run_filter, _filter_inputs),
@@ -283,7 +285,7 @@ ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
               "(paper A, Table II)", COMMON + RSS + _with(FILTER, motion_detection=True),
               bayes.run_filter, _filter_inputs),
     Estimator("tracker", "Recommended tracker for any range data: PV EKF with sequential updates (ranges used "
-              "at their own times, one anchor at a time is fine), innovation gate at 0.999, window initiator, "
+              f"at their own times, one anchor at a time is fine), innovation gate at {filter_options.STANDARD_GATE}, window initiator, "
               "coasting limit",
               COMMON + RSS + _with(FILTER, **TRACKER_DEFAULTS), bayes.run_filter, _filter_inputs),
     Estimator("ukf", "Unscented Kalman filter (scaled sigma points) with the EKF's motion models, measurements, "
