@@ -111,7 +111,7 @@ def simulated_rows(out: Path, seeds: int) -> list[str]:
 
 
 def rows(src: Path, out: Path) -> list[str]:
-    lines = [HEADER[0].format("case"), HEADER[1]]
+    lines, sigma = [HEADER[0].format("case"), HEADER[1]], float("nan")
     for run in convert_cucudasluv(src, out / "converted" / "ranges"):
         label = f"{run.run_dir.parent.name}/{run.run_dir.name}"
         tdoa_dir = convert_tdoa(run.run_dir, out / "converted" / "tdoa" / label)[0].run_dir

@@ -204,9 +204,10 @@ def contributions(n: Numbers, experiment: str, scenario: str, table: dict, row: 
 
 def gap_account(gap: float, parts: list[tuple[str, float]]) -> str:
     """The gap (ours - paper, m) against the mechanisms' predicted contributions (contributions):
-    their sum (linear: for independent errors, which add in quadrature, an upper bound) and the
-    unexplained rest, gap - sum (negative: the mechanisms predict more than the gap, i.e. the
-    paper's data carry part of them too)."""
+    their sum, linear, and the unexplained rest, gap - sum (negative: the mechanisms predict more
+    than the gap, i.e. the paper's data carry part of them too). The sum is an order of magnitude,
+    not a bound: the NLOS term is a range RMS taken for a position error (no geometry factor),
+    a rests term can be negative, and independent errors add in quadrature."""
     if not parts:
         return f"No mechanism quantified for this cell: the gap {gap:+.3f} m is not accounted for by a computed contribution."
     total = sum(value for _, value in parts)
