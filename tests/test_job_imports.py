@@ -16,7 +16,7 @@ HEAVY = ("scipy.signal", "scipy.stats", "scipy.linalg", "scipy.special", "scipy.
 # polyphase FIR of wsnloc.signal.resample, not scipy.signal; ingest loads matplotlib only at
 # the end, when it writes the scenario's data summary and its figures; each paper's one job
 # draws its figures; the report embeds the figures other jobs drew, the floor plans included).
-LIGHT_JOBS = ("simulate", "ingest", "study_cell", "report")
+LIGHT_JOBS = ("simulate", "ingest", "study_scenario", "report")
 
 
 @pytest.mark.parametrize("job", LIGHT_JOBS)

@@ -51,3 +51,30 @@ def test_a_cell_without_estimates_fails_naming_the_cell_and_the_reason():
     with pytest.raises(WsnlocError, match=r"cell ml \(multilateration\) on site/walk, run-01, subset 'all': no "
                                           r"estimates; 40 usable ranges from 1 anchors"):
         run_cell("site/walk", "ml", "multilateration", p, ["all"], runs, None)
+
+
+def test_cells_of_a_scenario_share_the_self_fit_passes_and_give_the_estimates_they_give_alone(monkeypatch):
+    """run_cells (one job per scenario): the self-fitted EKF, its smoother, the UKF and the
+    particle filter fit on the same EKF passes, computed once per run; each cell's estimates
+    are exactly those it gives alone."""
+    from synthetic import walk
+
+    from wsnloc.estimators import bayes
+    from wsnloc.studies import run_cells
+
+    rng = np.random.default_rng(5)
+    times = np.sort(rng.uniform(0.0, 60.0, 240))
+    ids = rng.choice(np.array(list(SQUARE), dtype=object), len(times))
+    runs = {"run-01": tables_for(times, ids, walk, SQUARE, noise_m=0.1, rng=rng)}
+    cells = [{"cell": name, "estimator": name, "parameters": registry.get(name).resolve({})}
+             for name in ("ekf", "ekf_rts", "ukf", "pf")]
+    passes = []
+    original = bayes.run_filters
+    monkeypatch.setattr(bayes, "run_filters", lambda *a, **k: passes.append(1) or original(*a, **k))
+    estimates, _, _ = run_cells("site/walk", cells, ["all"], runs, None)
+    shared = len(passes)
+    for cell in cells:
+        alone, _ = run_cell("site/walk", cell["cell"], cell["estimator"], cell["parameters"], ["all"], runs, None)
+        together = estimates[estimates["cell"] == cell["cell"]].reset_index(drop=True)
+        np.testing.assert_array_equal(together[["x", "y"]].to_numpy(), alone[["x", "y"]].to_numpy())
+    assert shared < 0.5 * (len(passes) - shared), (shared, len(passes) - shared)

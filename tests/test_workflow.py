@@ -150,7 +150,7 @@ def test_adding_an_estimator_to_a_study_reruns_only_its_cells(workdir):
         result = snakemake(workdir, "-n", "--quiet", "rules")
         planned = result.stdout + result.stderr
         counts = dict(re.findall(r"^(\w+)\s+(\d+)$", planned, flags=re.MULTILINE))
-        assert counts.get("study_cell") == "2" and "paper_a" not in counts, planned
+        assert counts.get("study_scenario") == "2" and "paper_a" not in counts, planned
         assert not any(rule.startswith(("simulate", "ingest")) for rule in counts), planned
     finally:
         del config["studies"]["workbench"]["estimators"]["ekf_p"]

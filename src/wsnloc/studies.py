@@ -12,8 +12,10 @@
           mysite: {max_range_m: 60}           #   a parameter, for every cell that has it
           mysite/walk: {ekf_slow: {epoch_s: 1.0}}   # or a cell's own parameters
 
-A cell is (study, dataset/scenario, estimator cell); one job runs every run and subset of
-it, so adding a scenario or an estimator re-runs only the new cells. Parameters resolve
+A cell is (study, dataset/scenario, estimator cell); one job per (study, dataset/scenario)
+runs all its cells on every run and subset (the runs read once, what the cells derive from
+them shared: run_cells), so adding a scenario runs one more job, and adding or changing a
+cell re-runs the study's scenario jobs (not the ingest or the papers). Parameters resolve
 in this order: registry default < `parameters` < the cell's entry < overrides[dataset] <
 overrides[dataset/scenario] (within one, a cell's own mapping after the shared keys). The
 papers (wsnloc.experiments) declare their cells the same way.
@@ -32,6 +34,7 @@ from wsnloc.analysis.filter_quality import QUALITY_COLUMNS, cell_outputs, run_qu
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError, WsnlocError, did_you_mean
 from wsnloc.estimators import registry
+from wsnloc.estimators.range_calibration import model_key
 from wsnloc.estimators.run_data import ALL_ANCHORS, RunData
 from wsnloc.experiments import calibration
 from wsnloc.metrics.tracking import RUN_METRICS, run_metrics, score
@@ -46,8 +49,10 @@ CALIBRATION = ("calibrated_scale", "calibration_fitted", "range_scale", "range_o
 DIAGNOSIS = ("diag_nis_mean", "diag_nis_high", "diag_range_scale", "diag_max_abs_offset_m")   # wsnloc.diagnosis
 UNIT = {"diag_nis_mean": "per_dof", "diag_nis_high": "per_dof", "diag_range_scale": "1", "n": "count", "availability": "share", "resets": "count", "gated": "share", "efficiency": "ratio",
         "time_per_step": "us", "calibrated_scale": "1", "calibration_fitted": "share", "range_scale": "1"}
-# wall-clock time of the estimator per output step (us): measured in the cell job, so it varies from
-# build to build and is left out of byte-reproducibility checks (metric time_per_step_us)
+# wall-clock time of the estimator per output step (us): measured in the scenario job, so it varies from
+# build to build and is left out of byte-reproducibility checks (metric time_per_step_us); a cell after
+# the first of its scenario reuses the run's cached products (epochs, fixes, self-fit passes): its
+# marginal cost in the study, not its cost alone (benchmarks/ measures that)
 
 
 def study_cells(config: dict) -> dict[str, list[tuple[str, str, str]]]:
@@ -200,18 +205,42 @@ def diagnose(data: RunData, p: dict) -> str:
             f"from {rss['anchor_id'].nunique()} anchors of subset {p.get('anchors', ALL_ANCHORS)!r}{reads}")
 
 
+def run_cells(label: str, cells: list[dict], subsets: list[str], runs: dict[str, dict], campaign: Campaign | None,
+              donors: dict[str, dict] | None = None) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
+    """(estimates, metrics, quality table) of every cell ({cell, estimator, parameters}) of one
+    scenario, each with a `cell` column; `runs` holds every table any cell reads. The cells share
+    their runs' RunData where they read the same tables with the same calibration, and with it
+    its cached products (epochs, fixes, the self-fit's passes)."""
+    shared: dict = {}
+    estimates, metrics, quality = [], [], []
+    for c in cells:
+        names = registry.get(c["estimator"]).tables(c["parameters"])
+        own = {run: {n: frames[n] for n in names} for run, frames in runs.items()}
+        est, met = run_cell(label, c["cell"], c["estimator"], c["parameters"], subsets, own, campaign, donors, shared)
+        estimates.append(est.assign(cell=c["cell"]))
+        metrics.append(met.assign(cell=c["cell"]))
+        quality.append(quality_table(est).assign(cell=c["cell"]))
+    return tuple(pd.concat(frames, ignore_index=True) for frames in (estimates, metrics, quality))
+
+
 def run_cell(label: str, cell: str, name: str, p: dict, subsets: list[str], runs: dict[str, dict],
-             campaign: Campaign | None, donors: dict[str, dict] | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+             campaign: Campaign | None, donors: dict[str, dict] | None = None,
+             shared: dict | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(estimates, metrics) of one cell over every run and subset; raises when any yields nothing.
 
     For a Bayesian filter the estimates also carry pcrb_m2 and nees, and the metrics sqrt_pcrb
-    and efficiency (analysis.filter_quality)."""
+    and efficiency (analysis.filter_quality). `shared`: RunData of earlier cells of the same
+    runs (run_cells), reused when the tables and calibration models are the same."""
     models = donor_models(runs, donors or {}, campaign, name, p, reads_rss(name, p))
     range_models = range_donor_models(runs, donors or {}, campaign, p)
     bayesian = is_bayesian(registry.get(name).function)
+    shared = {} if shared is None else shared
     estimates, metrics = [], []
     for run, run_tables in runs.items():
-        data = RunData(run_tables, campaign, models[run], f"{label}/{run}", range_models[run])
+        key = (run, tuple(run_tables), model_key(models[run]), model_key(range_models[run]))
+        if key not in shared:
+            shared[key] = RunData(run_tables, campaign, models[run], f"{label}/{run}", range_models[run])
+        data = shared[key]
         for subset in subsets:
             q = dict(p, anchors=subset) if "anchors" in p else p
             started = time.perf_counter()

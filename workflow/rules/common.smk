@@ -161,25 +161,25 @@ STUDIES = config.get("studies") or {}
 STUDY_CELLS = study_cells(config)   # study: [(dataset, scenario, cell)]
 
 
-def study_cell_spec(w):
-    """Estimator name, resolved parameters and subsets of one cell (its Snakemake params)."""
+def study_scenario_cells(w):
+    """Every cell of the study on one scenario: name, estimator and resolved parameters (the
+    scenario job's Snakemake params: a changed parameter re-runs its scenario's job)."""
     spec = STUDIES[w.study]
-    params = cell_params(spec, w.cell, w.dataset, w.scenario, f"studies.{w.study}")
-    return {"estimator": estimator_of(spec, w.cell), "parameters": params, "subsets": spec.get("subsets") or ["all"],
-            "runs": spec.get("runs")}
+    return [{"cell": cell, "estimator": estimator_of(spec, cell),
+             "parameters": cell_params(spec, cell, w.dataset, w.scenario, f"studies.{w.study}")}
+            for cell in spec["estimators"]]
 
 
-def study_cell_inputs(w):
-    """Tables of the scenario (+ 5 Hz IMU when read), and calibration donors (RSS or ranges)
-    of the same dataset when the scenario has a single run."""
-    cell = study_cell_spec(w)
-    estimator = _registry.get(cell["estimator"])
+def study_scenario_inputs(w):
+    """Tables of the scenario (+ 5 Hz IMU when a cell reads it), and calibration donors (RSS or
+    ranges) of the same dataset when the scenario has a single run and a cell calibrates."""
+    cells = study_scenario_cells(w)
     inputs = {"tables": tables_of(w.dataset, w.scenario), "campaign": campaign_file(w), "donors": []}
-    if "imu_5hz" in estimator.tables(cell["parameters"]):
+    if any("imu_5hz" in _registry.get(c["estimator"]).tables(c["parameters"]) for c in cells):
         inputs["imu_5hz"] = imu_of(w.dataset, w.scenario)
     single = len(dataset_runs(config, w.dataset, w.scenario)) < 2
-    calibrates = reads_rss(cell["estimator"], cell["parameters"]) \
-        or cell["parameters"].get("range_calibration") == "other_run"
+    calibrates = any(reads_rss(c["estimator"], c["parameters"]) or c["parameters"].get("range_calibration") == "other_run"
+                     for c in cells)
     if single and calibrates:
         inputs["donors"] = [p for s in config["datasets"][w.dataset]["scenarios"] if s != w.scenario
                             for p in tables_of(w.dataset, s)]

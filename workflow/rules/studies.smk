@@ -1,33 +1,36 @@
-# Studies (config `studies`): one job per cell (study, dataset/scenario, estimator) with all
-# its runs and anchor subsets, then one summary job per study. Helpers in common.smk.
+# Studies (config `studies`): one job per (study, dataset/scenario) that runs every cell (estimator)
+# of the study on all runs and anchor subsets of the scenario, then one summary job per study.
+# Helpers in common.smk.
 
 
-rule study_cell:
+rule study_scenario:
     input:
-        unpack(study_cell_inputs),
+        unpack(study_scenario_inputs),
     output:
-        estimates="data/processed/studies/{study}/{dataset}/{scenario}/{cell}/estimates.parquet",
-        metrics="data/processed/studies/{study}/{dataset}/{scenario}/{cell}/metrics.csv",
-        quality="data/processed/studies/{study}/{dataset}/{scenario}/{cell}/quality.parquet",
+        estimates="data/processed/studies/{study}/{dataset}/{scenario}/estimates.parquet",
+        metrics="data/processed/studies/{study}/{dataset}/{scenario}/metrics.csv",
+        quality="data/processed/studies/{study}/{dataset}/{scenario}/quality.parquet",
     params:
-        cell=study_cell_spec,
+        cells=study_scenario_cells,
+        subsets=lambda w: STUDIES[w.study].get("subsets") or ["all"],
+        runs=lambda w: STUDIES[w.study].get("runs"),
         label="{dataset}/{scenario}",
     priority: PRIORITY["cell"]
     log:
-        "logs/studies/{study}/{dataset}-{scenario}-{cell}.log",
+        "logs/studies/{study}/{dataset}-{scenario}.log",
     conda:
         ENV
     script:
-        "../scripts/study_cell.py"
+        "../scripts/study_scenario.py"
 
 
 rule study_summary:
     input:
-        metrics=lambda w: [f"data/processed/studies/{w.study}/{d}/{s}/{c}/metrics.csv" for d, s, c in STUDY_CELLS[w.study]],
-        estimates=lambda w: [f"data/processed/studies/{w.study}/{d}/{s}/{c}/estimates.parquet"
-                             for d, s, c in STUDY_CELLS[w.study]],
-        quality=lambda w: [f"data/processed/studies/{w.study}/{d}/{s}/{c}/quality.parquet"
-                           for d, s, c in STUDY_CELLS[w.study]],
+        metrics=lambda w: [f"data/processed/studies/{w.study}/{label}/metrics.csv" for label in STUDIES[w.study]["scenarios"]],
+        estimates=lambda w: [f"data/processed/studies/{w.study}/{label}/estimates.parquet"
+                             for label in STUDIES[w.study]["scenarios"]],
+        quality=lambda w: [f"data/processed/studies/{w.study}/{label}/quality.parquet"
+                           for label in STUDIES[w.study]["scenarios"]],
         references=study_reference_inputs,
     output:
         results="data/processed/studies/{study}/results.csv",
@@ -38,6 +41,7 @@ rule study_summary:
         consistency="data/processed/studies/{study}/figures/consistency.png",
         bars="data/processed/studies/{study}/figures/estimators.png",
     params:
+        labels=lambda w: STUDIES[w.study]["scenarios"],
         cells=lambda w: [{"label": f"{d}/{s}", "cell": c,
                           "parameters": cell_params(STUDIES[w.study], c, d, s, f"studies.{w.study}")}
                          for d, s, c in STUDY_CELLS[w.study]],

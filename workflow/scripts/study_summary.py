@@ -16,13 +16,18 @@ from wsnloc.experiments.realdata import scenario_reference_rows
 from wsnloc.studies import bound_summary, estimator_panels, results_rows, study_panels
 
 study = sm.wildcards.study
-rows, estimates = [], {}
-for cell, metrics_path, estimates_path in zip(sm.params.cells, sm.input.metrics, sm.input.estimates):
-    rows += results_rows(study, cell["cell"], cell["label"], pd.read_csv(metrics_path, keep_default_na=False,
-                                                                          na_values=[""]))
-    estimates[(cell["label"], cell["cell"])] = tables.read(estimates_path)
-qualities = [pd.read_parquet(path) for path in sm.input.quality]
-bayesian = [(cell, q) for cell, q in zip(sm.params.cells, qualities) if len(q)]
+scenarios = {label: (pd.read_csv(metrics, keep_default_na=False, na_values=[""]), tables.read(estimates),
+                     pd.read_parquet(quality))
+             for label, metrics, estimates, quality in zip(sm.params.labels, sm.input.metrics, sm.input.estimates,
+                                                           sm.input.quality)}
+rows, estimates, bayesian = [], {}, []
+for cell in sm.params.cells:          # in the config's order: scenario, then cell
+    metrics, estimated, quality = (frame[frame["cell"] == cell["cell"]].drop(columns="cell")
+                                   for frame in scenarios[cell["label"]])
+    rows += results_rows(study, cell["cell"], cell["label"], metrics)
+    estimates[(cell["label"], cell["cell"])] = estimated
+    if len(quality):
+        bayesian.append((cell, quality))
 bound_rows, bound_panels, consistency_panels = bound_summary(study, *map(list, zip(*bayesian))) if bayesian \
     else ([], [], [])
 rows += bound_rows

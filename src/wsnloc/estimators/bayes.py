@@ -55,6 +55,7 @@ from wsnloc.estimators.fixes import epoch_fixes
 from wsnloc.estimators.inertial import epoch_inputs, floor_input, heading_from_fixes
 from wsnloc.estimators.measurements import MeasurementSource, rss_params
 from wsnloc.estimators.motion import MotionModel
+from wsnloc.estimators.parameters import Param
 from wsnloc.estimators.run_data import RunData
 from wsnloc.estimators.smoothing import ForwardPass
 from wsnloc.estimators.tdoa import TdoaSource
@@ -66,6 +67,30 @@ from wsnloc.filters.ukf import UnscentedKalmanFilter
 from wsnloc.inertial.motion_detection import static_epochs
 
 ODOMETRY_INPUTS = ("v_mps", "yaw_rate_rps")     # the odometry table's columns, the odometry model's u
+
+
+# The parameters only the UKF and the particle filter read (registry: their estimators add them).
+UKF = (
+    Param("alpha", 1.0, "1", "UKF sigma-point spread; 1 with kappa = 0 gives lambda = 0: non-negative weights, "
+          "S and P stay positive semi-definite (a small alpha such as 1e-3 amplifies round-off)", minimum=1e-6),
+    Param("beta", 2.0, "1", "UKF prior-distribution term of the centre weight Wc_0; 2 is optimal for a Gaussian "
+          "prior"),
+    Param("kappa", 0.0, "1", "UKF secondary scaling, lambda = alpha^2 (n + kappa) - n"),
+)
+PARTICLE = (
+    Param("n_particles", 1000, "1", "particle filter size N: Monte Carlo error of the mean ~ spread / sqrt(N), "
+          "a few cm for a 1 m posterior spread at 1000; cost grows linearly", int, minimum=1),
+    Param("resample_threshold", 0.5, "1", "systematic resampling when the effective sample size 1 / sum w^2 "
+          "falls below this share of N (0..1; the usual N/2 rule)", minimum=0.0),
+    Param("outlier_probability", 0.05, "1", "heavy-tailed range likelihood (1 - eps) N(r; 0, sigma^2) + eps / span "
+          "(0..1; 0: Gaussian, the EKF's likelihood; 0.05: real UWB, where NLOS and multipath give a few ranges "
+          "metres long, which a Gaussian likelihood lets drag the cloud)", minimum=0.0),
+    Param("outlier_span_m", 50.0, "m", "span of the uniform outlier component: the longest range error "
+          "possible (site diagonal plus the largest NLOS excess)", minimum=1e-3),
+    Param("seed", 0, "1", "random stream of each run: numpy Generator seeded with (seed, CRC-32 of the run's "
+          "name), so results are reproducible and runs independent", int, minimum=0),
+)
+FILTER_OWN_PARAMS = frozenset(p.name for p in UKF + PARTICLE)
 
 
 def ekf_factory(p: dict, data: RunData, guards: Guards):
@@ -192,11 +217,19 @@ def _fit_pass(data: RunData, p: dict) -> tuple[pd.DataFrame, tuple[np.ndarray, n
     filter per candidate would cost several times its own pass). Gated at the filter's gate,
     or at STANDARD_GATE for an ungated filter (the particle filter has no gate): ungated, NLOS
     ranges pull the fit's track and the range correction read from it (on the real outdoor UWB
-    runs it then applied a correction the gated fit rejects and doubled the pf's median)."""
-    counts: list[UpdateCounts] = []
+    runs it then applied a correction the gated fit rejects and doubled the pf's median).
+
+    The pass depends on the run, its range correction and the EKF's parameters only, so it is
+    computed once per run and key (RunData.cached): the cells of a study that differ in the filter
+    or in the UKF's and particle filter's own parameters share their fit passes."""
     q = dict(p, self_fit="none", filter="ekf", gate_probability=p["gate_probability"] or STANDARD_GATE)
-    frame = run_filters([(data, q)], counts_out=counts)[0].frame()
-    return frame, counts[0].innovation_arrays()
+
+    def build():
+        counts: list[UpdateCounts] = []
+        frame = run_filters([(data, q)], counts_out=counts)[0].frame()
+        return frame, counts[0].innovation_arrays()
+    key = tuple(sorted((k, v) for k, v in q.items() if k not in FILTER_OWN_PARAMS))
+    return data.cached(("fit_pass", range_calibration.model_key(data.range_model), key), build)
 
 
 def run_smoother(data: RunData, p: dict) -> pd.DataFrame:

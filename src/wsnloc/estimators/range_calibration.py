@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
 import pandas as pd
 
 from wsnloc.errors import ConfigError
@@ -58,6 +59,16 @@ def configured(campaign) -> RangeCorrection:
             raise ConfigError(f"{campaign.source}: key 'range_calibration.offsets_m.{anchor}': not an anchor of "
                               f"the campaign")
     return RangeCorrection.of(spec, f"configured in {campaign.source}")
+
+
+def model_key(model: dict | None):
+    """A hashable key of a range model (RunData.range_model: scale, offsets, source, any other
+    entries), equal for equal models: mappings as sorted items, recursively; None for none."""
+    if isinstance(model, dict):
+        return tuple(sorted((str(k), model_key(v)) for k, v in model.items()))
+    if isinstance(model, (list, tuple, np.ndarray)):
+        return tuple(model_key(v) for v in model)
+    return model
 
 
 def correction(data, p: dict) -> RangeCorrection:

@@ -117,26 +117,6 @@ FILTER = (
           "innovations, then run with them (offline, no truth; under 3x one pass; estimators.self_fit); none: the "
           "configured values", str, self_fit.MODES),
 ) + filter_options.PARAMS
-UKF = (
-    Param("alpha", 1.0, "1", "UKF sigma-point spread; 1 with kappa = 0 gives lambda = 0: non-negative weights, "
-          "S and P stay positive semi-definite (a small alpha such as 1e-3 amplifies round-off)", minimum=1e-6),
-    Param("beta", 2.0, "1", "UKF prior-distribution term of the centre weight Wc_0; 2 is optimal for a Gaussian "
-          "prior"),
-    Param("kappa", 0.0, "1", "UKF secondary scaling, lambda = alpha^2 (n + kappa) - n"),
-)
-PARTICLE = (
-    Param("n_particles", 1000, "1", "particle filter size N: Monte Carlo error of the mean ~ spread / sqrt(N), "
-          "a few cm for a 1 m posterior spread at 1000; cost grows linearly", int, minimum=1),
-    Param("resample_threshold", 0.5, "1", "systematic resampling when the effective sample size 1 / sum w^2 "
-          "falls below this share of N (0..1; the usual N/2 rule)", minimum=0.0),
-    Param("outlier_probability", 0.05, "1", "heavy-tailed range likelihood (1 - eps) N(r; 0, sigma^2) + eps / span "
-          "(0..1; 0: Gaussian, the EKF's likelihood; 0.05: real UWB, where NLOS and multipath give a few ranges "
-          "metres long, which a Gaussian likelihood lets drag the cloud)", minimum=0.0),
-    Param("outlier_span_m", 50.0, "m", "span of the uniform outlier component: the longest range error "
-          "possible (site diagonal plus the largest NLOS excess)", minimum=1e-3),
-    Param("seed", 0, "1", "random stream of each run: numpy Generator seeded with (seed, CRC-32 of the run's "
-          "name), so results are reproducible and runs independent", int, minimum=0),
-)
 SLIDING_WINDOW = (
     Param("measurements", "toa", "", "toa: ranges; tdoa: range differences (tdoa table, each time group whitened "
           "by its correlated noise)", str, ("toa", "tdoa")),
@@ -289,19 +269,19 @@ ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
               "coasting limit",
               COMMON + RSS + _with(FILTER, **TRACKER_DEFAULTS), bayes.run_filter, _filter_inputs),
     Estimator("ukf", "Unscented Kalman filter (scaled sigma points) with the EKF's motion models, measurements, "
-              "update modes, gate, initiator and coasting limit", COMMON + RSS + _filter(GATED_FILTER, "ukf") + UKF,
+              "update modes, gate, initiator and coasting limit", COMMON + RSS + _filter(GATED_FILTER, "ukf") + bayes.UKF,
               bayes.run_filter, _filter_inputs),
     Estimator("pf", "Bootstrap particle filter (systematic resampling on ESS with a shrunk kernel, heavy-tailed "
               "range likelihood, restart from a fix when its likelihood collapses) with the EKF's motion models, "
               "measurements, update modes, initiator and coasting limit",
-              COMMON + RSS + _filter(SELF_FITTED_FILTER, "pf") + PARTICLE, bayes.run_filter, _filter_inputs),
+              COMMON + RSS + _filter(SELF_FITTED_FILTER, "pf") + bayes.PARTICLE, bayes.run_filter, _filter_inputs),
     Estimator("ekf_filterpy", "filterpy's EKF (the textbook reference) in the same loops, initiator, coasting "
               "limit and update options as ekf: its estimates equal ekf's to round-off",
               COMMON + RSS + _filter(GATED_FILTER, "filterpy"), bayes.run_filter, _filter_inputs),
     Estimator("ekf_rts", "EKF followed by the fixed-interval RTS smoother (offline: each estimate uses the "
               "whole run)", COMMON + RSS + GATED_FILTER, bayes.run_smoother, _filter_inputs),
     Estimator("ukf_rts", "UKF followed by the fixed-interval RTS smoother (offline: each estimate uses the "
-              "whole run)", COMMON + RSS + _filter(GATED_FILTER, "ukf") + UKF, bayes.run_smoother, _filter_inputs),
+              "whole run)", COMMON + RSS + _filter(GATED_FILTER, "ukf") + bayes.UKF, bayes.run_smoother, _filter_inputs),
     Estimator("sliding_window", "Sliding-window batch: robust non-linear least squares over the ranges of the "
               "last W seconds with a constant-velocity prior (factor-graph style)",
               COMMON + SLIDING_WINDOW, batch.sliding_window),

@@ -73,6 +73,8 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 
+from wsnloc.estimators import range_calibration
+
 MODES = ("none", "two_pass")
 # noise candidates (sigma factor, accel factor): calmer, configured, livelier; the ratio accel / sigma
 # x 1/6, 1, 6 (the process-to-measurement noise variance ratio x 1/36, 1, 36)
@@ -280,7 +282,13 @@ def _anchors_in_tdoa(data, p) -> int:
 
 def segment(data, p: dict, share: float):
     """The run cut to the central `share` of its usable measurements (ranges, RSS, TDOA) by time:
-    the sub-run the noise candidates and the range correction are scored on (module docstring)."""
+    the sub-run the noise candidates and the range correction are scored on (module docstring).
+    Built once per run, range model and key (RunData.cached; the fit passes on it are cached on it)."""
+    key = ("segment", share, p["preliminary_filter"], p["max_range_m"], range_calibration.model_key(data.range_model))
+    return data.cached(key, lambda: _segment(data, p, share))
+
+
+def _segment(data, p: dict, share: float):
     stamps = np.sort(np.concatenate([data.usable_ranges(p["preliminary_filter"], p["max_range_m"])["t"].to_numpy(float),
                                      data.usable_rss()["t"].to_numpy(float), data.usable_tdoa()["t"].to_numpy(float)]))
     if share >= 1.0 or len(stamps) < 2:
@@ -351,8 +359,8 @@ def two_pass(data, p: dict, run_pass, output) -> pd.DataFrame:
         return out
     best = int(np.argmax(ll))
     if model is not None:                  # likelihood-ratio test of the range correction (module docstring, 4)
-        ll_plain = _score(run_pass, replace(part, range_model=None, _cache={}),
-                          dict(candidates[best], range_calibration="none"), span)[0]
+        plain = part.cached(("without range model",), lambda: replace(part, range_model=None, _cache={}))
+        ll_plain = _score(run_pass, plain, dict(candidates[best], range_calibration="none"), span)[0]
         penalty = 0.5 * (1 + len(model["offsets_m"])) * np.log(scores[best][2])
         # The corrected measurements z' = (z - b) / s (ranges and range differences alike) have
         # the density of z times s: the corrected pass pays n log s, or a scale above 1 would

@@ -116,6 +116,14 @@ SCHEMAS: dict[str, pa.Schema] = {
         *_ESTIMATE,
         *_COVARIANCE,
     ]),
+    "estimates_study": pa.schema([
+        _field("cell", pa.string(), "", "study cell (its name under the study's estimators)"),
+        _RUN,
+        _field("subset", pa.string(), "", "anchor subset"),
+        _EPOCH_T,
+        *_ESTIMATE,
+        *_COVARIANCE,
+    ]),
     "estimates_paper_a": pa.schema([
         _RUN,
         _EPOCH_T,
