@@ -20,6 +20,7 @@ import pandas as pd
 from wsnloc.analysis.setup_facts import SETUP_TABLE
 from wsnloc.campaign import Campaign
 from wsnloc.experiments import claims as claims_of
+from wsnloc.sim.imu import noise_model_of
 
 
 class Numbers:
@@ -66,9 +67,7 @@ class Numbers:
         imu = campaign.spec.get("imu")
         if imu is None or name not in campaign.spec.get("scenarios", {}):
             return math.nan
-        model = campaign.section("scenarios", name).get("overrides", {}).get("imu_noise_model") \
-            or imu.get("noise_model", "mems")
-        return _number(imu.get("accel_bias_sigma_mps2")) if model == "mems" else 0.0
+        return _number(imu.get("accel_bias_sigma_mps2")) if noise_model_of(campaign, name) == "mems" else 0.0
 
     def rss_fit(self, scenario: str) -> dict[str, float]:
         """Path-loss fit over all links (mean over runs): exponent n and residual sigma (dB)."""

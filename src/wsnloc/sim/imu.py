@@ -38,8 +38,18 @@ from __future__ import annotations
 
 import numpy as np
 
+from wsnloc.campaign import Campaign
+
 MICRO_G = 1e-6
 NOISE_MODELS = ("mems", "snr")
+DEFAULT_NOISE_MODEL = "mems"       # campaign imu.noise_model when not given
+
+
+def noise_model_of(campaign: Campaign, scenario: str) -> str:
+    """The IMU noise model a scenario is simulated with: its overrides.imu_noise_model, else
+    the campaign's imu.noise_model, else DEFAULT_NOISE_MODEL."""
+    override = campaign.section("scenarios", scenario).get("overrides", {}).get("imu_noise_model")
+    return override or campaign.spec.get("imu", {}).get("noise_model", DEFAULT_NOISE_MODEL)
 
 
 def body_motion(v, a, curvature, gravity: float) -> tuple[np.ndarray, np.ndarray]:
@@ -142,7 +152,7 @@ def sensor_readings(t, force, yaw_rate, v, spec: dict, gravity: float,
     s (m): arc length at each sample, needed by the tilt model (`tilt_angles`)."""
     fs = spec["rate_hz"]
     n = len(t)
-    model = spec.get("noise_model", "mems")
+    model = spec.get("noise_model", DEFAULT_NOISE_MODEL)
     if model not in NOISE_MODELS:
         raise ValueError(f"imu.noise_model: unknown noise model {model!r}; expected one of {NOISE_MODELS}")
     if model == "snr":

@@ -17,6 +17,7 @@ from wsnloc.sim import link_budget
 from wsnloc.sim import rss as rss_model
 from wsnloc.sim import trajectory as motion
 from wsnloc.sim import uwb_channel
+from wsnloc.sim.imu import noise_model_of
 from wsnloc.sim.tdoa import tdoa_text
 from wsnloc.sim.logs import imu_text, lines_text, positions as _positions, truth_text, write_run
 from wsnloc.sim.seeding import model_rng
@@ -52,6 +53,15 @@ def twr_clock_bias_m(spec: dict, rng: np.random.Generator, n_anchors: int, c: fl
     return c * spec.get("twr_reply_time_us", 0.0) * 1e-6 * (offsets[0] - offsets[1:]) / 2
 
 
+def ranging_rounds_ms(spec: dict, n_anchors: int, duration_s: float) -> np.ndarray:
+    """Nominal start of every UWB ranging round (ms after the trajectory's start): one each
+    `ranging_period_ms` from one period on, while the round's n_anchors rangings
+    (`anchor_spacing_ms` apart) end inside the run of duration_s (s). _uwb_lines jitters each
+    start by up to +-period_jitter_ms."""
+    period = spec["ranging_period_ms"]
+    return np.arange(period, duration_s * 1000 - n_anchors * spec["anchor_spacing_ms"], period)
+
+
 def _uwb_lines(campaign: Campaign, spec: dict, traj, rng_time, rng_channel, rng_fault, rng_clock, rng_shadow,
                detector: str, clock_ms: int) -> list[str]:
     """`uwb.log`: one two-way time of flight per (round, anchor) whose link closes, in time order.
@@ -71,8 +81,8 @@ def _uwb_lines(campaign: Campaign, spec: dict, traj, rng_time, rng_channel, rng_
     """
     c = campaign.spec["speed_of_light_mps"]
     anchors = campaign.anchors_of("uwb")
-    period, jitter = spec["ranging_period_ms"], spec["period_jitter_ms"]
-    rounds = np.arange(period, traj.duration * 1000 - len(anchors) * spec["anchor_spacing_ms"], period)
+    jitter = spec["period_jitter_ms"]
+    rounds = ranging_rounds_ms(spec, len(anchors), traj.duration)
     round_ms = rounds + rng_time.uniform(-jitter, jitter, len(rounds))
     times_ms = np.round(round_ms[:, None] + np.arange(len(anchors))[None, :] * spec["anchor_spacing_ms"])
     state = _positions(campaign, traj, times_ms.ravel() / 1000.0)
@@ -190,7 +200,7 @@ def simulate_run(campaign: Campaign, scenario: str, seeds: np.random.SeedSequenc
     scenario_spec = campaign.section("scenarios", scenario)
     overrides = scenario_spec.get("overrides", {})
     detector = detector or overrides.get("uwb_detector") or campaign.section("radio", "uwb")["detector"]
-    imu_noise = imu_noise or overrides.get("imu_noise_model") or campaign.section("imu").get("noise_model", "mems")
+    imu_noise = imu_noise or noise_model_of(campaign, scenario)
     clock_ms = int(campaign.spec.get("clock_start_ms", 0))
 
     traj = motion.for_scenario(scenario_spec, campaign.path.length, model_rng(seeds, "motion"))

@@ -15,8 +15,9 @@ import pandas as pd
 from wsnloc import results
 from wsnloc.analysis import setup_facts
 from wsnloc.estimators import batched
+from wsnloc.campaign import Campaign
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments import cells, claims as claims_of
+from wsnloc.experiments import calibration, cells, claims as claims_of
 from wsnloc.metrics import verdicts
 from wsnloc.metrics.stats import mean_ci95
 from wsnloc.metrics.tracking import cell_metrics, score
@@ -55,6 +56,25 @@ def run_all(datas: list[RunData], spec: dict, label: str) -> list[pd.DataFrame]:
     labels = {"row": [row_label(row) for row, _ in grid], "table": [table for _, table in grid]}
     return [score(batched.stacked(tracks[i * len(grid):(i + 1) * len(grid)], labels), data.table("truth"))
             for i, data in enumerate(datas)]
+
+
+def rss_models_for_runs(run_tables: dict[str, dict], campaign: Campaign, spec: dict, label: str) -> dict[str, dict]:
+    """RSS model per run (wsnloc.experiments.calibration), fitted on every ZigBee anchor with the
+    first cell's parameters (every cell shares rss_calibration)."""
+    zigbee = list(campaign.anchors_of("zigbee")["anchor_id"])
+    return calibration.rss_models_for_runs(run_tables, campaign, zigbee,
+                                           cell_params(spec, label, TABLES[0], spec["rows"][0]))
+
+
+def evaluate_runs(run_tables: dict[str, dict], campaign: Campaign, spec: dict, label: str) -> pd.DataFrame:
+    """Per-run metrics (run_metrics, column `run`) of every cell on runs given as tables (e.g.
+    extra simulated runs of scenario `label`), each run's RSS model as in the workflow
+    (rss_models_for_runs)."""
+    models = rss_models_for_runs(run_tables, campaign, spec, label)
+    estimates = run_all([RunData(tables, campaign, models[name], name) for name, tables in run_tables.items()],
+                        spec, label)
+    return pd.concat([run_metrics(est, tables["truth"]).assign(run=name)
+                      for (name, tables), est in zip(run_tables.items(), estimates)], ignore_index=True)
 
 
 def run(data: RunData, spec: dict, label: str) -> pd.DataFrame:
