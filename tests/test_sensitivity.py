@@ -97,6 +97,21 @@ def test_static_share_and_measurements_per_epoch():
     assert setup_facts.measurements_per_epoch(cell).loc["run-01"] == pytest.approx(np.mean(np.arange(len(t)) % 3))
 
 
+def test_paper_a_setup_counts_the_measurements_its_filters_used_and_says_so():
+    """Paper A's Set-up rows are the mean n_meas of Table I's first TOA and RSS rows per epoch, and
+    their labels say so (the logs' anchors per round are another count: pl0_sensitivity)."""
+    from wsnloc.experiments import paper_a
+
+    spec = {"rows": [{"measurements": "toa", "anchors": "UWB=12"}, {"measurements": "rss", "anchors": "ZigBee=21"}]}
+    t = np.arange(0.0, 5.0, 0.5)
+    est = pd.concat([pd.DataFrame({"table": "Table I", "row": paper_a.row_label(row), "run": "run-01", "t": t,
+                                   "true_x": 0.3 * t, "true_y": 0.0, "n_meas": n})
+                     for row, n in zip(spec["rows"], (9.0, 17.0))], ignore_index=True)
+    facts = results.frame(paper_a.setup_rows({"newcom/constant": est}, spec)).set_index("row")["value"]
+    assert facts[paper_a.MEASUREMENTS_USED["toa"]] == 9.0 and facts[paper_a.MEASUREMENTS_USED["rss"]] == 17.0
+    assert all("used per epoch" in label for label in paper_a.MEASUREMENTS_USED.values())
+
+
 def test_explanations_cite_the_computed_numbers_and_skip_missing_ones():
     rows = [setup_facts.fact_row("B", "static share of epochs", "d/s", pd.Series([0.1, 0.2]), "share"),
             results.row_over_runs([0.8, 0.9], experiment="B", table="RMSE", row=paper_b.METHODS["uwb"], column="d/s",
@@ -347,7 +362,13 @@ def test_the_gap_account_is_computed_from_the_builds_numbers_and_its_arithmetic_
     sigma = explanations.campaign_of(config, "newcom/b_real").section("imu", "accel_bias_sigma_mps2")
     assert f"T = 61.0 s: {math.sqrt(2) * sigma * 61.0**2 / (2 * math.sqrt(5)):+.3f} m" in line
     # paper B's simulation scenario has no accelerometer bias (snr model): no drift, no rest missed
-    assert numbers.accel_bias_sigma("newcom/b_simulation") == 0.0 and math.isnan(numbers.accel_bias_sigma("x/y"))
+    assert numbers.imu_bias_sigma("newcom/b_simulation", "accel_bias_sigma_mps2") == 0.0
+    # paper B's "why it differs" quotes the campaign's IMU biases, not numbers of its own
+    gyro = explanations.campaign_of(config, "newcom/b_real").section("imu", "gyro_bias_sigma_dps")
+    [drift] = [line for line in paper_b_report.why(numbers, ["newcom/b_real"], []) if "turn-on bias" in line]
+    assert f"({sigma:g} m/s^2 per axis, 1 sigma, campaign)" in drift and f"gyro bias ({gyro:g} deg/s)" in drift
+    assert f"b T^2 / 2 ({0.5 * sigma * 61.0**2:.0f} m over the 61 s run)" in drift
+    assert math.isnan(numbers.imu_bias_sigma("x/y", "accel_bias_sigma_mps2"))
     simulation = explanations.Numbers(results.frame([
         results.row_over_runs([1.5, 1.6, 1.55] * 4, experiment="B", table="RMSE", row=paper_b.METHODS["imu"],
                               column="newcom/b_simulation", scenario="newcom/b_simulation", metric="rmse_m",

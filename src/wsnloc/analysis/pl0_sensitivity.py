@@ -9,9 +9,10 @@ parameter needs the simulator run under each value, and the campaign's own varia
 workflow's constant / variable runs (same seeds) so that every variant is compared on the same
 draws. Per variant and scenario, from the raw tables only (ranges, truth, campaign walls):
 
-- UWB anchors heard per epoch: the distinct anchors with a valid range (status 0) in each
-  ranging round (one epoch = one round of radio.uwb.ranging_period_ms), mean over the epochs,
-  and the share of epochs with fewer than 3 (no 2-D fix from that round alone);
+- UWB anchors with a valid range per round, from the logs (not the ranges a filter used, which
+  paper A's Set-up table counts): the distinct anchors with a valid range (status 0) in each
+  ranging round of radio.uwb.ranging_period_ms, mean over the rounds, and the share of rounds
+  with fewer than 3 (no 2-D fix from that round alone);
 - link share: the share of (round, anchor) pairs with a line in uwb.log (the link closed, valid
   or not), for the LOS and the NLOS pairs (walls crossed at the round's true position);
 - the NLOS range error by true-distance bin (metrics.ranging_validation bins): link share of
@@ -95,7 +96,7 @@ def round_links(tables: dict, campaign: Campaign) -> pd.DataFrame:
 
 
 def run_summary(tables: dict, campaign: Campaign) -> dict:
-    """anchors heard per epoch (mean), share of epochs with fewer than FEW_ANCHORS, and link
+    """UWB anchors with a valid range per round (mean), share of rounds with fewer than FEW_ANCHORS, and link
     share of the LOS / NLOS (round, anchor) pairs of one run (round_links)."""
     links = round_links(tables, campaign)
     heard = links.groupby("round")["valid"].sum()
@@ -167,7 +168,8 @@ def markdown(result: dict, runs: int) -> str:
     """The tables of `analyse` as Markdown."""
     s = result["summary"]
     lines = [f"Runs per scenario and variant: {runs} (the workflow's seeds).", "",
-             "| variant | scenario | UWB anchors heard per epoch | epochs with < 3 | link share LOS | link share NLOS |",
+             "| variant | scenario | UWB anchors with a valid range per round (logs) | rounds with < 3 | link share LOS | "
+             "link share NLOS |",
              "|---|---|---|---|---|---|"]
     lines += [f"| {r.variant} | {r.scenario} | {r.anchors_per_epoch:.2f} | {r.few_share:.1%} | "
               f"{r.link_share_los:.1%} | {r.link_share_nlos:.1%} |" for r in s.itertuples()]

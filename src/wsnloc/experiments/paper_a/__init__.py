@@ -156,9 +156,14 @@ def claims(metrics: dict[str, pd.DataFrame], motions: dict[str, str], spec: dict
             claims_of.record("Motion detection improves every row", verdicts.claim(detection))]
 
 
+# Set-up facts: the measurements the filter of Table I's first TOA / RSS row used per epoch (its n_meas,
+# after the preliminary filter and range limit), not the anchors the logs hold (pl0_sensitivity counts those)
+MEASUREMENTS_USED = {"toa": "UWB ranges the TOA filter used per epoch", "rss": "ZigBee RSS the RSS filter used per epoch"}
+
+
 def setup_rows(estimates: dict[str, pd.DataFrame], spec: dict) -> list[dict]:
     """Set-up facts per scenario (analysis.setup_facts) on Table I's first TOA and RSS rows:
-    the static share of epochs and the UWB / ZigBee anchors used per epoch."""
+    the static share of epochs and the measurements used per epoch (MEASUREMENTS_USED)."""
     first = {kind: next((row_label(r) for r in spec["rows"] if r["measurements"] == kind), None)
              for kind in ("toa", "rss")}
     rows = []
@@ -168,7 +173,7 @@ def setup_rows(estimates: dict[str, pd.DataFrame], spec: dict) -> list[dict]:
         if cells:
             rows.append(setup_facts.fact_row(EXPERIMENT, "static share of epochs", label,
                                              setup_facts.static_share(next(iter(cells.values()))), "share"))
-        for kind, name in (("toa", "UWB anchors ranged per epoch"), ("rss", "ZigBee anchors heard per epoch")):
+        for kind, name in MEASUREMENTS_USED.items():
             if kind in cells:
                 rows.append(setup_facts.fact_row(EXPERIMENT, name, label,
                                                  setup_facts.measurements_per_epoch(cells[kind]), "count"))
