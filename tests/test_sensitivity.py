@@ -83,9 +83,19 @@ def test_grid_reruns_only_the_sampled_runs_and_decides_each_setting():
     rows = results.frame(sensitivity.results_rows("B", {"x/s": grid}, paper_b.claims))
     fusion = rows[rows["row"] == "Fusion beats both UWB only and IMU only"].set_index("column")["value"]
     assert fusion.to_dict() == {"x1": 1, "fix_sigma_m x0.5": 1, "fix_sigma_m x2": -1}
-    table = sensitivity_table(rows, "B", [{"claim": "Fusion beats both UWB only and IMU only", "verdict": HOLDS}])
+    claims = [{"claim": "Fusion beats both UWB only and IMU only", "verdict": HOLDS}]
+    table = sensitivity_table(rows, "B", claims, sensitivity.TABLE)
     assert table["settings"][0] == "x1"
     assert table["rows"][0]["cells"] == [HOLDS, HOLDS, DOES_NOT_HOLD] and not table["rows"][0]["robust"]
+    # the UWB ranging levels (nlos_sweep) are a table of their own: the report shows two narrower tables
+    from wsnloc.analysis.nlos_severity import CLAIMS_TABLE
+
+    levels = results.frame(sensitivity.results_rows("B", {"x/s": grid.assign(setting=grid["setting"].map(
+        {"x1": "spec", "fix_sigma_m x0.5": "harsh", "fix_sigma_m x2": "harsher"}))}, paper_b.claims, CLAIMS_TABLE))
+    both = pd.concat([rows, levels], ignore_index=True)
+    assert sensitivity_table(both, "B", claims, sensitivity.TABLE)["settings"] == table["settings"]
+    ranging = sensitivity_table(both, "B", claims, CLAIMS_TABLE)
+    assert ranging["settings"] == ["spec", "harsh", "harsher"] and ranging["rows"][0]["cells"] == table["rows"][0]["cells"]
 
 
 def test_static_share_and_measurements_per_epoch():
