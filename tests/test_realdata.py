@@ -159,6 +159,21 @@ def test_diagnosis_explains_the_nis_of_a_self_fitted_run():
     assert metrics_of(d)["diag_self_fit_range_corrected"] == 0.0
 
 
+def test_diagnosis_of_a_self_fitted_p_model_names_its_process_noise():
+    """ekf_p self-fits p_sigma_m (its random walk), not accel_sigma_mps2: the diagnosis keeps that key
+    and its advice for a NIS below the band names p_sigma_m with the fitted value."""
+    data, truth = _range_run(1.0)
+    estimates = truth.assign(nis=0.2, n_meas=1)
+    estimates.attrs = {"gated_share": 0.0, "resets": 0, "self_fit_run_sigma_m": 0.15, "self_fit_range_sigma_m": 0.07,
+                       "self_fit_p_sigma_m": 0.4, "self_fit_range_correction": "not supported"}
+    d = diagnose_run(data, estimates, {"update": "sequential"})
+    assert d["self_fit_p_sigma_m"] == 0.4
+    text = " ".join(findings(d, {"range_sigma_m": 0.3, "motion": "p"}))
+    assert "range_sigma_m=0.07 p_sigma_m=0.4 with self_fit=none" in text and "accel" not in text
+    estimates = estimates.assign(nis=40.0)
+    assert "process noise (p_sigma_m)" in " ".join(findings(diagnose_run(data, estimates, {}), {"motion": "p"}))
+
+
 def test_rss_only_runs_are_estimated_on_their_rss():
     anchors = pd.DataFrame({"anchor_id": ["a"], "tech": "ble", "x": [0.0], "y": [0.0], "z": [np.nan]})
     rss = pd.DataFrame({"t": [0.0], "anchor_id": ["a"], "rss_dbm": [-60.0]})
