@@ -260,3 +260,25 @@ def test_quarantine_notes_show_the_offending_values_cut_to_a_readable_width():
     assert notes[("ranges.csv", "range_m '…' is negative (e.g. '-1.5', '-0.2')")] == 3
     assert notes[("ranges.csv", f"range_m '{long[:23]}…' is not a number")] == 1
     assert notes[("rss.csv", "unknown anchor 'A9' (not in anchors.csv)")] == 1
+
+
+def test_a_donor_exponent_candidate_without_a_score_cannot_win_and_is_named():
+    """donor_rss_model: a candidate whose estimates do not meet the donor's truth has no RMSE (NaN); it
+    used to lose every comparison silently (the prior kept, nothing said). Now it is 'not scored' in the
+    text, and the other candidate wins."""
+    from synthetic import RSS_MODEL, SQUARE, tables_for, walk
+    from wsnloc.campaign import Campaign
+    from wsnloc.experiments.calibration import donor_rss_model
+
+    times = np.arange(0.5, 60.0, 0.5)
+    tables = tables_for(times, np.array(["A1"] * len(times), dtype=object), walk, SQUARE, rss_times=times)
+    site = Campaign(name="generic", format="generic", spec={}, source="(test)")
+    truth = tables["truth"]
+
+    def track(model):           # the prior's estimates lie after the donor's truth: no RMSE
+        shift = 1000.0 if model["path_loss_exponent"] == 2.0 else 0.0
+        return truth.iloc[::10][["t", "x", "y"]].assign(t=lambda f: f["t"] + shift)
+
+    model = donor_rss_model(tables["rss"], truth, site, RSS_MODEL["d0_m"], 2.0, track, tables["anchors"])
+    assert model["exponent_source"] == "donor fit"
+    assert "prior n=2.00: not scored" in model["exponent_choice"]
