@@ -26,7 +26,8 @@ def _with_geometry(frame: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign,
     true distance (m) and the walls crossed between the true position and the anchor (los: none).
 
     The distance is 3-D, sqrt(dx^2 + dy^2 + (z_anchor - h_tag)^2), when the anchor has a
-    height and the campaign gives the tag height; otherwise 2-D.
+    height and the tag's is known: the truth's z at t (a 3-D truth), else the campaign's fixed
+    tag height; otherwise 2-D.
     """
     position = truth_at(truth, frame["t"].to_numpy())
     inside = np.flatnonzero(np.isfinite(position[:, 0]))
@@ -36,8 +37,15 @@ def _with_geometry(frame: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign,
     if (slot < 0).any():
         raise KeyError(f"anchors not in the anchor table: {sorted(set(frame['anchor_id'][slot < 0]))}")
     anchor_xy = anchors[["x", "y"]].to_numpy(dtype=float)
+    if "z" in truth and np.isfinite(truth["z"].to_numpy(float)).any():      # the tag's height at each time
+        z = anchors["z"].to_numpy(dtype=float)[slot] if "z" in anchors else np.full(len(slot), np.nan)
+        given = np.isfinite(truth["z"].to_numpy(float))
+        tag_z = np.interp(frame["t"].to_numpy(float), truth["t"][given], truth["z"][given])
+        dz = np.where(np.isfinite(z), z - tag_z, 0.0)
+    else:
+        dz = _height_difference(anchors, campaign.tag_height_m)[slot]
     distance = np.sqrt((position[:, 0] - anchor_xy[slot, 0]) ** 2 + (position[:, 1] - anchor_xy[slot, 1]) ** 2
-                       + _height_difference(anchors, campaign.tag_height_m)[slot] ** 2)
+                       + dz ** 2)
     new = {"true_x": position[:, 0], "true_y": position[:, 1], "true_distance_m": distance,
            "walls": _walls_per_anchor(position, slot, anchor_xy, campaign)}
     new["los"] = new["walls"] == 0

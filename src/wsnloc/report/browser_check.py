@@ -251,7 +251,8 @@ def check_report(html: str | Path, screenshot: str | Path | None = None,
                 problems.append(f"section {section} is missing or has no paper table")
         for request in requests:
             target = _local_target(request, root)
-            if target is None and not request.startswith(("data:", "chrome://", "about:")):
+            # chrome:// and chrome-untrusted:// are the browser's own pages (its new-tab page), not the report's
+            if target is None and not request.startswith(("data:", "chrome://", "chrome-untrusted://", "about:")):
                 problems.append(f"network request beyond the report: {request}")
         return {"problems": problems, "images": image_count, "requests": requests,
                 "pages": sorted(p.relative_to(root).as_posix() for p in seen)}

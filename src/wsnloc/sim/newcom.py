@@ -3,7 +3,9 @@
 Writes exactly the files of shared/spec/raw-formats.md (uwb.log, zigbee.log, imu.log,
 truth.log) plus meta.yaml; nothing else (no hidden true ranges). A scenario with the override
 `uwb_tdoa: true` also writes `tdoa.csv` (generic format: one-way UWB TDOA with synchronised
-anchors, sim.tdoa; settings in radio.uwb.tdoa). Byte-for-byte
+anchors, sim.tdoa; settings in radio.uwb.tdoa). A 3-D scenario (`tag_height_m`,
+`anchor_heights_m`: Campaign.for_scenario) ranges in 3-D; its truth.log stays the arc length
+(the ingest reads the height from the same profile) and its imu.log the planar cart's. Byte-for-byte
 deterministic for a given campaign file, scenario and seed sequence.
 """
 
@@ -18,7 +20,7 @@ from wsnloc.sim import rss as rss_model
 from wsnloc.sim import trajectory as motion
 from wsnloc.sim import uwb_channel
 from wsnloc.sim.tdoa import tdoa_text
-from wsnloc.sim.logs import imu_text, lines_text, positions as _positions, truth_text, write_run
+from wsnloc.sim.logs import imu_text, lines_text, positions as _positions, truth_text, with_heights, write_run
 from wsnloc.sim.seeding import model_rng
 
 
@@ -79,7 +81,9 @@ def _uwb_lines(campaign: Campaign, spec: dict, traj, rng_time, rng_channel, rng_
     pos = state["xy"].reshape(len(rounds), len(anchors), 2)
     walls = np.column_stack([campaign.walls_between(pos[:, j], a) for j, a in
                              enumerate(anchors[["x", "y"]].to_numpy(float))])
-    dist = np.hypot(pos[..., 0] - anchors["x"].to_numpy()[None, :], pos[..., 1] - anchors["y"].to_numpy()[None, :])
+    dist = with_heights(np.hypot(pos[..., 0] - anchors["x"].to_numpy()[None, :],
+                                 pos[..., 1] - anchors["y"].to_numpy()[None, :]),
+                        state["tag_z"].reshape(len(rounds), len(anchors)), anchors["z"].to_numpy(float)[None, :])
     # the shadowing field at the round's path position (the anchors of a round are ranged within
     # len(anchors) * anchor_spacing_ms, a few cm of travel, far below the decorrelation distance)
     arc = state["s"].reshape(len(rounds), len(anchors))[:, 0]
@@ -133,7 +137,8 @@ def _zigbee_lines(campaign: Campaign, traj, rng, clock_ms: int) -> list[str]:
     state = _positions(campaign, traj, times_ms / 1000.0)
     xy = state["xy"]
     axy = anchors[["x", "y"]].to_numpy(float)
-    dist = np.hypot(xy[:, None, 0] - axy[None, :, 0], xy[:, None, 1] - axy[None, :, 1])
+    dist = with_heights(np.hypot(xy[:, None, 0] - axy[None, :, 0], xy[:, None, 1] - axy[None, :, 1]),
+                        state["tag_z"][:, None], anchors["z"].to_numpy(float)[None, :])
     walls = np.column_stack([campaign.walls_between(xy, a) for a in axy])
     shadow = rss_model.correlated_shadowing(state["s"], len(anchors), spec["shadowing_sigma_db"],
                                             spec["shadowing_decorrelation_m"], rng)
@@ -188,6 +193,7 @@ def simulate_run(campaign: Campaign, scenario: str, seeds: np.random.SeedSequenc
     imu.noise_model); the scenario may also set them under `overrides`.
     """
     scenario_spec = campaign.section("scenarios", scenario)
+    campaign = campaign.for_scenario(scenario)       # a 3-D scenario's height profile and anchor heights
     overrides = scenario_spec.get("overrides", {})
     detector = detector or overrides.get("uwb_detector") or campaign.section("radio", "uwb")["detector"]
     imu_noise = imu_noise or overrides.get("imu_noise_model") or campaign.section("imu").get("noise_model", "mems")
