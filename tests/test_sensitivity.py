@@ -164,7 +164,7 @@ def test_static_share_sweep_lengthens_the_rest_and_pairs_the_runs(campaign):
 
     from test_ekf import SPEC_A
 
-    spec = {**SPEC_A, "parameters": {**SPEC_A["parameters"], "rss_calibration": "other_run"},
+    spec = {**SPEC_A, "parameters": {**SPEC_A["parameters"], "rss_calibration": "other_run_common"},
             "rows": [{"measurements": "toa", "anchors": "UWB=12"}, {"measurements": "hybrid", "anchors": "UWB=12+ZigBee=21"}]}
     sweep = static_share.gain_against_rest(campaign, "constant", [5.0, 30.0], 2, 11, spec)
     assert list(sweep["run"]) == ["run-01", "run-02"] * 2
@@ -397,3 +397,14 @@ def test_the_gap_account_is_computed_from_the_builds_numbers_and_its_arithmetic_
     # no account for cells that are not RMSE (a max error is not a sum of RMS contributions)
     [line] = explanations.cell_whys(numbers, "B", [dict(table_b, title="Max error [m]")])
     assert "ours 25.000" in line and "Account of the gap" not in line and "No mechanism quantified" not in line
+
+
+def test_the_papers_per_scenario_calibration_refuses_other_run():
+    """rss_models_for_runs fits one P0, n, sigma on the next run (other_run_common); `other_run` (per-receiver
+    P0s, exponent chosen by tracking the donor) was silently fitted the same way: now refused, naming the key."""
+    from wsnloc.errors import ConfigError
+    from wsnloc.experiments import calibration
+
+    p = {"rss_calibration": "other_run", "p0_dbm": -50.0, "path_loss_exponent": 2.0, "sigma_db": 4.0, "d0_m": 1.0}
+    with pytest.raises(ConfigError, match="'rss_calibration': other_run .* use other_run_common"):
+        calibration.rss_models_for_runs({"a": {}, "b": {}}, None, [], p)

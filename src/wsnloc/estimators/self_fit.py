@@ -76,6 +76,7 @@ import numpy as np
 import pandas as pd
 
 from wsnloc.filters.measurement_models import TdoaModel
+from wsnloc.metrics.stats import robust_sigma
 
 MODES = ("none", "two_pass")
 # noise candidates (sigma factor, accel factor): calmer, configured, livelier; the ratio accel / sigma
@@ -141,7 +142,7 @@ def range_correction(data, estimates: pd.DataFrame, p: dict, scale: float) -> di
     error = samples["range_m"].to_numpy(float) - scale * samples["true_distance_m"].to_numpy(float)
     anchors, column = np.unique(ids, return_inverse=True)
     centre = pd.Series(error).groupby(column).transform("median").to_numpy()
-    spread = 1.4826 * np.median(np.abs(error - centre))
+    spread = robust_sigma(error - centre)
     inlier = np.abs(error - centre) <= OUTLIER_SIGMAS * max(spread, SIGMA_FLOOR_M)
     samples, error, column = samples[inlier], error[inlier], column[inlier]
     xy = data.positions(anchors)
@@ -224,7 +225,7 @@ def tdoa_correction(data, estimates: pd.DataFrame, p: dict) -> dict | None:
         return None
     error = samples["e"].to_numpy(float)
     centre = samples.groupby(["anchor_id", "ref_anchor_id"])["e"].transform("median").to_numpy()
-    spread = 1.4826 * np.median(np.abs(error - centre))
+    spread = robust_sigma(error - centre)
     samples = samples[np.abs(error - centre) <= OUTLIER_SIGMAS * max(spread, SIGMA_FLOOR_M)]
     refs = samples["ref_anchor_id"].value_counts()
     gauge = sorted(refs.index, key=lambda a: (-refs[a], str(a)))[0]

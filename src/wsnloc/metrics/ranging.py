@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 
 from wsnloc.campaign import Campaign
+from wsnloc.metrics.stats import robust_sigma
 
 
 def truth_at(truth: pd.DataFrame, t: np.ndarray) -> np.ndarray:
@@ -181,7 +182,7 @@ def fit_range_bias(range_m, true_distance_m, anchor_id) -> dict:
     if len(r) < len(anchors) + 2:
         raise ValueError(f"range calibration needs more samples than unknowns ({len(r)} for {len(anchors) + 1})")
     scale, offsets = _weighted_line(r, d, column, np.ones(len(r)))
-    f_scale = max(1.4826 * np.median(np.abs(r - scale * d - offsets[column])), 1e-3)
+    f_scale = max(robust_sigma(r - scale * d - offsets[column]), 1e-3)
     floor, last_moved = RANGE_FIT_ROUNDING * np.max(np.abs(r)), np.inf
     for _ in range(RANGE_FIT_MAX_ITERATIONS):
         residual = r - scale * d - offsets[column]
@@ -195,7 +196,7 @@ def fit_range_bias(range_m, true_distance_m, anchor_id) -> dict:
         raise ValueError(f"range calibration: no convergence in {RANGE_FIT_MAX_ITERATIONS} iterations")
     residual = r - scale * d - offsets[column]
     return {"scale": float(scale), "offsets_m": {str(a): float(b) for a, b in zip(anchors, offsets)},
-            "sigma_m": float(1.4826 * np.median(np.abs(residual - np.median(residual)))), "samples": int(len(r))}
+            "sigma_m": robust_sigma(residual - np.median(residual)), "samples": int(len(r))}
 
 
 def fit_tdoa_bias(tdoa_m, true_anchor_m, true_ref_m, anchor_id, ref_id) -> dict:
@@ -229,12 +230,12 @@ def fit_tdoa_bias(tdoa_m, true_anchor_m, true_ref_m, anchor_id, ref_id) -> dict:
         raise ValueError(f"TDOA calibration: {len(z)} differences do not determine the scale and "
                          f"{len(anchors)} offsets (distinct distance differences needed)")
     start = np.linalg.lstsq(design, z, rcond=None)[0]
-    f_scale = max(1.4826 * np.median(np.abs(z - design @ start)), 1e-3)
+    f_scale = max(robust_sigma(z - design @ start), 1e-3)
     theta = least_squares(lambda th: design @ th - z, start, loss="soft_l1", f_scale=f_scale).x
     residual = z - design @ theta
     offsets = {str(gauge): 0.0, **{str(anchor): float(theta[k]) for anchor, k in column.items()}}
     return {"scale": float(theta[0]), "offsets_m": offsets,
-            "sigma_m": float(1.4826 * np.median(np.abs(residual - np.median(residual)))), "samples": int(len(z))}
+            "sigma_m": robust_sigma(residual - np.median(residual)), "samples": int(len(z))}
 
 
 def _weighted_line(r: np.ndarray, d: np.ndarray, column: np.ndarray, w: np.ndarray) -> tuple[float, np.ndarray]:
