@@ -13,8 +13,10 @@ Poisson arrivals at 4 Hz, 600 s (seeded). Estimators needing an IMU are skipped 
 have none); those reading only ranges are skipped on the RSS-only tracks.
 Per (run, estimator): exit (ok or the error), availability, median and RMSE of the 2-D error
 (m), median / tracker's median on the same run, resets and the numerical-guard counters
-(`regularised`, `skipped`, `reinitialised` where the estimator has them). Prints a Markdown
-table and writes it to OUT/async_estimators.md (and .csv). The scratch folder is git-ignored.
+(`regularised`, `skipped`, `reinitialised` where the estimator has them). Prints the command,
+the median / tracker's per run and estimator and that full table in Markdown, and writes them
+to OUT/async_estimators.md (the table also as .csv; the scratch folder is git-ignored); with
+--docs, also between the markers of benchmarks/ASYNC_RESULTS.md (publish.py).
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ import pandas as pd
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
+from publish import publish  # noqa: E402
 from wsnloc.estimate import estimate_run  # noqa: E402
 from wsnloc.estimators import registry  # noqa: E402
 from wsnloc.io.convert import convert_cucudasluv, convert_philotuxo  # noqa: E402
@@ -102,8 +105,9 @@ def main(argv=None) -> int:
     parser.add_argument("--out", default=str(ROOT / "benchmarks" / "out" / "async"))
     parser.add_argument("--estimators", default="", help="comma-separated subset (default: all)")
     parser.add_argument("--cases", default="", help="comma-separated substrings of the run labels")
+    parser.add_argument("--docs", action="store_true", help="write the tables into benchmarks/ASYNC_RESULTS.md")
     args = parser.parse_args(argv)
-    out = Path(args.out)
+    out, started_all = Path(args.out), time.perf_counter()
     names = [n for n in (args.estimators.split(",") if args.estimators else registry.ESTIMATORS) if n]
     if "tracker" not in names:
         names.insert(0, "tracker")
@@ -135,9 +139,14 @@ def main(argv=None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     table.to_csv(out / "async_estimators.csv", index=False)
     columns = ["run", "estimator", "exit", "availability", "median_m", "vs_tracker", "rmse_m", *COUNTERS, "seconds"]
-    text = table.reindex(columns=columns).to_markdown(index=False, floatfmt=".3g")
-    (out / "async_estimators.md").write_text(text + "\n")
-    print(text)
+    ratios = table.pivot(index="run", columns="estimator", values="vs_tracker")
+    ratios = ratios[[n for n in names if n in ratios and n != "tracker"]]
+    command = " ".join(["python benchmarks/async_estimators.py", *(sys.argv[1:] if argv is None else argv)])
+    publish([f"`{command}` ({time.strftime('%Y-%m-%d', time.gmtime())}, "
+             f"{time.perf_counter() - started_all:.0f} s)", "",
+             "Median 2-D error / `tracker`'s on the same run:", "", ratios.to_markdown(floatfmt=".2f"), "",
+             "Every (run, estimator):", "", table.reindex(columns=columns).to_markdown(index=False, floatfmt=".3g")],
+            out, "async_estimators", "benchmarks/ASYNC_RESULTS.md" if args.docs else None)
     return 0
 
 

@@ -82,35 +82,36 @@ def uwb_rows(src: Path, out: Path) -> list[str]:
 
 def ble_rows(src: Path, out: Path) -> list[str]:
     runs = [r.run_dir for r in convert_philotuxo(src, out / "converted" / "philotuxo")]
+    tables = {run_dir: ingest_run(run_dir)[0] for run_dir in runs}      # each track once, as a run and as a donor
+    references = {(run_dir, donor): reference_scores(run_dir, tables[run_dir], tables[donor], run_campaign(run_dir))
+                  for run_dir in runs for donor in runs if donor != run_dir}
     rows = ["| track (donor) | ours, no flags | ours `--calibration donor` | gated EKF, donor path loss | "
             "weighted centroid | ours (calibrated) < both |", "|---|---|---|---|---|---|"]
     for i, run_dir in enumerate(runs):
         donor = runs[(i + 1) % len(runs)]
         plain = _ours(run_dir, out / "estimates" / "philotuxo" / run_dir.name / "default")
         calibrated = _ours(run_dir, out / "estimates" / "philotuxo" / run_dir.name / "calibrated", donor)
-        tables, _ = ingest_run(run_dir)
-        donor_tables, _ = ingest_run(donor)
-        refs = reference_scores(run_dir, tables, donor_tables, run_campaign(run_dir))
+        refs = references[(run_dir, donor)]
         wins = calibrated < refs[EKF_REF] and calibrated < refs[CENTROID_REF]
         if not wins:
             FAILED.append(f"{run_dir.name}: calibrated {calibrated:.3f} not below both references")
         rows.append(f"| {run_dir.name} ({donor.name}) | {plain:.3f} | {calibrated:.3f} | {refs[EKF_REF]:.3f} | "
                     f"{refs[CENTROID_REF]:.3f} | {'yes' if wins else 'no'} |")
-    return rows + [""] + every_donor_rows(runs, out)
+    return rows + [""] + every_donor_rows(runs, references, out)
 
 
-def every_donor_rows(runs: list[Path], out: Path) -> list[str]:
-    """Every (track, donor) pair: whether the calibration is fitted to one donor choice (no check)."""
+def every_donor_rows(runs: list[Path], references: dict[tuple[Path, Path], dict], out: Path) -> list[str]:
+    """Every (track, donor) pair: whether the calibration is fitted to one donor choice (no check);
+    references: the pair's reference_scores."""
     rows = ["Every donor (not only the next track): ours `--calibration donor` / gated EKF, donor path loss / "
             "weighted centroid, and the exponent the donor chose (experiments.calibration.donor_rss_model):", "",
             "| track | donor | ours | gated EKF | centroid | below both | exponent chosen |", "|---|---|---|---|---|---|---|"]
     wins = 0
     for run_dir in runs:
-        tables, _ = ingest_run(run_dir)
         for donor in (d for d in runs if d != run_dir):
             metrics = estimate_run("generic", run_dir, run_campaign(run_dir), out / "estimates" / "philotuxo" /
                                    run_dir.name / f"donor-{donor.name}", "tracker", {}, donor)
-            refs = reference_scores(run_dir, tables, ingest_run(donor)[0], run_campaign(run_dir))
+            refs = references[(run_dir, donor)]
             ok = metrics["rmse_m"] < min(refs[EKF_REF], refs[CENTROID_REF])
             wins += ok
             choice = json.loads((out / "estimates" / "philotuxo" / run_dir.name / f"donor-{donor.name}" /

@@ -44,7 +44,8 @@ SMALL_WORKBENCH = ("tracker", "ekf", "pf", "ekf_rts", "sliding_window", "ekf_gat
 
 
 def small_workflow(target: Path, shards: int = 1) -> Path:
-    """A copy of the workflow with a small configuration: 2 runs, one scenario per dataset."""
+    """A copy of the workflow with a small configuration: 2 runs, one scenario per dataset (and
+    newcom's tdoa and flight, 1 run each, for the workbench_spatial study)."""
     target.mkdir(parents=True, exist_ok=True)
     shutil.copy(ROOT / "Snakefile", target)
     shutil.copytree(ROOT / "workflow", target / "workflow")
@@ -53,7 +54,8 @@ def small_workflow(target: Path, shards: int = 1) -> Path:
     config = yaml.safe_load((target / "config" / "config.yaml").read_text())
     config["runs"] = 2
     config["shards"] = shards
-    config["datasets"]["newcom"]["scenarios"] = ["constant"]
+    config["datasets"]["newcom"]["scenarios"] = ["constant", "tdoa", "flight"]
+    config["datasets"]["newcom"]["scenario_runs"] = {"tdoa": 1, "flight": 1}   # fewer runs than `runs`
     config["datasets"]["cricket"]["scenarios"] = ["speed_40"]
     experiments = config["experiments"]
     experiments["paper_d"]["scenarios"] = ["newcom/constant"]
@@ -70,6 +72,7 @@ def small_workflow(target: Path, shards: int = 1) -> Path:
     workbench = config["studies"]["workbench"]
     workbench["scenarios"] = ["newcom/constant", "cricket/speed_40"]
     workbench["estimators"] = {k: workbench["estimators"][k] for k in SMALL_WORKBENCH}
+    assert config["studies"]["workbench_spatial"]["scenarios"] == ["newcom/tdoa", "newcom/flight"]   # kept as shipped
     (target / "config" / "config.yaml").write_text(yaml.safe_dump(config))
     return target
 

@@ -108,3 +108,15 @@ def test_browser_check_follows_the_summary_to_every_page(tmp_path):
     assert "pages/study-a.html: figure 'cdf': text 'Min-Max UWB' overlaps 'multilateration'" in problems
     assert "pages/study-a.html: number of 41 digits" in problems
     assert "network request" not in problems and (tmp_path / "shots" / "pages_study-a.png").is_file()
+
+
+@pytest.mark.skipif(browser_available() is not None, reason=f"headless browser unavailable: {browser_available()}")
+def test_browser_check_reports_a_fit_table_that_scrolls_sideways(tmp_path):
+    """A box of class `fit` (the sensitivity tables) wider than the page is a problem named by its
+    heading; the same table in a `.wide` box (meant to scroll) and a narrow `.fit` one are not."""
+    style = "<style>.fit, .wide { max-width: 100%; overflow-x: auto; }</style>"
+    row = "<table><tr>" + "<td style='min-width: 200px'>x</td>" * 12 + "</tr></table>"
+    bad = page(tmp_path, f"{style}<h4>Sensitivity</h4><div class='fit'>{row}</div>"
+                         f"<div class='wide'>{row}</div><div class='fit'><table><tr><td>y</td></tr></table></div>")
+    problems = check_report(bad, sections=())["problems"]
+    assert problems == ["page.html: a table that must fit the page width scrolls sideways: 'Sensitivity'"], problems

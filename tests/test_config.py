@@ -36,6 +36,24 @@ def test_bad_runs_names_the_key(config, value):
         validate_config(config, SCHEMA)
 
 
+def test_scenario_runs_set_a_simulated_scenarios_runs_and_name_a_wrong_key(config):
+    from wsnloc.workflow import dataset_runs, shards_of
+
+    validate_config(config, SCHEMA)
+    runs = config["datasets"]["newcom"]["scenario_runs"]
+    assert dataset_runs(config, "newcom", "tdoa") == [f"run-{k:02d}" for k in range(1, runs["tdoa"] + 1)]
+    assert len(dataset_runs(config, "newcom", "constant")) == config["runs"]
+    config["shards"] = 3
+    assert set(shards_of(config, "newcom", "tdoa")) == {f"shard-{k}" for k in range(1, min(3, runs["tdoa"]) + 1)}
+    for value, key in (({"tdoa": 0}, r"'datasets.newcom.scenario_runs.tdoa'"),
+                       ({"tdao": 2}, r"'datasets.newcom.scenario_runs.tdao': not one of the dataset's scenarios"),
+                       ({"tdoa": "2"}, r"'datasets.newcom.scenario_runs.tdoa'")):
+        bad = copy.deepcopy(config)
+        bad["datasets"]["newcom"]["scenario_runs"] = value
+        with pytest.raises(ConfigError, match=key):
+            validate_config(bad, SCHEMA)
+
+
 def test_unknown_top_level_key_is_named(config):
     config["rnus"] = 3
     with pytest.raises(ConfigError, match=r"'rnus': unknown key"):
@@ -161,6 +179,9 @@ def test_simulated_scenario_the_campaign_lacks_is_named(config):
 def test_real_log_scenario_without_runs_is_named(config, tmp_path):
     (tmp_path / "constant" / "run-01").mkdir(parents=True)
     config["datasets"]["newcom"].update(source="logs", raw_dir=str(tmp_path), scenarios=["constant"])
+    with pytest.raises(ConfigError, match=r"'datasets.newcom.scenario_runs': only a simulated dataset"):
+        validate_config(config, SCHEMA)
+    del config["datasets"]["newcom"]["scenario_runs"]
     for experiment in ("paper_a", "paper_b", "paper_d"):
         config["experiments"][experiment]["scenarios"] = ["newcom/constant"]
     config["experiments"]["paper_b"]["simulation_scenarios"] = []

@@ -126,3 +126,23 @@ def test_estimate_refuses_a_donor_it_cannot_use(tmp_path, capsys):
     assert main(["estimate", "--format", "generic", str(run), "--out", str(tmp_path / "o"), "--estimator", "minmax",
                  "--calibration", str(run)]) == 2
     assert "calibrates nothing on a donor" in capsys.readouterr().err
+
+
+def test_estimate_names_its_own_quarantine_options(tmp_path, capsys):
+    """A run with 30% unusable range lines: `estimate` stops at the default limit (that of config
+    ingest.max_quarantine_share) naming its option, not a config key it has no file for, and
+    runs with the option raised."""
+    from wsnloc.io.limits import DEFAULT_PER_FILE
+
+    rng = np.random.default_rng(3)
+    times, ids = bursts(120.0, 1.0, SQUARE)
+    run = write_generic(tmp_path / "run", tables_for(times, ids, walk, SQUARE, 0.1, rng))
+    lines = (run / "ranges.csv").read_text().splitlines()
+    bad = int(0.3 * (len(lines) - 1))
+    (run / "ranges.csv").write_text("\n".join(lines[:1] + [f"{t},A1,not-a-number" for t in range(bad)]
+                                              + lines[1 + bad:]) + "\n")
+    assert main(["estimate", "--format", "generic", str(run), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert f"more than option --max-quarantine-share-per-file = {DEFAULT_PER_FILE:.1%}" in err and "config" not in err
+    assert main(["estimate", "--format", "generic", str(run), "--out", str(tmp_path / "out"),
+                 "--max-quarantine-share", "0.5", "--max-quarantine-share-per-file", "0.5"]) == 0

@@ -104,7 +104,8 @@ def test_a_failing_ingest_job_keeps_its_quarantine_in_the_logs(simulated_run, tm
     _copy(simulated_run, raw)
     work = small_workflow(tmp_path / "work")
     config = yaml.safe_load((work / "config" / "config.yaml").read_text())
-    config["datasets"]["newcom"].update(source="logs", raw_dir=str(tmp_path / "raw"))
+    config["datasets"]["newcom"].update(source="logs", raw_dir=str(tmp_path / "raw"), scenarios=["constant"])
+    del config["datasets"]["newcom"]["scenario_runs"], config["studies"]["workbench_spatial"]   # simulated only
     (work / "config" / "config.yaml").write_text(yaml.safe_dump(config))
     target = "data/processed/newcom/constant/tables/shard-1"
     intact = snakemake(work, "--cores", "1", target)

@@ -155,11 +155,15 @@ def test_pl0_sensitivity_counts_rounds_links_and_anchors_from_the_logs(campaign,
     and nothing changes where no PL0 is replaced."""
     from wsnloc.analysis import pl0_sensitivity as pl0
     from wsnloc.analysis.simulated_runs import simulate_tables
+    from wsnloc.sim import newcom
 
     tables, _ = ingest_run(simulated_run, campaign)
     links = pl0.round_links(tables, campaign)
     n_anchors = len(campaign.anchors_of("uwb"))
     assert len(links) == links["round"].nunique() * n_anchors
+    duration = tables["truth"]["t"].iloc[-1] - tables["truth"]["t"].iloc[0]
+    assert links["round"].nunique() == len(newcom.ranging_rounds_ms(campaign.section("radio", "uwb"), n_anchors,
+                                                                     duration))      # the simulator's rounds
     assert links["valid"].sum() == (tables["ranges"]["status"] == 0).sum()
     assert links["linked"].sum() == len(tables["ranges"]) and (links["linked"] >= links["valid"]).all()
     summary = pl0.run_summary(tables, campaign)

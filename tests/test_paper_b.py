@@ -146,6 +146,25 @@ def test_classical_filter_converges_to_the_steady_state_filter():
     assert np.abs(ss[1] - kf[1]).max() > 0.1
 
 
+def test_classical_filter_counts_the_updates_it_skips():
+    """A fix that makes the update non-finite (an overflowing one) is skipped: the prior kept, as
+    in every filter of the project, and counted in guards.skipped (filters.numerics), which the
+    classical pipeline copies to its estimates' attrs for the diagnosis."""
+    from wsnloc.filters.numerics import Guards
+
+    displacements = np.array([[1.0, 0.0], [1.0, 0.0]])
+    start = (-1e308, 0.0)
+    fixes = np.array([[1e308, 0.0], [np.nan, np.nan]])             # innovation 2e308: overflows
+    guards = Guards()
+    with np.errstate(over="ignore", invalid="ignore"):
+        out = fuse(displacements, fixes, start, np.eye(2), np.eye(2), P0=np.eye(2), guards=guards)
+    assert guards.skipped == 1 and np.isfinite(out).all()
+    np.testing.assert_array_equal(out[1], np.add(start, displacements[0]))     # the prior kept
+    clean = Guards()
+    fuse(displacements, -fixes, start, np.eye(2), np.eye(2), P0=np.eye(2), guards=clean)
+    assert clean.skipped == 0
+
+
 def _matrix_fuse(displacements, fixes, start, Q_step, R, gain=None, P0=None):
     """The former 2 x 2 matrix recursion of steady_state.fuse (the reference it must equal)."""
     p, P = np.asarray(start, dtype=float).copy(), np.zeros((2, 2)) if P0 is None else np.asarray(P0, float).copy()
@@ -229,6 +248,12 @@ def test_paper_b_on_a_simulated_run(campaign, simulated_run):
               for method, name in (("uwb", "minmax"), ("imu", "dead_reckoning"), ("sskf", "dr_sskf"), ("kf", "dr_kf"))]
     pd.testing.assert_frame_equal(estimates, score(pd.concat(former, ignore_index=True), tables["truth"]),
                                   check_exact=True)
+    # the classical KF's guards reach its estimates' attrs and the diagnosis (none acted on this run)
+    from wsnloc.diagnosis import diagnose_run
+
+    p_kf = {k: v for k, v in base.items() if k in {p.name for p in registry.get("dr_kf").params}}
+    kf = registry.run("dr_kf", data, p_kf, where="experiments.paper_b")
+    assert kf.attrs["skipped"] == 0 and diagnose_run(data, kf, p_kf)["skipped"] == 0
     assert inertial.floor_input(data, 4.0) is inertial.floor_input(data, 4.0)      # built once per run
     metrics = paper_b.run_metrics(estimates, tables["truth"]).set_index("method")
     assert set(metrics.index) == {"uwb", "imu", "sskf", "kf"}

@@ -285,7 +285,7 @@ def test_paper_d_on_a_simulated_run(campaign, simulated_run):
                   & (metrics["stage"] == "raw")]
     # metre-level: the link budget's NLOS leading-edge errors (docs/simulation.md); a broken solver gives many metres
     assert uwb["rmse"].iloc[0] < 2.0 and uwb["availability"].iloc[0] > 0.9
-    rows = paper_d.results_rows(metrics.assign(run="run-01"), "newcom/constant")
+    rows = paper_d.results_rows(metrics.assign(run="run-01"), "newcom/constant", SPEC)
     frame = results.frame(rows)
     assert set(frame["table"]) == {"Table 1", "Table 2", "Table 3"}
     claims = paper_d.claims({"newcom/constant": metrics.assign(run="run-01")})
@@ -346,10 +346,12 @@ def test_speed_input_metrics_measure_the_fed_speed_against_truth_and_the_kf_with
     np.testing.assert_allclose(speed["speed_bias_mps"], speed["speed_input_mps"] - speed["true_speed_mps"], atol=1e-12)
     plain = paper_d.run_metrics(paper_d.run(data, SPEC, LABEL, ("kalman",)), tables["truth"])
     np.testing.assert_allclose(speed["rmse_without_speed_m"], plain["rmse"], rtol=1e-12)
-    assert paper_d.speed_input_metrics([data], SPEC, LABEL)[0].empty
+    assert (speed["speed_input_share"] > 0.5).all()                       # all but the window's first fixes
+    unfed = paper_d.speed_input_metrics([data], SPEC, LABEL)[0]
+    assert unfed.empty and list(unfed.columns) == paper_d.CELL_KEY
 
     metrics = paper_d.run_metrics(paper_d.run(data, fed, LABEL), tables["truth"]).merge(speed, how="left")
-    frame = results.frame(paper_d.results_rows(metrics.assign(run="run-01"), LABEL))
+    frame = results.frame(paper_d.results_rows(metrics.assign(run="run-01"), LABEL, fed))
     table3 = frame[(frame["table"] == "Table 3") & (frame["column"] == "F-mix")]
     assert table3[table3["row"] == paper_d.SPEEDLESS_ROW]["value"].iloc[0] == pytest.approx(
         plain[(plain["localizer"] == "minmax") & (plain["technique"] == "fmix")]["rmse"].iloc[0])
@@ -359,3 +361,33 @@ def test_speed_input_metrics_measure_the_fed_speed_against_truth_and_the_kf_with
     kf = [r for r in why.explain_d(records, per_run, 0.5, 6) if r["claim"].startswith("The Kalman filter")][0]
     fmix = speed[(speed["localizer"] == "minmax") & (speed["technique"] == "fmix")].iloc[0]
     assert f"speed fed {fmix['speed_input_mps']:.2f} m/s against a true {fmix['true_speed_mps']:.2f} m/s" in kf["why"]
+
+
+def test_speed_rows_of_a_fed_kf_never_vanish(campaign, simulated_run):
+    """A KF cell fed the speed (config) always has its Table 3 speed rows: NaN over runs without
+    a speed estimate at any fix, with speed_input_share 0 saying why; metrics that lack them
+    (speed_input_metrics not merged) are an error naming the cell. Not fed: no speed rows. The
+    speed measured is trackers.fix_source's, the KF's own input."""
+    from wsnloc.estimators import trackers
+    from wsnloc.io.newcom import ingest_run
+
+    tables, _ = ingest_run(simulated_run, campaign)
+    data = RunData(tables, campaign, RSS_MODEL)
+    fed = {**SPEC, "estimators": {**SPEC["estimators"], "kalman": {**SPEC["estimators"]["kalman"], "speed_input": True}}}
+    speed = paper_d.speed_input_metrics([data], fed, LABEL)[0]
+    p = [cell for cell in paper_d.cell_list(fed, LABEL, ("kalman",)) if cell[:2] == ("minmax", "fmix")][0][4]
+    source = trackers.fix_source(data, p)
+    fmix = speed[(speed["localizer"] == "minmax") & (speed["technique"] == "fmix")].iloc[0]
+    assert fmix["speed_input_mps"] == pytest.approx(np.nanmean(source.speed[source.has_fix()]), rel=0.05)
+
+    plain = paper_d.run_metrics(paper_d.run(data, fed, LABEL), tables["truth"])
+    without_speed = speed.assign(speed_input_share=0.0, **{m: np.nan for m in paper_d.SPEED_INPUT_METRICS[1:-1]})
+    frame = results.frame(paper_d.results_rows(plain.merge(without_speed, how="left").assign(run="run-01"), LABEL, fed))
+    kf = frame[(frame["table"] == "Table 3") & (frame["row"] == "Kalman filter") & (frame["column"] == "F-mix")]
+    row = kf.set_index("metric")
+    assert row.loc["speed_input_share", "value"] == 0 and np.isnan(row.loc["speed_input_mps", "value"])
+    assert row.loc["speed_input_mps", "runs"] == 0
+    with pytest.raises(ValueError, match="Min-Max narrowband fixes is fed the speed .* lack speed_input_share"):
+        paper_d.results_rows(plain.assign(run="run-01"), LABEL, fed)
+    unfed = results.frame(paper_d.results_rows(plain.assign(run="run-01"), LABEL, SPEC))
+    assert not unfed["metric"].isin(paper_d.SPEED_INPUT_METRICS).any()

@@ -4,6 +4,7 @@ reference it replaces: scipy.optimize.least_squares with the soft-L1 loss."""
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
+from scipy.stats import median_abs_deviation
 
 from wsnloc.metrics.ranging import fit_range_bias
 
@@ -15,11 +16,11 @@ def scipy_fit(r, d, ids) -> dict:
     design[:, 0] = d
     design[np.arange(len(r)), 1 + column] = 1.0
     start, *_ = np.linalg.lstsq(design, r, rcond=None)
-    f_scale = max(1.4826 * np.median(np.abs(r - design @ start)), 1e-3)
+    f_scale = max(median_abs_deviation(r - design @ start, center=lambda x, axis: 0.0, scale="normal"), 1e-3)
     fit = least_squares(lambda q: design @ q - r, start, loss="soft_l1", f_scale=f_scale)
     residual = r - design @ fit.x
     return {"scale": fit.x[0], "offsets_m": dict(zip(map(str, anchors), fit.x[1:])),
-            "sigma_m": 1.4826 * np.median(np.abs(residual - np.median(residual))), "samples": len(r)}
+            "sigma_m": median_abs_deviation(residual, scale="normal"), "samples": len(r)}
 
 
 def ranges(n: int, anchors: int, scale: float, outlier_share: float, seed: int):
@@ -77,7 +78,7 @@ def test_fit_is_a_stationary_point_of_the_soft_l1_cost(seed, outlier_share):
     anchors, column = np.unique(ids, return_inverse=True)
     design = np.column_stack([d, (column[:, None] == np.arange(len(anchors))).astype(float)])
     start, *_ = np.linalg.lstsq(design, r, rcond=None)
-    f_scale = 1.4826 * np.median(np.abs(r - design @ start))
+    f_scale = median_abs_deviation(r - design @ start, center=lambda x, axis: 0.0, scale="normal")
     residual = r - design @ np.r_[fit["scale"], [fit["offsets_m"][a] for a in anchors]]
     gradient = design.T @ (residual / np.sqrt(1.0 + (residual / f_scale) ** 2))
     assert np.abs(gradient).max() < 1e-11 * np.abs(design).sum(axis=0).max()   # scipy: 4e-10 at seed 7

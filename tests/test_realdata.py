@@ -159,6 +159,21 @@ def test_diagnosis_explains_the_nis_of_a_self_fitted_run():
     assert metrics_of(d)["diag_self_fit_range_corrected"] == 0.0
 
 
+def test_diagnosis_of_a_self_fitted_p_model_names_its_process_noise():
+    """ekf_p self-fits p_sigma_m (its random walk), not accel_sigma_mps2: the diagnosis keeps that key
+    and its advice for a NIS below the band names p_sigma_m with the fitted value."""
+    data, truth = _range_run(1.0)
+    estimates = truth.assign(nis=0.2, n_meas=1)
+    estimates.attrs = {"gated_share": 0.0, "resets": 0, "self_fit_run_sigma_m": 0.15, "self_fit_range_sigma_m": 0.07,
+                       "self_fit_p_sigma_m": 0.4, "self_fit_range_correction": "not supported"}
+    d = diagnose_run(data, estimates, {"update": "sequential"})
+    assert d["self_fit_p_sigma_m"] == 0.4
+    text = " ".join(findings(d, {"range_sigma_m": 0.3, "motion": "p"}))
+    assert "range_sigma_m=0.07 p_sigma_m=0.4 with self_fit=none" in text and "accel" not in text
+    estimates = estimates.assign(nis=40.0)
+    assert "process noise (p_sigma_m)" in " ".join(findings(diagnose_run(data, estimates, {}), {"motion": "p"}))
+
+
 def test_rss_only_runs_are_estimated_on_their_rss():
     anchors = pd.DataFrame({"anchor_id": ["a"], "tech": "ble", "x": [0.0], "y": [0.0], "z": [np.nan]})
     rss = pd.DataFrame({"t": [0.0], "anchor_id": ["a"], "rss_dbm": [-60.0]})
@@ -245,3 +260,25 @@ def test_quarantine_notes_show_the_offending_values_cut_to_a_readable_width():
     assert notes[("ranges.csv", "range_m '…' is negative (e.g. '-1.5', '-0.2')")] == 3
     assert notes[("ranges.csv", f"range_m '{long[:23]}…' is not a number")] == 1
     assert notes[("rss.csv", "unknown anchor 'A9' (not in anchors.csv)")] == 1
+
+
+def test_a_donor_exponent_candidate_without_a_score_cannot_win_and_is_named():
+    """donor_rss_model: a candidate whose estimates do not meet the donor's truth has no RMSE (NaN); it
+    used to lose every comparison silently (the prior kept, nothing said). Now it is 'not scored' in the
+    text, and the other candidate wins."""
+    from synthetic import RSS_MODEL, SQUARE, tables_for, walk
+    from wsnloc.campaign import Campaign
+    from wsnloc.experiments.calibration import donor_rss_model
+
+    times = np.arange(0.5, 60.0, 0.5)
+    tables = tables_for(times, np.array(["A1"] * len(times), dtype=object), walk, SQUARE, rss_times=times)
+    site = Campaign(name="generic", format="generic", spec={}, source="(test)")
+    truth = tables["truth"]
+
+    def track(model):           # the prior's estimates lie after the donor's truth: no RMSE
+        shift = 1000.0 if model["path_loss_exponent"] == 2.0 else 0.0
+        return truth.iloc[::10][["t", "x", "y"]].assign(t=lambda f: f["t"] + shift)
+
+    model = donor_rss_model(tables["rss"], truth, site, RSS_MODEL["d0_m"], 2.0, track, tables["anchors"])
+    assert model["exponent_source"] == "donor fit"
+    assert "prior n=2.00: not scored" in model["exponent_choice"]

@@ -47,10 +47,11 @@ def test_default_tracker_absorbs_a_seven_percent_scale_offsets_and_two_gaps(seed
     assert plain > 1.3 * clean            # without the self-fit the errors matter
 
 
-@pytest.mark.parametrize("seed", [1, 3])
+@pytest.mark.parametrize("seed", range(1, 9))
 def test_given_the_true_sigma_the_tracker_is_within_1_2x_of_the_best_sigma_of_a_grid(seed):
     """Acceptance: range noise 0.1 m; the configured sigma 0.1 (with the default accel) is no worse
-    than 1.2x the best of the grid (it was 1.33x-1.36x when the self-fit could only go livelier)."""
+    than 1.2x the best of the grid (it was 1.33x-1.36x when the self-fit could only go livelier).
+    Seeds 1-8 measured: 1.00x-1.07x."""
     tables = _run(seed)
     grid = {sigma: _median(tables, {"range_sigma_m": sigma})[0] for sigma in (0.05, 0.1, 0.2, 0.3, 0.5)}
     assert grid[0.1] <= 1.2 * min(grid.values())
@@ -92,9 +93,10 @@ def test_a_gate_that_rejects_most_measurements_widens_before_it_restarts():
     assert "widened" in text
 
 
-@pytest.mark.parametrize("seed", [1, 3])
+@pytest.mark.parametrize("seed", range(1, 7))
 def test_the_self_fit_does_not_hurt_a_run_without_errors(seed):
-    """Nothing to fit: the self-fitted track stays within 1.15x of the configured single pass."""
+    """Nothing to fit: the self-fitted track stays within 1.15x of the configured single pass (seeds 1-6
+    measured: 1.00x-1.11x; the range correction is not supported on any)."""
     tables = _run(seed)
     fitted, _ = _median(tables)
     plain, _ = _median(tables, {"self_fit": "none"})

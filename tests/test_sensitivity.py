@@ -83,9 +83,19 @@ def test_grid_reruns_only_the_sampled_runs_and_decides_each_setting():
     rows = results.frame(sensitivity.results_rows("B", {"x/s": grid}, paper_b.claims))
     fusion = rows[rows["row"] == "Fusion beats both UWB only and IMU only"].set_index("column")["value"]
     assert fusion.to_dict() == {"x1": 1, "fix_sigma_m x0.5": 1, "fix_sigma_m x2": -1}
-    table = sensitivity_table(rows, "B", [{"claim": "Fusion beats both UWB only and IMU only", "verdict": HOLDS}])
+    claims = [{"claim": "Fusion beats both UWB only and IMU only", "verdict": HOLDS}]
+    table = sensitivity_table(rows, "B", claims, sensitivity.TABLE)
     assert table["settings"][0] == "x1"
     assert table["rows"][0]["cells"] == [HOLDS, HOLDS, DOES_NOT_HOLD] and not table["rows"][0]["robust"]
+    # the UWB ranging levels (nlos_sweep) are a table of their own: the report shows two narrower tables
+    from wsnloc.analysis.nlos_severity import CLAIMS_TABLE
+
+    levels = results.frame(sensitivity.results_rows("B", {"x/s": grid.assign(setting=grid["setting"].map(
+        {"x1": "spec", "fix_sigma_m x0.5": "harsh", "fix_sigma_m x2": "harsher"}))}, paper_b.claims, CLAIMS_TABLE))
+    both = pd.concat([rows, levels], ignore_index=True)
+    assert sensitivity_table(both, "B", claims, sensitivity.TABLE)["settings"] == table["settings"]
+    ranging = sensitivity_table(both, "B", claims, CLAIMS_TABLE)
+    assert ranging["settings"] == ["spec", "harsh", "harsher"] and ranging["rows"][0]["cells"] == table["rows"][0]["cells"]
 
 
 def test_static_share_and_measurements_per_epoch():
@@ -95,6 +105,21 @@ def test_static_share_and_measurements_per_epoch():
     # speeds: epochs 1..5 still (first takes the second's speed), then moving
     assert setup_facts.static_share(cell).loc["run-01"] == pytest.approx(6 / len(t))
     assert setup_facts.measurements_per_epoch(cell).loc["run-01"] == pytest.approx(np.mean(np.arange(len(t)) % 3))
+
+
+def test_paper_a_setup_counts_the_measurements_its_filters_used_and_says_so():
+    """Paper A's Set-up rows are the mean n_meas of Table I's first TOA and RSS rows per epoch, and
+    their labels say so (the logs' anchors per round are another count: pl0_sensitivity)."""
+    from wsnloc.experiments import paper_a
+
+    spec = {"rows": [{"measurements": "toa", "anchors": "UWB=12"}, {"measurements": "rss", "anchors": "ZigBee=21"}]}
+    t = np.arange(0.0, 5.0, 0.5)
+    est = pd.concat([pd.DataFrame({"table": "Table I", "row": paper_a.row_label(row), "run": "run-01", "t": t,
+                                   "true_x": 0.3 * t, "true_y": 0.0, "n_meas": n})
+                     for row, n in zip(spec["rows"], (9.0, 17.0))], ignore_index=True)
+    facts = results.frame(paper_a.setup_rows({"newcom/constant": est}, spec)).set_index("row")["value"]
+    assert facts[paper_a.MEASUREMENTS_USED["toa"]] == 9.0 and facts[paper_a.MEASUREMENTS_USED["rss"]] == 17.0
+    assert all("used per epoch" in label for label in paper_a.MEASUREMENTS_USED.values())
 
 
 def test_explanations_cite_the_computed_numbers_and_skip_missing_ones():
@@ -139,7 +164,7 @@ def test_static_share_sweep_lengthens_the_rest_and_pairs_the_runs(campaign):
 
     from test_ekf import SPEC_A
 
-    spec = {**SPEC_A, "parameters": {**SPEC_A["parameters"], "rss_calibration": "other_run"},
+    spec = {**SPEC_A, "parameters": {**SPEC_A["parameters"], "rss_calibration": "other_run_common"},
             "rows": [{"measurements": "toa", "anchors": "UWB=12"}, {"measurements": "hybrid", "anchors": "UWB=12+ZigBee=21"}]}
     sweep = static_share.gain_against_rest(campaign, "constant", [5.0, 30.0], 2, 11, spec)
     assert list(sweep["run"]) == ["run-01", "run-02"] * 2
@@ -347,7 +372,13 @@ def test_the_gap_account_is_computed_from_the_builds_numbers_and_its_arithmetic_
     sigma = explanations.campaign_of(config, "newcom/b_real").section("imu", "accel_bias_sigma_mps2")
     assert f"T = 61.0 s: {math.sqrt(2) * sigma * 61.0**2 / (2 * math.sqrt(5)):+.3f} m" in line
     # paper B's simulation scenario has no accelerometer bias (snr model): no drift, no rest missed
-    assert numbers.accel_bias_sigma("newcom/b_simulation") == 0.0 and math.isnan(numbers.accel_bias_sigma("x/y"))
+    assert numbers.imu_bias_sigma("newcom/b_simulation", "accel_bias_sigma_mps2") == 0.0
+    # paper B's "why it differs" quotes the campaign's IMU biases, not numbers of its own
+    gyro = explanations.campaign_of(config, "newcom/b_real").section("imu", "gyro_bias_sigma_dps")
+    [drift] = [line for line in paper_b_report.why(numbers, ["newcom/b_real"], []) if "turn-on bias" in line]
+    assert f"({sigma:g} m/s^2 per axis, 1 sigma, campaign)" in drift and f"gyro bias ({gyro:g} deg/s)" in drift
+    assert f"b T^2 / 2 ({0.5 * sigma * 61.0**2:.0f} m over the 61 s run)" in drift
+    assert math.isnan(numbers.imu_bias_sigma("x/y", "accel_bias_sigma_mps2"))
     simulation = explanations.Numbers(results.frame([
         results.row_over_runs([1.5, 1.6, 1.55] * 4, experiment="B", table="RMSE", row=paper_b.METHODS["imu"],
                               column="newcom/b_simulation", scenario="newcom/b_simulation", metric="rmse_m",
@@ -366,3 +397,14 @@ def test_the_gap_account_is_computed_from_the_builds_numbers_and_its_arithmetic_
     # no account for cells that are not RMSE (a max error is not a sum of RMS contributions)
     [line] = explanations.cell_whys(numbers, "B", [dict(table_b, title="Max error [m]")])
     assert "ours 25.000" in line and "Account of the gap" not in line and "No mechanism quantified" not in line
+
+
+def test_the_papers_per_scenario_calibration_refuses_other_run():
+    """rss_models_for_runs fits one P0, n, sigma on the next run (other_run_common); `other_run` (per-receiver
+    P0s, exponent chosen by tracking the donor) was silently fitted the same way: now refused, naming the key."""
+    from wsnloc.errors import ConfigError
+    from wsnloc.experiments import calibration
+
+    p = {"rss_calibration": "other_run", "p0_dbm": -50.0, "path_loss_exponent": 2.0, "sigma_db": 4.0, "d0_m": 1.0}
+    with pytest.raises(ConfigError, match="'rss_calibration': other_run .* use other_run_common"):
+        calibration.rss_models_for_runs({"a": {}, "b": {}}, None, [], p)

@@ -169,8 +169,11 @@ def test_why_formulas_and_every_non_holding_claim_gets_a_mechanism():
                             for m, level in (("uwb", 1.0), ("imu", 20.0), ("sskf", 5.0), ("kf", 5.01)) for r in runs])
     records = [{"claim": "Fusion beats both UWB only and IMU only", "verdict": DOES_NOT_HOLD},
                {"claim": "The classical KF is somewhat better than the steady-state KF", "verdict": HOLDS}]
-    out = why.explain_b(records, {"newcom/b_real": per_run}, {"newcom/b_real": 0.0})
-    assert "IMU only 20.00" in out[0]["why"] and "b T^2 / 2 = 36 m over the 60 s run" in out[0]["why"]
+    out = why.explain_b(records, {"newcom/b_real": per_run}, {"newcom/b_real": 0.0}, {"newcom/b_real": 0.03})
+    assert "IMU only 20.00" in out[0]["why"] and "b T^2 / 2 = 54 m over the 60 s run" in out[0]["why"]
+    assert "a 0.03 m/s^2 turn-on bias" in out[0]["why"]         # the campaign's sigma, as given
+    unbiased = why.explain_b(records, {"newcom/b_real": per_run}, {"newcom/b_real": 0.0}, {"newcom/b_real": 0.0})
+    assert "turn-on bias" not in unbiased[0]["why"]
     assert "why" not in out[1]
     with pytest.raises(KeyError, match="no computed mechanism"):
         why._attach([{"claim": "unknown", "verdict": DOES_NOT_HOLD}], {})

@@ -187,3 +187,45 @@ def test_study_tables_stack_3d_tracks_beside_planar_ones():
     frame = stacked([planar, spatial], {"cell": ["2d", "3d"]})
     assert len(frame) == len(planar.rows) + len(spatial.rows)
     np.testing.assert_array_equal(frame["x"].to_numpy()[len(planar.rows):], spatial.rows[:, 1])
+
+
+# ---- the simulated 3-D flight (newcom campaign, scenario `flight`) --------------------------------
+def test_simulated_flight_ranges_in_3d_and_its_truth_has_the_height_profile(campaign, tmp_path):
+    """The flight scenario's anchors stand at two heights and the tag climbs 1.5 m and back
+    (Campaign.for_scenario): its LOS ranges match the 3-D distances to the truth (the range error of
+    the 3-D geometry, as a planar scenario's, stays within the channel's few cm), not the planar ones;
+    a planar scenario keeps the campaign as it is."""
+    from wsnloc.io.newcom import ingest_run
+    from wsnloc.metrics.ranging import range_errors
+    from wsnloc.sim.newcom import simulate_run
+    from wsnloc.sim.seeding import run_seed_sequence
+
+    assert campaign.for_scenario("constant") is campaign
+    flight = campaign.for_scenario("flight")
+    run = simulate_run(campaign, "flight", run_seed_sequence(3, "newcom", "flight", 1), tmp_path / "run")
+    tables, _ = ingest_run(run, flight)
+    truth, anchors = tables["truth"], tables["anchors"]
+    assert truth["z"].max() - truth["z"].min() >= 1.0
+    uwb = anchors[anchors["tech"] == "uwb"]
+    assert set(uwb["z"]) == {0.3, 2.6} and anchors.loc[anchors["tech"] == "zigbee", "z"].isna().all()
+    errors = range_errors(tables["ranges"], truth, flight, anchors)
+    los = errors[errors["los"]]
+    planar = range_errors(tables["ranges"], truth.drop(columns="z"), campaign, anchors.assign(z=np.nan))
+    assert abs(los["error_m"].median()) < 0.1 < abs(planar.loc[planar["los"], "error_m"].median())
+
+
+def test_tracker_follows_the_simulated_flight_in_3d(campaign, tmp_path):
+    """The default tracker with a 3-D state on one simulated flight: its height follows the
+    climb (RMSE of z under 1 m over a 1.5 m climb) and the metrics give the 2-D and 3-D RMSE."""
+    from wsnloc.io.newcom import ingest_run
+    from wsnloc.sim.newcom import simulate_run
+    from wsnloc.sim.seeding import run_seed_sequence
+
+    run = simulate_run(campaign, "flight", run_seed_sequence(3, "newcom", "flight", 1), tmp_path / "run")
+    tables, _ = ingest_run(run, campaign.for_scenario("flight"))
+    estimates = registry.run("tracker", RunData(tables, campaign, None, "flight"), {"dimensions": 3, "max_range_m": 50.0})
+    scored = score(estimates, tables["truth"])
+    metrics = run_metrics(scored, tables["truth"])
+    z_error = np.sqrt(np.nanmean((scored["z"] - scored["true_z"]) ** 2))
+    assert metrics["availability"] > 0.95 and z_error < 1.0 and metrics["rmse"] < 1.0
+    assert metrics["rmse"] < metrics["rmse_3d"] == pytest.approx(np.sqrt(metrics["rmse"] ** 2 + z_error**2), rel=1e-6)

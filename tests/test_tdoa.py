@@ -264,7 +264,7 @@ def test_a_tdoa_self_fit_that_lowers_the_innovation_likelihood_is_not_applied(mo
     the self-fit's likelihood-ratio test keeps the differences as measured."""
     from wsnloc.estimators import self_fit
 
-    wrong = {"scale": 1.3, "offsets_m": {"A1": 0.0, "A2": 1.6, "A3": -0.1, "A4": 0.3}, "source": "test"}
+    wrong = {"scale": 1.3, "offsets_m": {"A1": 0.0, "A2": 1.6, "A3": -0.1, "A4": 0.3}, "parameters": 4, "source": "test"}
     monkeypatch.setattr(self_fit, "tdoa_correction", lambda *args: wrong)
     data = tdoa_run(seed=4, noise=0.05)
     p = {"measurements": "tdoa", "range_sigma_m": 0.05}
@@ -273,6 +273,37 @@ def test_a_tdoa_self_fit_that_lowers_the_innovation_likelihood_is_not_applied(mo
     truth = data.table("truth")
     assert fitted.attrs["self_fit_range_correction"] == "not supported" and "self_fit_range_scale" not in fitted.attrs
     assert np.nanmedian(score(fitted, truth)["error_m"]) < 0.1
+
+
+@pytest.mark.parametrize("scale", [1.0, 1.07])
+def test_the_tdoa_self_fit_penalty_counts_only_its_free_parameters(scale, monkeypatch):
+    """Range differences see offsets only up to a common constant (the gauge anchor's is 0, not
+    fitted) and a scale within MIN_SCALE_ERROR of 1 is held at 1: with 4 anchors the BIC penalty
+    counts 3 offsets, plus the scale where it was fitted (1.07), k / 2 ln(n innovations)."""
+    from wsnloc.estimators import self_fit
+
+    data = biased_tdoa_run(4, scale)
+    p = {"measurements": "tdoa", "range_sigma_m": 0.05}
+    track = registry.run("tracker", data, dict(p, self_fit="none"))
+    model = self_fit.tdoa_correction(data, track, registry.get("tracker").resolve(p))
+    expected = 3 + (scale != 1.0)
+    assert model["parameters"] == expected and len(model["offsets_m"]) == 4
+    counts = []
+    score = self_fit._score
+    monkeypatch.setattr(self_fit, "_score", lambda *args: counts.append(score(*args)) or counts[-1])
+    fitted = registry.run("tracker", data, p)
+    assert len({n for _, _, n in counts}) == 1                     # every pass scored on the same innovations
+    assert fitted.attrs["self_fit_range_ll_penalty"] == pytest.approx(0.5 * expected * np.log(counts[0][2]))
+
+
+def test_tdoa_model_pair_rows_are_h_and_jacobian_at_each_rows_position():
+    receivers = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]])
+    model = TdoaModel(receivers, np.array([[1, 0], [2, 0], [3, 1]]), 0.1, np.array([1.0, -0.5, 0.0, 2.0]))
+    X = np.array([[3.0, 4.0, 0.2, 0.1], [7.0, 1.0, 0.0, 0.0], [5.0, 8.0, 0.0, 0.0]])
+    pair = np.array([2, 0, 1])
+    h, H = model.pair_rows(X, pair)
+    np.testing.assert_allclose(h, [model.h(x)[k] for x, k in zip(X, pair)])
+    np.testing.assert_allclose(H, [model.jacobian(x)[k, :2] for x, k in zip(X, pair)])
 
 
 def test_tdoa_bias_fit_recovers_scale_and_offset_differences():

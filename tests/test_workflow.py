@@ -55,6 +55,11 @@ def test_builds_report_and_results(workdir):
     assert 0 < robust[("ekf", "newcom/constant", "gated")] < 0.1
     assert 0 < robust[("ekf_gate_nlos", "newcom/constant", "gated")] < 0.1
     assert "gated" in html and "Range error per anchor" in html
+    spatial = results[results["experiment"] == "study:workbench_spatial"].set_index(["scenario", "column"])
+    assert set(spatial.index.get_level_values("scenario")) == {"newcom/tdoa", "newcom/flight"}
+    assert (spatial.loc[(slice(None), "rmse"), "runs"] == 1).all()       # datasets.newcom.scenario_runs
+    assert (spatial.loc[(slice(None), "efficiency"), "value"] > 0).all()   # the TDOA and 3-D trackers' bounds
+    assert "flight: 1" in html                                              # the banner names the runs
     for paper in ("a", "c"):        # per-epoch estimates of every paper, one file per scenario
         assert list((workdir / "data" / "processed").glob(f"*/*/paper_{paper}/estimates.parquet"))
     assert {"data", "A", "B", "C", "D"} <= set(results["experiment"])

@@ -62,6 +62,29 @@ class Campaign:
         validate(spec, _campaign_schema(), source=f"campaign file {path}")
         return cls(name=spec["name"], format=spec["format"], spec=spec, source=str(path))
 
+    def for_scenario(self, scenario: str) -> "Campaign":
+        """The campaign as one of its scenarios sees it. A 3-D scenario (keys `tag_height_m`: the
+        tag's height profile, [arc length m, height m] points along the path, linear between them;
+        `anchor_heights_m`: {anchor id: z m}) gets a path with that height profile (pose z, m) and
+        those anchors' z; any other scenario, or a name the campaign does not define, the campaign
+        itself. The simulator writes a scenario's logs and the ingest reads them with it."""
+        spec = (self.spec.get("scenarios") or {}).get(scenario) or {}
+        if "tag_height_m" not in spec and "anchor_heights_m" not in spec:
+            return self
+        heights = spec.get("anchor_heights_m") or {}
+        known = set(self.anchors["anchor_id"])
+        unknown = [a for a in heights if a not in known]
+        if unknown:
+            raise ConfigError(f"{self.source}: key 'scenarios.{scenario}.anchor_heights_m': unknown anchor {unknown[0]!r}")
+        anchors = [dict(a, z=float(heights[a["id"]])) if a["id"] in heights else a for a in self.spec["anchors"]]
+        out = Campaign(name=self.name, format=self.format, spec=dict(self.spec, anchors=anchors), source=self.source)
+        if "tag_height_m" in spec:
+            try:
+                out.path = Path(self.path.points, self.path.corner_radius, spec["tag_height_m"])
+            except ValueError as exc:
+                raise ConfigError(f"{self.source}: key 'scenarios.{scenario}.tag_height_m': {exc}") from exc
+        return out
+
     def section(self, *keys: str):
         """Nested model parameters, e.g. ``section('radio', 'uwb')``; names the missing key."""
         node = self.spec

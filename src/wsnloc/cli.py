@@ -80,9 +80,25 @@ def cmd_ingest(args) -> int:
         for file, reason, count in quarantine_by_reason(quarantine):
             print(f"  {count:>6}  {file}: {reason}")
     print(f"quarantined share: {quarantine_share(inventory):.2%}; tables written to {args.out_dir}")
-    limits = QuarantineLimits(per_run=args.max_quarantine_share, per_file=args.max_quarantine_share_per_file)
-    check_quarantine_limits(args.run_dir, inventory, quarantine, limits, quarantine_path)
+    check_quarantine_limits(args.run_dir, inventory, quarantine, _quarantine_limits(args), quarantine_path)
     return 0
+
+
+QUARANTINE_OPTIONS = ("--max-quarantine-share", "--max-quarantine-share-per-file")     # per run, per file
+
+
+def _add_quarantine_options(command: argparse.ArgumentParser) -> None:
+    """The quarantine limits of a command that ingests a run (io.limits; the workflow's config
+    keys ingest.max_quarantine_share / _per_file, same defaults)."""
+    command.add_argument(QUARANTINE_OPTIONS[0], type=float, default=DEFAULT_PER_RUN,
+                         help="exit 2 when a larger share of the run is quarantined (default: %(default)s)")
+    command.add_argument(QUARANTINE_OPTIONS[1], type=float, default=DEFAULT_PER_FILE,
+                         help="exit 2 when a larger share of one file is quarantined (default: %(default)s)")
+
+
+def _quarantine_limits(args) -> QuarantineLimits:
+    return QuarantineLimits(args.max_quarantine_share, args.max_quarantine_share_per_file,
+                            tuple(f"option {option}" for option in QUARANTINE_OPTIONS))
 
 
 def cmd_convert(args) -> int:
@@ -120,7 +136,7 @@ def cmd_estimate(args) -> int:
     overrides = dict(parse_assignment(text) for text in args.set or [])
     campaign = _ingest_campaign(args)
     metrics = estimate_run(args.format, Path(args.run_dir), campaign, Path(args.out), args.estimator, overrides,
-                           Path(args.calibration) if args.calibration else None)
+                           Path(args.calibration) if args.calibration else None, _quarantine_limits(args))
     notes, diagnosis = metrics.pop("notes"), metrics.pop("diagnosis")
     for note in notes:
         print(f"note: {note}")
@@ -160,10 +176,7 @@ def parser() -> argparse.ArgumentParser:
     ing.add_argument("--format", required=True, choices=sorted(PARSERS))
     ing.add_argument("--campaign", help="campaign file (default: config/campaigns/<format>.yaml; "
                                         "the generic format needs none)")
-    ing.add_argument("--max-quarantine-share", type=float, default=DEFAULT_PER_RUN,
-                     help="exit 2 when a larger share of the run is quarantined (default: %(default)s)")
-    ing.add_argument("--max-quarantine-share-per-file", type=float, default=DEFAULT_PER_FILE,
-                     help="exit 2 when a larger share of one file is quarantined (default: %(default)s)")
+    _add_quarantine_options(ing)
     ing.add_argument("run_dir")
     ing.add_argument("out_dir")
     ing.set_defaults(func=cmd_ingest)
@@ -194,6 +207,7 @@ def parser() -> argparse.ArgumentParser:
                                            "model (estimators reading RSS) and, on a run with ranges, the range "
                                            "scale and per-anchor offsets are fitted on it (range_calibration="
                                            "other_run unless --set gives another)")
+    _add_quarantine_options(run)
     run.set_defaults(func=cmd_estimate)
 
     val = sub.add_parser("validate-config", help="validate a workflow configuration file")

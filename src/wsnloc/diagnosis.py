@@ -20,10 +20,11 @@ Values (`diagnose_run`, all optional, NaN where the estimator or run has none):
                     per-anchor biases leave offsets b_a.
   self_scale, self_offset_m   the filter's own self-calibration states, where it has them
   calibrated_scale  the donor calibration applied, where one was
-  self_fit_run_sigma_m, self_fit_range_sigma_m, self_fit_accel_sigma_mps2, self_fit_range_correction
+  self_fit_run_sigma_m, self_fit_range_sigma_m, self_fit_accel_sigma_mps2 (P model:
+  self_fit_p_sigma_m), self_fit_range_correction
                     the tracker's self-fit (estimators.self_fit): the range sigma the output pass ran
-                    with, the sigma of the innovations' Gaussian core and the acceleration noise with
-                    it (maximum likelihood), and whether the fitted range scale and offsets were applied. The run sigma is deliberately wider than the core
+                    with, the sigma of the innovations' Gaussian core and the process noise with
+                    it (maximum likelihood; the P model's is p_sigma_m), and whether the fitted range scale and offsets were applied. The run sigma is deliberately wider than the core
                     (the gate keeps NLOS-long ranges), so the NIS of a self-fitted run sits below its
                     band by about (core / run sigma)^2: the stated covariance is pessimistic, not
                     the noise mis-set.
@@ -41,6 +42,7 @@ import pandas as pd
 
 from wsnloc.campaign import Campaign
 from wsnloc.estimators.run_data import RunData
+from wsnloc.estimators.self_fit import FITTED_NOISE_KEYS, PROCESS_NOISE
 from wsnloc.metrics.consistency import chi2_band
 from wsnloc.metrics.ranging import fit_range_bias, range_errors
 
@@ -49,7 +51,8 @@ SCALE_TOLERANCE = 0.03          # |s - 1| above this: a common range scale error
 OFFSET_TOLERANCE_M = 0.15       # |b_a| above this: a per-anchor bias (antenna delay, cable; UWB sigma ~0.1 m)
 MIN_RANGES = 50                 # fewer ranges along the track: no scale / offset fit
 GUARDS = ("regularised", "skipped", "reinitialised")
-SELF_FIT = ("self_fit_run_sigma_m", "self_fit_range_sigma_m", "self_fit_accel_sigma_mps2", "self_fit_range_correction")
+SELF_FIT = ("self_fit_run_sigma_m", "self_fit_range_sigma_m", "self_fit_range_correction") \
+    + tuple(fitted for _, fitted in FITTED_NOISE_KEYS.values())
 
 
 def _nis(estimates: pd.DataFrame, p: dict) -> dict:
@@ -155,21 +158,23 @@ def _nis_findings(d: dict, p: dict) -> list[str]:
     """The NIS outside its band: what it means. A self-fitted run states its own sigma (run) and the
     innovations' core (fit): below the band by about (fit / run)^2 is the self-fit's choice."""
     band = f"NIS {d['nis_mean']:.2f} per dof is {{}} its 95% band [{d['nis_low']:.2f}, {d['nis_high']:.2f}]"
-    run, core, accel = (d.get(k) for k in ("self_fit_run_sigma_m", "self_fit_range_sigma_m", "self_fit_accel_sigma_mps2"))
+    noise = PROCESS_NOISE[p.get("motion") == "p"]          # accel_sigma_mps2, or p_sigma_m for the P model
+    run, core, process = (d.get(k) for k in ("self_fit_run_sigma_m", "self_fit_range_sigma_m",
+                                             FITTED_NOISE_KEYS[noise][1]))
     sigma = run or p.get("range_sigma_m")
     if d["nis_mean"] > d["nis_high"]:
         hint = f" (range_sigma_m about {sigma * np.sqrt(d['nis_mean']):.2g} would match)" \
             if sigma and p.get("measurements", "toa") == "toa" else ""
         return [band.format("above") + ": the innovations are larger than the filter expects; raise the "
-                f"measurement noise{hint} or the process noise (accel_sigma_mps2)"]
+                f"measurement noise{hint} or the process noise ({noise})"]
     if d["nis_mean"] >= d["nis_low"]:
         return []
-    if run and core and accel:
+    if run and core and process:
         return [band.format("below") + f": the self-fit ran with range sigma {run:.2g} m, the candidate whose "
                 f"gain fits the innovations best, while their Gaussian core is about {core:.2g} m; the stated "
                 f"covariance is pessimistic by about {1 / np.sqrt(d['nis_mean']):.1f}x in sigma (the wider noise "
                 f"keeps NLOS-long ranges inside the gate). For a consistent covariance set range_sigma_m={core:.2g} "
-                f"accel_sigma_mps2={accel:.2g} with self_fit=none (a tighter gate: check the gated share)"]
+                f"{noise}={process:.2g} with self_fit=none (a tighter gate: check the gated share)"]
     return [band.format("below") + ": the measurement noise is set larger than the data need; a smaller one "
             "would follow the track more closely"]
 

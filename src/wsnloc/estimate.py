@@ -36,12 +36,13 @@ METRIC_KEYS = {"rmse": "rmse_m", "mean": "mean_m", "median": "median_m", "p75": 
                "p95": "p95_m", "max": "max_m", "n": "n", "availability": "availability", "rmse_3d": "rmse_3d_m"}
 
 
-def load_run(fmt: str, run_dir: Path, campaign: Campaign | None, out_dir: Path) -> dict[str, pd.DataFrame]:
+def load_run(fmt: str, run_dir: Path, campaign: Campaign | None, out_dir: Path,
+             limits: QuarantineLimits = QuarantineLimits()) -> dict[str, pd.DataFrame]:
     """Ingest a raw run into out_dir (Parquet + quarantine), stop above the quarantine limits.
     The quarantine table is under the key 'quarantine'."""
     inventory = ingest_one(fmt, run_dir, campaign, out_dir)
     quarantine = tables.read(out_dir / "quarantine.parquet")
-    check_quarantine_limits(run_dir, inventory, quarantine, QuarantineLimits(), out_dir / "quarantine.parquet")
+    check_quarantine_limits(run_dir, inventory, quarantine, limits, out_dir / "quarantine.parquet")
     loaded = {name: tables.read(out_dir / f"{name}.parquet") for name in tables.RAW_TABLES}
     loaded["quarantine"] = quarantine
     return loaded
@@ -73,7 +74,7 @@ def converted_quarantine(run_dir: Path) -> str | None:
 
 
 def donor_models(fmt: str, donor_dir: Path, campaign: Campaign | None, out_dir: Path, name: str, p: dict,
-                 reads_rss: bool) -> tuple[dict | None, dict | None]:
+                 reads_rss: bool, limits: QuarantineLimits = QuarantineLimits()) -> tuple[dict | None, dict | None]:
     """(RSS model, range calibration) fitted on a donor run with truth (same site): the RSS
     model when the estimator reads RSS (experiments.calibration.donor_model_for: by default
     per-receiver P0s, sigma, and the exponent, the donor's or the configured one, whichever
@@ -84,7 +85,7 @@ def donor_models(fmt: str, donor_dir: Path, campaign: Campaign | None, out_dir: 
     if not (reads_rss or wants_ranges):
         raise WsnlocError(f"--calibration {donor_dir}: this estimator calibrates nothing on a donor (it reads no "
                           f"RSS, and range_calibration is {p.get('range_calibration')!r})")
-    donor = load_run(fmt, donor_dir, campaign, out_dir)
+    donor = load_run(fmt, donor_dir, campaign, out_dir, limits)
     if len(donor["truth"]) == 0:
         raise WsnlocError(f"{donor_dir}: a calibration donor needs truth")
     for table, wanted in (("rss", reads_rss), ("ranges", wants_ranges and not len(donor["tdoa"]))):
@@ -102,16 +103,17 @@ def donor_models(fmt: str, donor_dir: Path, campaign: Campaign | None, out_dir: 
 
 
 def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, name: str, overrides: dict,
-                 calibration_dir: Path | None = None) -> dict:
+                 calibration_dir: Path | None = None, limits: QuarantineLimits = QuarantineLimits()) -> dict:
     """Run `name` on the raw run; writes estimates.parquet (and metrics.json with truth); returns the
     metrics, with 'n_estimates', 'notes' (quarantine, choices made from the data) and 'diagnosis'
     (the text of diagnosis.report). A donor (`calibration_dir`) alone turns on the range
     calibration from it (range_calibration=other_run) on a run with ranges unless overrides set
     range_calibration, and the RSS model when the estimator reads RSS;
-    measurements / fixes not in overrides follow the data (estimators.auto.measurements_for)."""
+    measurements / fixes not in overrides follow the data (estimators.auto.measurements_for).
+    The run and the donor stop above the quarantine `limits` (IngestError)."""
     estimator = registry.get(name, "--estimator")
     p = estimator.resolve(overrides, "--set")
-    run_tables = load_run(fmt, run_dir, campaign, out / "tables")
+    run_tables = load_run(fmt, run_dir, campaign, out / "tables", limits)
     notes = [q for q in [quarantine_summary(run_tables.pop("quarantine"), out / "tables" / "quarantine.parquet"),
                          converted_quarantine(run_dir)] if q]
     if "imu_5hz" in estimator.tables(p):
@@ -127,7 +129,7 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
             and len(run_tables["ranges"]) and p.get("measurements", "toa") != "rss":
         p = dict(p, range_calibration="other_run")       # the donor calibrates the ranges too
     rss_model, range_model = donor_models(fmt, calibration_dir, campaign, out / "calibration", name, p,
-                                          reads_rss(name, p) and p.get("rss_calibration") != "configured") \
+                                          reads_rss(name, p) and p.get("rss_calibration") != "configured", limits) \
         if calibration_dir else (None, None)
     if rss_model and "exponent_choice" in rss_model:
         notes.append(f"RSS model from the donor: per-receiver P0 offsets, exponent {rss_model['exponent_choice']}")

@@ -61,6 +61,11 @@ def _check_datasets(config: dict) -> dict:
             raise ConfigError(f"config key 'datasets.{name}.kind': {kind!r} does not fit source "
                               f"{dataset['source']!r} (simulate: simulated; logs: measured or synthetic)")
         if dataset["source"] == "simulate":
+            for scenario in dataset.get("scenario_runs") or {}:
+                if scenario not in dataset["scenarios"]:
+                    raise ConfigError(f"config key 'datasets.{name}.scenario_runs.{scenario}': not one of the "
+                                      f"dataset's scenarios{did_you_mean(scenario, dataset['scenarios'])} "
+                                      f"({', '.join(dataset['scenarios'])})")
             defined = campaign.spec.get("scenarios", {})
             for scenario in dataset["scenarios"]:
                 if scenario not in defined:
@@ -70,10 +75,13 @@ def _check_datasets(config: dict) -> dict:
             continue
         if not dataset.get("raw_dir"):
             raise ConfigError(f"config key 'datasets.{name}.raw_dir': required when source is 'logs'")
-        if dataset.get("convert"):        # the workflow's conversion rule writes raw_dir
-            continue
-        if not Path(dataset["raw_dir"]).is_dir():
+        if not dataset.get("convert") and not Path(dataset["raw_dir"]).is_dir():   # convert: the workflow writes raw_dir
             raise ConfigError(f"config key 'datasets.{name}.raw_dir': no such directory {dataset['raw_dir']!r}")
+        if dataset.get("scenario_runs"):
+            raise ConfigError(f"config key 'datasets.{name}.scenario_runs': only a simulated dataset (source "
+                              f"simulate) sets its runs; real logs have the runs found on disk")
+        if dataset.get("convert"):
+            continue
         for scenario in dataset["scenarios"]:
             folder = Path(dataset["raw_dir"]) / scenario
             if not folder.is_dir() or not any(p.is_dir() for p in folder.iterdir()):

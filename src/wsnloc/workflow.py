@@ -19,8 +19,12 @@ def run_name(index: int, total: int) -> str:
     return f"run-{index:0{max(2, len(str(total)))}d}"
 
 
-def simulated_runs(config: dict) -> list[str]:
-    return [run_name(i, config["runs"]) for i in range(1, config["runs"] + 1)]
+def simulated_runs(config: dict, dataset: str | None = None, scenario: str | None = None) -> list[str]:
+    """Run names of a simulated scenario: `datasets.<dataset>.scenario_runs.<scenario>` runs where
+    set (a scenario only a few cells read), else the top-level `runs`; without a scenario, `runs`."""
+    spec = config["datasets"].get(dataset) or {} if dataset else {}
+    count = (spec.get("scenario_runs") or {}).get(scenario, config["runs"])
+    return [run_name(i, count) for i in range(1, count + 1)]
 
 
 def raw_root(config: dict, dataset: str) -> str:
@@ -32,7 +36,7 @@ def dataset_runs(config: dict, dataset: str, scenario: str) -> list[str]:
     """Run names of one scenario; for real logs, the run directories present on disk."""
     spec = config["datasets"][dataset]
     if spec["source"] == "simulate":
-        return simulated_runs(config)
+        return simulated_runs(config, dataset, scenario)
     if spec.get("convert"):        # written by the workflow's conversion rule: known from the source
         from wsnloc.io.convert import run_names
 
@@ -62,9 +66,12 @@ def shards_of(config: dict, dataset: str, scenario: str) -> dict[str, list[str]]
     return split_runs(dataset_runs(config, dataset, scenario), config.get("shards", 1))
 
 
-def simulated_shards(config: dict) -> dict[str, list[str]]:
-    """Shards of a simulated scenario (all simulated scenarios have the same runs)."""
-    return split_runs(simulated_runs(config), config.get("shards", 1))
+def simulated_shards(config: dict) -> list[str]:
+    """Names of the shards of the simulated scenarios (shard-1 .. shard-N, as many as the scenario
+    with the most runs has; shard k of a scenario with fewer runs may be absent from shards_of)."""
+    counts = [config["runs"]] + [n for spec in config["datasets"].values() if spec["source"] == "simulate"
+                                 for n in (spec.get("scenario_runs") or {}).values()]
+    return [f"shard-{k}" for k in range(1, min(config.get("shards", 1), max(counts)) + 1)]
 
 
 def split_runs(runs: list[str], shards: int) -> dict[str, list[str]]:

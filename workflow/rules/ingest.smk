@@ -18,14 +18,15 @@ INGEST_PARAMS = {
 }
 
 for _format, _pairs in SIMULATED_PAIRS.items():
-    for _shard in simulated_shards(config) if _pairs else {}:
-        _tasks = [ingest_task(d, s, _shard, f"logs/ingest/{_format}-{_shard}/{d}-{s}") for d, s in _pairs]
+    for _shard in simulated_shards(config) if _pairs else []:
+        _here = [(d, s) for d, s in _pairs if _shard in shards_of(config, d, s)]   # scenarios with runs in this shard
+        _tasks = [ingest_task(d, s, _shard, f"logs/ingest/{_format}-{_shard}/{d}-{s}") for d, s in _here]
 
         rule:
             name:
                 f"ingest_{_format}_{_shard.replace('-', '')}"
             input:
-                raw=[raw_run_dir(config, d, s, run) for d, s in _pairs for run in simulated_shards(config)[_shard]],
+                raw=[raw_run_dir(config, d, s, run) for d, s in _here for run in shards_of(config, d, s)[_shard]],
                 campaigns=sorted({task["campaign"] for task in _tasks}),
             output:
                 tables=[directory(task["tables"]) for task in _tasks],

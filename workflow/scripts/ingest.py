@@ -23,7 +23,7 @@ campaigns = {}
 for task in sm.params.tasks:
     if task["campaign"] not in campaigns:
         campaigns[task["campaign"]] = Campaign.load(task["campaign"])
-    campaign = campaigns[task["campaign"]]
+    campaign = campaigns[task["campaign"]].for_scenario(task["label"].split("/", 1)[1])   # a 3-D scenario's heights
     try:
         ingest_shard(task["format"], dict(zip(task["runs"], task["raw_dirs"])), campaign, task["tables"],
                      task["imu_5hz"], limits, sm.params.resample, task["keep_dir"], log)

@@ -19,7 +19,7 @@ from wsnloc.analysis.paper_bounds import PAPER_A_KEYS, paper_a_main, paper_a_par
 from wsnloc.campaign import Campaign
 from wsnloc.config import read_yaml
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments import calibration, cells, claims as claims_of, paper_a, sensitivity, why
+from wsnloc.experiments import cells, claims as claims_of, paper_a, sensitivity, why
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import bound_figures, figures
@@ -33,9 +33,7 @@ def run_scenario(label: str, campaign: Campaign, out: dict) -> str:
     metrics, consistency and sensitivity grid written to out['estimates'], out['metrics'],
     out['quality'], out['sensitivity']. Returns the scenario's motion profile (campaign)."""
     runs = load_runs(sm.params.sources["tables_of"][label], paper_a.INPUT_TABLES)
-    zigbee = list(campaign.anchors_of("zigbee")["anchor_id"])
-    models = calibration.rss_models_for_runs(runs, campaign, zigbee,
-                                             paper_a.cell_params(spec, label, paper_a.TABLES[0], spec["rows"][0]))
+    models = paper_a.rss_models_for_runs(runs, campaign, spec, label)
     data = {name: RunData(run_tables, campaign, models[name], name) for name, run_tables in runs.items()}
     estimates = [est.assign(run=name) for name, est in zip(runs, paper_a.run_all(list(data.values()), spec, label))]
     bounded = grouped_quality([(data[name], est) for name, est in zip(runs, estimates)], PAPER_A_KEYS,

@@ -18,6 +18,7 @@ from wsnloc.experiments import cells, claims as claims_of, paper_b, sensitivity,
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import figures
+from wsnloc.sim import imu as sim_imu
 from wsnloc.workflow import each_scenario, read_scenario_files
 
 spec = sm.params.spec
@@ -56,8 +57,11 @@ def summarize() -> None:
     files = read_scenario_files(sm.output, labels)
     per_run, grids, estimates = files["metrics"], files["sensitivity"], files["estimates"]
     rows = [row for label in labels for row in paper_b.results_rows(per_run[label], label, paper, label in simulated)]
+    campaigns = {path: Campaign.load(path) for path in set(sm.params.sources["campaign_of"].values())}
     decided = why.explain_b(paper_b.claims(per_run), per_run,
-                            {label: cells.params(spec, "imu", label, "paper_b")["static_start_s"] for label in labels})
+                            {label: cells.params(spec, "imu", label, "paper_b")["static_start_s"] for label in labels},
+                            {label: sim_imu.bias_sigma(campaigns[sm.params.sources["campaign_of"][label]],
+                                                   label.split("/", 1)[1], sim_imu.ACCEL_BIAS) for label in labels})
     curve = None
     if sm.params.snr_curve["runs"] and sm.params.snr_scenario:
         dataset, scenario = sm.params.snr_scenario.split("/", 1)

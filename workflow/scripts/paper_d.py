@@ -63,7 +63,7 @@ def summarize() -> None:
 
     files = read_scenario_files(sm.output, labels)
     per_run, grids, estimates = files["metrics"], files["sensitivity"], files["estimates"]
-    rows = [row for label in labels for row in paper_d.results_rows(per_run[label], label)]
+    rows = [row for label in labels for row in paper_d.results_rows(per_run[label], label, spec)]
     paper_cost_ms = read_yaml(sm.input.papers)["D"]["cost_ms_per_step"]
     counts = paper_d.operation_counts(spec, labels[0])
     shared = cells.params(spec, "velocity", labels[0], "paper_d")

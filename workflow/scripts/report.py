@@ -14,7 +14,9 @@ from pathlib import Path
 import pandas as pd
 
 from wsnloc import results
+from wsnloc.analysis.nlos_severity import CLAIMS_TABLE as RANGING_SENSITIVITY
 from wsnloc.config import read_yaml
+from wsnloc.experiments.sensitivity import TABLE as SENSITIVITY
 from wsnloc.report import explanations
 from wsnloc.report.render import PAGES_DIR, FigureFiles, build_context, render_pages
 from wsnloc.report.sections import ranging_section, sensitivity_table, static_bounds_section, study_section, summary
@@ -66,7 +68,9 @@ for paper, labels in sm.params.papers.items():   # each paper's section: wsnloc.
     module = importlib.import_module(f"wsnloc.experiments.{paper}")
     section = importlib.import_module(f"wsnloc.experiments.{paper}.report").section(
         final_results, claims, figures_uri, papers[module.EXPERIMENT], list(labels), spec, numbers, config)
-    section["sensitivity"] = sensitivity_table(final_results, module.EXPERIMENT, section["claims"])
+    section["sensitivity"] = sensitivity_table(final_results, module.EXPERIMENT, section["claims"], SENSITIVITY)
+    section["ranging_sensitivity"] = sensitivity_table(final_results, module.EXPERIMENT, section["claims"],
+                                                       RANGING_SENSITIVITY)
     context["papers"].append(section)
 context["summary"] = summary(context["papers"])
 pages = render_pages(Path(sm.input.templates[0]).parent, context)

@@ -19,7 +19,7 @@ for spec in sm.params.scenarios:
         campaigns[spec["campaign"]] = Campaign.load(spec["campaign"])
     campaign = campaigns[spec["campaign"]]
     simulate_run = SIMULATORS[campaign.format]
-    for run in sm.params.runs:
+    for run in spec["runs"]:
         index = int(run.split("-")[1])           # run-07 -> 7: the seed depends on the run, not the shard
         seeds = run_seed_sequence(sm.params.seed, dataset, scenario, index)
         out = simulate_run(campaign, scenario, seeds, Path(SIMULATED_ROOT) / dataset / scenario / run,

@@ -23,6 +23,7 @@ from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
 
 TABLE = "UWB ranging severity"   # results.csv: mean RMSE of every cell at every level
+CLAIMS_TABLE = "Sensitivity to UWB ranging"     # results.csv: every claim's verdict at every level
 
 # radio.uwb values a level may set (config/schema.yaml $defs.nlos_level), with their label text
 LEVEL_TEXT = {
@@ -99,7 +100,7 @@ def rmse_rows(experiment: str, scenario: str, severity: pd.DataFrame) -> list[di
 
 def claim_rows(experiment: str, spec: dict | None, campaign_file: str, seed: int,
                evaluate: Callable[[Campaign, dict], pd.DataFrame], claims, simulated_dirs=()) -> list[dict]:
-    """results.csv rows of a paper's claims against UWB ranging severity (config
+    """results.csv rows of a paper's claims against UWB ranging severity (table CLAIMS_TABLE; config
     `experiments.paper_<experiment>.nlos_sweep`: scenario, levels, runs; none when runs is 0),
     and of every cell's RMSE per level (rmse_rows): `evaluate(campaign, tables)` gives the
     per-run metrics of extra simulated runs at each level, `claims` decides on them.
@@ -115,5 +116,5 @@ def claim_rows(experiment: str, spec: dict | None, campaign_file: str, seed: int
     simulated = load_runs(simulated_dirs, first=spec["runs"]) if simulated_dirs else None
     severity = sweep(Campaign.load(campaign_file), scenario, spec["levels"], spec["runs"], seed, evaluate, dataset,
                      f"experiments.paper_{experiment.lower()}.nlos_sweep.levels", simulated)
-    return sensitivity.results_rows(experiment, {spec["scenario"]: severity}, claims) \
+    return sensitivity.results_rows(experiment, {spec["scenario"]: severity}, claims, CLAIMS_TABLE) \
         + rmse_rows(experiment, spec["scenario"], severity)

@@ -4,11 +4,15 @@ CM3 / CM4, whose published values the project cannot check (docs/simulation.md, 
 Each variant is the campaign with radio.uwb.channel_models.CM3 / CM4 `path_loss_db_at_1m`
 replaced; runs 1..`runs` of each scenario are simulated with the workflow's seeds
 (analysis.simulated_runs: run r of every variant shares its seed) and read back by the Newcom++
-reader. Per variant and scenario, from the raw tables only (ranges, truth, campaign walls):
+reader. The runs are simulated here, not read from a build: a sensitivity to a simulator
+parameter needs the simulator run under each value, and the campaign's own variant repeats the
+workflow's constant / variable runs (same seeds) so that every variant is compared on the same
+draws. Per variant and scenario, from the raw tables only (ranges, truth, campaign walls):
 
-- UWB anchors heard per epoch: the distinct anchors with a valid range (status 0) in each
-  ranging round (one epoch = one round of radio.uwb.ranging_period_ms), mean over the epochs,
-  and the share of epochs with fewer than 3 (no 2-D fix from that round alone);
+- UWB anchors with a valid range per round, from the logs (not the ranges a filter used, which
+  paper A's Set-up table counts): the distinct anchors with a valid range (status 0) in each
+  ranging round of radio.uwb.ranging_period_ms, mean over the rounds, and the share of rounds
+  with fewer than 3 (no 2-D fix from that round alone);
 - link share: the share of (round, anchor) pairs with a line in uwb.log (the link closed, valid
   or not), for the LOS and the NLOS pairs (walls crossed at the round's true position);
 - the NLOS range error by true-distance bin (metrics.ranging_validation bins): link share of
@@ -37,6 +41,7 @@ from wsnloc.analysis.simulated_runs import simulate_tables, with_value
 from wsnloc.campaign import Campaign
 from wsnloc.metrics import ranging_validation as rv
 from wsnloc.metrics.ranging import range_errors, truth_at
+from wsnloc.sim import newcom
 
 SCENARIOS = ("constant", "variable")
 FEW_ANCHORS = 3          # fewer anchors than this in a round: no 2-D fix from the round alone
@@ -62,20 +67,21 @@ def round_links(tables: dict, campaign: Campaign) -> pd.DataFrame:
     """One row per (ranging round, UWB anchor) of a run: true distance (m) and walls at the
     round's true position, `linked` (a uwb.log line, any status) and `valid` (status 0).
 
-    Round k starts ranging_period_ms (k + 1) after the first truth sample (sim.newcom: rounds
-    from one period on, anchors anchor_spacing_ms apart), so a line at t belongs to round
-    floor((t - t0) / period - 1/2)."""
+    The rounds are the simulator's (sim.newcom.ranging_rounds_ms, from the first truth sample);
+    a line belongs to the round whose nominal start is nearest below it by less than half a
+    period (the round's jitter and its anchors' spacing stay inside that)."""
     spec = campaign.section("radio", "uwb")
-    period = spec["ranging_period_ms"] / 1000.0
     anchors = campaign.anchors_of("uwb")
     truth, ranges = tables["truth"], tables["ranges"]
     t0, t_end = float(truth["t"].iloc[0]), float(truth["t"].iloc[-1])
-    n_rounds = len(np.arange(spec["ranging_period_ms"],
-                             (t_end - t0) * 1000 - len(anchors) * spec["anchor_spacing_ms"], spec["ranging_period_ms"]))
-    position = truth_at(truth, t0 + period * (np.arange(n_rounds) + 1))
+    starts_ms = newcom.ranging_rounds_ms(spec, len(anchors), t_end - t0)
+    n_rounds, half_ms = len(starts_ms), spec["ranging_period_ms"] / 2.0
+    position = truth_at(truth, t0 + starts_ms / 1000.0)
     axy = anchors[["x", "y"]].to_numpy(float)
     slot = {a: j for j, a in enumerate(anchors["anchor_id"])}
-    k = np.floor((ranges["t"].to_numpy(float) - t0) / period - 0.5).astype(int)
+    line_ms = (ranges["t"].to_numpy(float) - t0) * 1000.0
+    edges = np.concatenate([starts_ms - half_ms, starts_ms[-1:] + half_ms])
+    k = np.searchsorted(edges, line_ms, side="right") - 1
     j = ranges["anchor_id"].map(slot).to_numpy()
     inside = (k >= 0) & (k < n_rounds) & pd.notna(j)
     linked = np.zeros((n_rounds, len(axy)), bool)
@@ -90,7 +96,7 @@ def round_links(tables: dict, campaign: Campaign) -> pd.DataFrame:
 
 
 def run_summary(tables: dict, campaign: Campaign) -> dict:
-    """anchors heard per epoch (mean), share of epochs with fewer than FEW_ANCHORS, and link
+    """UWB anchors with a valid range per round (mean), share of rounds with fewer than FEW_ANCHORS, and link
     share of the LOS / NLOS (round, anchor) pairs of one run (round_links)."""
     links = round_links(tables, campaign)
     heard = links.groupby("round")["valid"].sum()
@@ -123,21 +129,14 @@ def paper_claims(runs: dict[str, dict[str, dict]], campaign: Campaign, config: d
     """Verdicts of papers A and D on the variant's runs (runs[scenario][run name] = tables),
     by claim text (paper letter first), decided as the workflow decides them, and paper A's
     cells: mean RMSE over the runs (m) by 'table / row / scenario'."""
-    from wsnloc.estimators.run_data import RunData
-    from wsnloc.experiments import calibration, paper_a, paper_d
+    from wsnloc.experiments import paper_a, paper_d
 
     out = {}
     spec_a, spec_d = config["experiments"]["paper_a"], config["experiments"]["paper_d"]
-    zigbee = list(campaign.anchors_of("zigbee")["anchor_id"])
     per_run_a, per_run_d, motions = {}, {}, {}
     for scenario, tables in runs.items():
         label = f"newcom/{scenario}"
-        models = calibration.rss_models_for_runs(tables, campaign, zigbee,
-                                                 paper_a.cell_params(spec_a, label, paper_a.TABLES[0],
-                                                                     spec_a["rows"][0]))
-        estimates = paper_a.run_all([RunData(t, campaign, models[n], n) for n, t in tables.items()], spec_a, label)
-        per_run_a[label] = pd.concat([paper_a.run_metrics(e, t["truth"]).assign(run=n)
-                                      for (n, t), e in zip(tables.items(), estimates)], ignore_index=True)
+        per_run_a[label] = paper_a.evaluate_runs(tables, campaign, spec_a, label)
         motions[label] = campaign.section("scenarios", scenario)["motion"]
         per_run_d[label] = paper_d.evaluate_runs(tables, campaign, spec_d, label)
     for paper, records in (("A", paper_a.claims(per_run_a, motions, spec_a)), ("D", paper_d.claims(per_run_d))):
@@ -169,7 +168,8 @@ def markdown(result: dict, runs: int) -> str:
     """The tables of `analyse` as Markdown."""
     s = result["summary"]
     lines = [f"Runs per scenario and variant: {runs} (the workflow's seeds).", "",
-             "| variant | scenario | UWB anchors heard per epoch | epochs with < 3 | link share LOS | link share NLOS |",
+             "| variant | scenario | UWB anchors with a valid range per round (logs) | rounds with < 3 | link share LOS | "
+             "link share NLOS |",
              "|---|---|---|---|---|---|"]
     lines += [f"| {r.variant} | {r.scenario} | {r.anchors_per_epoch:.2f} | {r.few_share:.1%} | "
               f"{r.link_share_los:.1%} | {r.link_share_nlos:.1%} |" for r in s.itertuples()]

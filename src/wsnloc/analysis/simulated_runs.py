@@ -38,5 +38,5 @@ def simulate_tables(campaign: Campaign, scenario: str, runs: int, seed: int,
         for run in range(1, runs + 1):
             run_dir = simulate_run(campaign, scenario, run_seed_sequence(seed, dataset, scenario, run),
                                    Path(tmp) / f"run-{run:02d}")
-            tables[run_dir.name] = ingest_run(run_dir, campaign)[0]
+            tables[run_dir.name] = ingest_run(run_dir, campaign.for_scenario(scenario))[0]
     return tables

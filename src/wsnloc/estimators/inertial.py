@@ -14,6 +14,7 @@ import pandas as pd
 
 from wsnloc.errors import WsnlocError
 from wsnloc.estimators.run_data import RunData
+from wsnloc.filters.numerics import Guards
 from wsnloc.filters.steady_state import fuse, steady_state_gain
 from wsnloc.inertial.dead_reckoning import dead_reckon, floor_acceleration, static_bias
 
@@ -46,7 +47,8 @@ def align_fixes(step_times: np.ndarray, fixes: pd.DataFrame) -> np.ndarray:
 
 
 def fused(data: RunData, fixes: pd.DataFrame, p: dict, steady_state: bool) -> pd.DataFrame:
-    """Dead reckoning fused with the fixes; Q per 5 Hz step = sigma_p^2 I, R = sigma_fix^2 I."""
+    """Dead reckoning fused with the fixes; Q per 5 Hz step = sigma_p^2 I, R = sigma_fix^2 I. The
+    classical filter's numerical guards (filters.numerics: updates skipped) go to the attrs."""
     dr = dead_reckoning(data, p["static_start_s"])
     t = dr["t"].to_numpy()
     if len(t) < 2:
@@ -56,12 +58,15 @@ def fused(data: RunData, fixes: pd.DataFrame, p: dict, steady_state: bool) -> pd
     xy = np.column_stack([dr["x"].to_numpy(float), dr["y"].to_numpy(float)])
     start, displacements = xy[0], np.diff(xy, axis=0)
     aligned = align_fixes(t, fixes)
+    guards = None if steady_state else Guards()      # the steady-state filter has no guard
     if steady_state:
         steps_per_update = p["epoch_s"] / float(np.median(np.diff(t)))
         positions = fuse(displacements, aligned, start, Q_step, R, gain=steady_state_gain(Q_step * steps_per_update, R))
     else:
-        positions = fuse(displacements, aligned, start, Q_step, R, P0=np.zeros((2, 2)))
-    return pd.DataFrame({"t": t, "x": positions[:, 0], "y": positions[:, 1]})
+        positions = fuse(displacements, aligned, start, Q_step, R, P0=np.zeros((2, 2)), guards=guards)
+    out = pd.DataFrame({"t": t, "x": positions[:, 0], "y": positions[:, 1]})
+    out.attrs.update(guards.attrs() if guards else {})
+    return out
 
 
 def floor_input(data: RunData, static_start_s: float, heading0: float | None = None) -> pd.DataFrame:

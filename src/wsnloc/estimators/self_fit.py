@@ -45,8 +45,10 @@ estimator's own filter or smoother then runs once with the fitted values (`outpu
    the fit of step 1 returns a correction the data do not support (on a real run thinned to one
    range per round it made the RMSE 2.7x worse).
    So the best candidate also runs on the segment with the ranges as measured, and the correction
-   is kept only when it raises max_c L(c) by more than the BIC penalty of its parameters,
-   (1 + n_anchors) / 2 ln(n_innovations) (a likelihood-ratio test: the likelihood of nested
+   is kept only when it raises max_c L(c) by more than the BIC penalty of its k free parameters,
+   k / 2 ln(n_innovations), k = 1 + n_anchors on ranges (the scale and each anchor's offset) and
+   n_anchors - 1 (+ 1 where the scale was fitted, not held at 1) on range differences, whose
+   offsets are defined up to a common constant (the gauge anchor's is 0) (a likelihood-ratio test: the likelihood of nested
    models, the extra parameters paid for; the corrected ranges (r - b) / s pay n log s, the
    density of r); else the output pass reads the ranges as measured.
    attrs `self_fit_range_correction` (applied / not supported), `self_fit_range_ll_gain`,
@@ -74,6 +76,8 @@ import numpy as np
 import pandas as pd
 
 from wsnloc.estimators import range_calibration
+from wsnloc.filters.measurement_models import TdoaModel
+from wsnloc.metrics.stats import robust_sigma
 
 MODES = ("none", "two_pass")
 # noise candidates (sigma factor, accel factor): calmer, configured, livelier; the ratio accel / sigma
@@ -139,7 +143,7 @@ def range_correction(data, estimates: pd.DataFrame, p: dict, scale: float) -> di
     error = samples["range_m"].to_numpy(float) - scale * samples["true_distance_m"].to_numpy(float)
     anchors, column = np.unique(ids, return_inverse=True)
     centre = pd.Series(error).groupby(column).transform("median").to_numpy()
-    spread = 1.4826 * np.median(np.abs(error - centre))
+    spread = robust_sigma(error - centre)
     inlier = np.abs(error - centre) <= OUTLIER_SIGMAS * max(spread, SIGMA_FLOOR_M)
     samples, error, column = samples[inlier], error[inlier], column[inlier]
     xy = data.positions(anchors)
@@ -165,7 +169,7 @@ def range_correction(data, estimates: pd.DataFrame, p: dict, scale: float) -> di
     else:
         offsets = medians
     return {"scale": scale, "offsets_m": {str(a): float(b) for a, b in zip(anchors, offsets)},
-            "source": "self-fitted on the run (two-pass)"}
+            "parameters": 1 + len(anchors), "source": "self-fitted on the run (two-pass)"}
 
 
 def _tdoa_track_residuals(data, estimates: pd.DataFrame, p: dict) -> pd.DataFrame | None:
@@ -183,14 +187,12 @@ def _tdoa_track_residuals(data, estimates: pd.DataFrame, p: dict) -> pd.DataFram
     inside = (t >= track["t"].iloc[0]) & (t <= track["t"].iloc[-1])
     rows, t = rows[inside], t[inside]
     xy = np.column_stack([np.interp(t, track["t"], track[c]) for c in ("x", "y")])
-    r, u = {}, {}
-    for side in ("anchor_id", "ref_anchor_id"):
-        ids = rows[side].to_numpy(dtype=object)
-        diff = xy - data.positions(ids)
-        r[side] = np.sqrt(np.sum(diff**2, axis=1) + data.height_offsets(ids) ** 2)
-        u[side] = diff / np.maximum(r[side], 1e-3)[:, None]
-    delta = r["anchor_id"] - r["ref_anchor_id"]
-    gradient = u["anchor_id"] - u["ref_anchor_id"]
+    ids = sorted(set(rows["anchor_id"]) | set(rows["ref_anchor_id"]), key=str)
+    slot = {a: k for k, a in enumerate(ids)}
+    ends = np.column_stack([rows[side].map(slot).to_numpy(np.intp) for side in ("anchor_id", "ref_anchor_id")])
+    pairs, pair = np.unique(ends, axis=0, return_inverse=True)
+    model = TdoaModel(data.positions(ids), pairs, 1.0, data.height_offsets(ids))
+    delta, gradient = model.pair_rows(xy, pair.ravel())
     out = pd.DataFrame({"t": t, "anchor_id": rows["anchor_id"].to_numpy(dtype=object),
                         "ref_anchor_id": rows["ref_anchor_id"].to_numpy(dtype=object),
                         "e": rows["tdoa_m"].to_numpy(float) - delta, "delta": delta,
@@ -224,7 +226,7 @@ def tdoa_correction(data, estimates: pd.DataFrame, p: dict) -> dict | None:
         return None
     error = samples["e"].to_numpy(float)
     centre = samples.groupby(["anchor_id", "ref_anchor_id"])["e"].transform("median").to_numpy()
-    spread = 1.4826 * np.median(np.abs(error - centre))
+    spread = robust_sigma(error - centre)
     samples = samples[np.abs(error - centre) <= OUTLIER_SIGMAS * max(spread, SIGMA_FLOOR_M)]
     refs = samples["ref_anchor_id"].value_counts()
     gauge = sorted(refs.index, key=lambda a: (-refs[a], str(a)))[0]
@@ -251,14 +253,15 @@ def tdoa_correction(data, estimates: pd.DataFrame, p: dict) -> dict | None:
         G += X.T @ project @ X
         g += X.T @ project @ rows["e"].to_numpy()
     theta = _solve_scaled(G, g)
-    if theta is None or abs(theta[0]) < MIN_SCALE_ERROR:
+    held = theta is None or abs(theta[0]) < MIN_SCALE_ERROR          # the scale held at 1: not a fitted parameter
+    if held:
         offsets = _solve_scaled(G[1:, 1:], g[1:])
         if offsets is None:
             return None
         theta = np.r_[0.0, offsets]
     return {"scale": 1.0 + float(theta[0]),
             "offsets_m": {str(gauge): 0.0, **{str(a): float(theta[k]) for a, k in column.items()}},
-            "source": "self-fitted on the run's range differences (two-pass)"}
+            "parameters": len(anchors) + (not held), "source": "self-fitted on the run's range differences (two-pass)"}
 
 
 def _solve_scaled(G: np.ndarray, g: np.ndarray) -> np.ndarray | None:
@@ -361,7 +364,7 @@ def two_pass(data, p: dict, run_pass, output) -> pd.DataFrame:
     if model is not None:                  # likelihood-ratio test of the range correction (module docstring, 4)
         plain = part.cached(("without range model",), lambda: replace(part, range_model=None, _cache={}))
         ll_plain = _score(run_pass, plain, dict(candidates[best], range_calibration="none"), span)[0]
-        penalty = 0.5 * (1 + len(model["offsets_m"])) * np.log(scores[best][2])
+        penalty = 0.5 * model["parameters"] * np.log(scores[best][2])
         # The corrected measurements z' = (z - b) / s (ranges and range differences alike) have
         # the density of z times s: the corrected pass pays n log s, or a scale above 1 would
         # win by shrinking every residual. On `hybrid` the innovations mix ranges with RSS and

@@ -172,10 +172,17 @@ def fix_tracks(sources: list[FixSource], epoch_s: float, accel_sigma_mps2: float
             for source, (rows, resets), skipped in zip(sources, out, bank.skipped)]
 
 
+def fix_source(data: RunData, p: dict) -> FixSource:
+    """What the `kf_tracker` cell with resolved parameters p is fed on one run: the fixes
+    (fixes.epoch_fixes with p["fixes"]) and, with p["speed_input"], the velocity tracker's
+    speed (p["window"], p["speed_from"])."""
+    return FixSource.of(fixes.epoch_fixes(data, p, p["fixes"]),
+                        (p["window"], p["speed_from"]) if p["speed_input"] else None)
+
+
 def kalman_tracks(datas: list[RunData], params: list[dict]) -> list[core.Track]:
-    """`kf_tracker` of every (run, resolved parameters) cell: the fixes of each (fixes.epoch_fixes
-    with p["fixes"]; with speed_input, the speed of the velocity tracker (window, speed_from)),
-    then fix_tracks per set of KF settings (the cells sharing them are stepped together)."""
+    """`kf_tracker` of every (run, resolved parameters) cell: fix_tracks of each cell's
+    fix_source, per set of KF settings (the cells sharing them are stepped together)."""
     groups: dict[tuple, list[int]] = {}
     for i, p in enumerate(params):
         key = (p["epoch_s"], p["accel_sigma_mps2"], p["position_sigma_m"], p["initial_speed_sigma_mps"],
@@ -183,9 +190,6 @@ def kalman_tracks(datas: list[RunData], params: list[dict]) -> list[core.Track]:
         groups.setdefault(key, []).append(i)
     tracks: list[core.Track] = [None] * len(params)
     for key, members in groups.items():
-        sources = [FixSource.of(fixes.epoch_fixes(datas[i], params[i], params[i]["fixes"]),
-                                (params[i]["window"], params[i]["speed_from"]) if params[i]["speed_input"] else None)
-                   for i in members]
-        for i, track in zip(members, fix_tracks(sources, *key)):
+        for i, track in zip(members, fix_tracks([fix_source(datas[i], params[i]) for i in members], *key)):
             tracks[i] = track
     return tracks

@@ -5,11 +5,13 @@ No run is evaluated with a model fitted on its own data.
 
 from __future__ import annotations
 
+import math
 from typing import Callable
 
 import pandas as pd
 
 from wsnloc.campaign import Campaign
+from wsnloc.errors import ConfigError
 from wsnloc.metrics.ranging import (fit_path_loss, fit_path_loss_per_anchor, fit_range_bias, fit_tdoa_bias,
                                     range_errors, rss_with_distance, tdoa_with_distances)
 from wsnloc.metrics.tracking import run_metrics, score
@@ -39,9 +41,11 @@ def donor_rss_model(rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign, 
     the donor's fitted n and the configured prior n (`prior_exponent`); `track(model)` runs the
     estimator on the donor with the candidate, and the one with the lower RMSE on the donor's
     truth is kept (ties: the prior). The candidates share every other parameter, so the donor
-    scores one number, its exponent. Returns the registry's RSS model (RSS_MODEL) with
-    `p0_offsets_db`, `exponent_source` ("prior" or "donor fit") and `exponent_choice` (text: both
-    candidates' donor RMSE).
+    scores one number, its exponent. A candidate without a finite RMSE on the donor (no estimate,
+    or none inside the truth's time span) cannot win: it is named "not scored" in the text, and with
+    neither scored the prior is kept and the text says so. Returns the registry's RSS model
+    (RSS_MODEL) with `p0_offsets_db`, `exponent_source` ("prior" or "donor fit") and
+    `exponent_choice` (text: both candidates' donor RMSE).
     """
     samples = rss_with_distance(rss, truth, campaign, anchors)
     candidates = {}
@@ -51,10 +55,13 @@ def donor_rss_model(rss: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign, 
         model = {"p0_dbm": fit["P0_dBm"], "path_loss_exponent": fit["n"], "sigma_db": fit["sigma_dB"], "d0_m": d0_m,
                  "p0_offsets_db": fit["offsets_dB"]}
         estimates = track(model)
-        error = float(run_metrics(score(estimates, truth), truth)["rmse"]) if len(estimates) else float("inf")
-        candidates[label] = (error, model)
+        error = float(run_metrics(score(estimates, truth), truth)["rmse"]) if len(estimates) else float("nan")
+        candidates[label] = (error if math.isfinite(error) else math.inf, model)
     chosen = min(candidates, key=lambda k: candidates[k][0])      # "prior" first: kept on a tie
-    text = "; ".join(f"{k} n={m['path_loss_exponent']:.2f}: donor RMSE {e:.2f} m" for k, (e, m) in candidates.items())
+    text = "; ".join(f"{k} n={m['path_loss_exponent']:.2f}: " + (f"donor RMSE {e:.2f} m" if math.isfinite(e) else
+                     "not scored (no estimate within the donor's truth)") for k, (e, m) in candidates.items())
+    if not any(math.isfinite(e) for e, _ in candidates.values()):
+        text += "; neither candidate scored: the prior kept untested"
     return dict(candidates[chosen][1], exponent_source=chosen, exponent_choice=f"{chosen} ({text})")
 
 
@@ -76,12 +83,18 @@ def rss_models_for_runs(run_tables: dict[str, dict], campaign: Campaign, members
                         p: dict) -> dict[str, dict]:
     """The RSS model each run is evaluated with, by a cell's registry parameters p.
 
-    rss_calibration `other_run` or `other_run_common`: one P0, n, sigma fitted (calibrate) on the
-    next run (cyclically) with its truth, paper D's protocol (the static-share analysis and paper
-    D's own tables use it); `configured`: p's model (RSS_MODEL). With a single run the donor
-    choices fall back to p's model.
+    rss_calibration `other_run_common`: one P0, n, sigma fitted (calibrate) on the next run
+    (cyclically) with its truth, the papers' protocol (papers A and D, the static-share and PL0
+    analyses use it); `configured`: p's model (RSS_MODEL). With a single run the donor falls back
+    to p's model. `other_run` (per-receiver P0s, the exponent chosen by tracking the donor) needs
+    the estimator on the donor: donor_model_for, as studies and `wsnloc estimate` call it; here it
+    is refused (it was silently fitted as other_run_common).
     """
     method, configured = p["rss_calibration"], {k: p[k] for k in RSS_MODEL}
+    if method == "other_run":
+        raise ConfigError("config key 'rss_calibration': other_run (per-receiver P0s, exponent chosen by tracking "
+                          "the donor) is not available to the papers' per-scenario calibration; use "
+                          "other_run_common (one P0, n, sigma fitted on the next run) or configured")
     names = list(run_tables)
     if method == "configured" or len(names) < 2:
         return {name: dict(configured, source="configured") for name in names}

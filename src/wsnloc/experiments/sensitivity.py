@@ -127,9 +127,10 @@ def replace_cells(metrics: pd.DataFrame, run: str, rerun: pd.DataFrame, keys: li
     return pd.concat([kept, rerun], ignore_index=True)
 
 
-def results_rows(experiment: str, grids: dict[str, pd.DataFrame], decide: Callable[[dict], list[dict]]) -> list[dict]:
-    """Every claim's verdict at every setting: grids[scenario label] is that scenario's
-    sensitivity.csv; decide(per-run metrics by scenario label) -> claims records."""
+def results_rows(experiment: str, grids: dict[str, pd.DataFrame], decide: Callable[[dict], list[dict]],
+                 table: str = TABLE) -> list[dict]:
+    """Every claim's verdict at every setting, in results table `table`: grids[scenario label] is
+    that scenario's sensitivity.csv; decide(per-run metrics by scenario label) -> claims records."""
     if not grids or any(grid.empty for grid in grids.values()):
         return []
     settings = list(dict.fromkeys(s for grid in grids.values() for s in grid["setting"]))
@@ -138,7 +139,7 @@ def results_rows(experiment: str, grids: dict[str, pd.DataFrame], decide: Callab
     for setting in settings:
         for rec in decide({label: by_setting.get(setting, grids[label].iloc[:0])
                            for label, by_setting in split.items()}):
-            rows.append({"experiment": experiment, "table": TABLE, "row": rec["claim"], "column": setting,
+            rows.append({"experiment": experiment, "table": table, "row": rec["claim"], "column": setting,
                          "scenario": "all", "metric": "verdict", "value": claims_of.VERDICT_CODE[rec["verdict"]],
                          "ci95_low": None, "ci95_high": None,
                          "runs": min((p["runs"] for p in rec["parts"]), default=None), "paper_value": None})

@@ -146,11 +146,8 @@ class TdoaModel:
     sigma_m: np.ndarray        # (k,) or scalar: arrival-time noise std of each receiver, in m
     dz_m: np.ndarray | None = None   # (k,) receiver height - tag height; None: 2-D distances
 
-    def _ranges(self, d: np.ndarray) -> np.ndarray:
-        return d if self.dz_m is None else np.sqrt(d**2 + self.dz_m**2)
-
     def h(self, x) -> np.ndarray:
-        r = self._ranges(_geometry(x, self.receivers)[1])
+        r, _ = range_rows(_geometry(x, self.receivers)[0], self.dz_m)
         return r[self.pairs[:, 0]] - r[self.pairs[:, 1]]
 
     def h_many(self, X) -> np.ndarray:
@@ -160,11 +157,21 @@ class TdoaModel:
         return r[:, self.pairs[:, 0]] - r[:, self.pairs[:, 1]]
 
     def jacobian(self, x) -> np.ndarray:
-        diff, d = _geometry(x, self.receivers)
-        unit = diff / np.maximum(self._ranges(d), MIN_DISTANCE)[:, None]
+        diff, _ = _geometry(x, self.receivers)
+        _, unit = range_rows(diff, self.dz_m)
         H = np.zeros((len(self.pairs), len(x)))
         H[:, :diff.shape[1]] = unit[self.pairs[:, 0]] - unit[self.pairs[:, 1]]
         return H
+
+    def pair_rows(self, X, pair) -> tuple[np.ndarray, np.ndarray]:
+        """(h_i, the position columns of H_i) of pair `pair[i]` at the position X[i] (N, k), one
+        row per measurement: range differences taken at different positions (a track); the
+        equations of h and jacobian (module docstring)."""
+        X = np.asarray(X, dtype=float)[:, :self.receivers.shape[1]]
+        ends = self.pairs[np.asarray(pair, dtype=np.intp)]
+        (r_a, u_a), (r_b, u_b) = (range_rows(X - self.receivers[j], None if self.dz_m is None else self.dz_m[j])
+                                  for j in (ends[:, 0], ends[:, 1]))
+        return r_a - r_b, u_a - u_b
 
     def incidence(self) -> np.ndarray:
         """D (m, k): +1 at each pair's receiver, -1 at its reference."""

@@ -22,6 +22,7 @@ from functools import lru_cache
 import numpy as np
 
 from wsnloc.filters.kalman import joseph_update, predict
+from wsnloc.filters.numerics import Guards
 
 
 def steady_state_gain(Q, R) -> np.ndarray:
@@ -43,22 +44,25 @@ def _dare_gain(n: int, q: tuple, r: tuple) -> np.ndarray:
     return P @ np.linalg.inv(P + R)
 
 
-def fuse(displacements: np.ndarray, fixes: np.ndarray, start, Q_step, R, gain=None, P0=None) -> np.ndarray:
+def fuse(displacements: np.ndarray, fixes: np.ndarray, start, Q_step, R, gain=None, P0=None,
+         guards: Guards | None = None) -> np.ndarray:
     """Run the filter over N steps.
 
     displacements: (N, 2) dead-reckoning displacement of each step (m); fixes: (N, 2) fix
     available at the end of the step, NaN when none (a fix is used when both coordinates
     are finite); start: initial position. With `gain` the steady-state filter runs;
-    otherwise the classical filter from covariance P0 (default 0). Q_step, R, P0 in m^2; the
-    gain must be diagonal (one scalar filter per axis). Returns (N + 1, 2) positions (m),
-    start included.
+    otherwise the classical filter from covariance P0 (default 0), whose updates that are not
+    finite are skipped (the prior kept) and counted in guards.skipped (filters.numerics). Q_step,
+    R, P0 in m^2; the gain must be diagonal (one scalar filter per axis). Returns (N + 1, 2)
+    positions (m), start included.
     """
     displacements, fixes = np.asarray(displacements, dtype=float), np.asarray(fixes, dtype=float)
     has_fix = np.isfinite(fixes).all(axis=1)
     start = np.asarray(start, dtype=float)
     if gain is None:
         return _classical(displacements, fixes, has_fix, start, np.asarray(Q_step, dtype=float),
-                          np.asarray(R, dtype=float), np.zeros((2, 2)) if P0 is None else np.asarray(P0, dtype=float))
+                          np.asarray(R, dtype=float), np.zeros((2, 2)) if P0 is None else np.asarray(P0, dtype=float),
+                          Guards() if guards is None else guards)
     k = _diagonal(gain, "gain")
     out = np.empty((len(displacements) + 1, 2))
     for axis in range(2):
@@ -87,9 +91,10 @@ def _steady_axis(deltas: list, fixes: list, has_fix: list, p: float, k: float) -
 
 
 def _classical(displacements: np.ndarray, fixes: np.ndarray, has_fix: np.ndarray, start: np.ndarray,
-               Q_step: np.ndarray, R: np.ndarray, P0: np.ndarray) -> np.ndarray:
+               Q_step: np.ndarray, R: np.ndarray, P0: np.ndarray, guards: Guards) -> np.ndarray:
     """The classical filter (module docstring): predict with the step's displacement, then the
-    Kalman update (joseph_update, H = I) where the step has a fix; (N + 1, 2) positions (m)."""
+    Kalman update (joseph_update, H = I) where the step has a fix, a non-finite one skipped and
+    counted in guards.skipped; (N + 1, 2) positions (m)."""
     eye = np.eye(2)
     x, P = start.copy(), P0.copy()
     out = [x]
@@ -98,5 +103,6 @@ def _classical(displacements: np.ndarray, fixes: np.ndarray, has_fix: np.ndarray
         if fix:
             new = joseph_update(x, P, z - x, eye, R)
             x, P = new.x, new.P
+            guards.skipped += int(not new.ok)
         out.append(x)
     return np.array(out)

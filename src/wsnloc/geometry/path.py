@@ -1,7 +1,8 @@
 """A path made of straight segments joined by circular arcs (rounded corners).
 
 Used for the Newcom++ rail and the Cricket rectangle. Position along the path is the arc
-length s in metres; evaluation gives position, heading and signed curvature.
+length s in metres; evaluation gives position, heading and signed curvature, and the height z
+where the path has a height profile (a 3-D scenario, Campaign.for_scenario).
 """
 
 from __future__ import annotations
@@ -31,13 +32,19 @@ class Path:
     """Polyline through ``points`` whose interior corners are rounded with ``corner_radius``.
 
     With corner_radius 0 the corners are sharp (heading jumps, curvature is not defined
-    there and is reported as 0).
+    there and is reported as 0). ``heights``: optional (arc length m, height m) points, arc
+    lengths increasing; the height between them is linear in the arc length,
+    z(s) = h_i + (h_{i+1} - h_i) (s - s_i) / (s_{i+1} - s_i), and constant beyond the ends.
     """
 
-    def __init__(self, points, corner_radius: float = 0.0):
+    def __init__(self, points, corner_radius: float = 0.0, heights=None):
         pts = np.asarray(points, dtype=float)
         if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
             raise ValueError("path needs at least two (x, y) points")
+        self.heights = None if heights is None else np.asarray(heights, dtype=float)
+        if self.heights is not None and (self.heights.ndim != 2 or self.heights.shape[1] != 2 or len(self.heights) < 1
+                                         or np.any(np.diff(self.heights[:, 0]) <= 0)):
+            raise ValueError("height profile needs (arc length, height) points with increasing arc lengths")
         self.points = pts
         self.corner_radius = float(corner_radius)
         self._parts = self._build(pts, self.corner_radius)
@@ -79,9 +86,8 @@ class Path:
         return parts
 
     def evaluate(self, s) -> dict[str, np.ndarray]:
-        """Position (m), heading (rad, from +x counter-clockwise) and curvature (1/m, left > 0).
-
-        s is clipped to [0, length].
+        """Position (m), heading (rad, from +x counter-clockwise) and curvature (1/m, left > 0),
+        and height z (m) when the path has a height profile. s is clipped to [0, length].
         """
         s = np.clip(np.asarray(s, dtype=float), 0.0, self.length)
         x = np.empty_like(s)
@@ -105,7 +111,10 @@ class Path:
                 heading[mask] = angle + part.turn * np.pi / 2.0
                 curvature[mask] = part.turn / part.radius
         heading = np.arctan2(np.sin(heading), np.cos(heading))
-        return {"x": x, "y": y, "heading": heading, "curvature": curvature}
+        pose = {"x": x, "y": y, "heading": heading, "curvature": curvature}
+        if self.heights is not None:
+            pose["z"] = np.interp(s, self.heights[:, 0], self.heights[:, 1])
+        return pose
 
     def start_pose(self) -> tuple[float, float, float]:
         """(x, y, heading) at s = 0: the known initial condition for dead reckoning."""

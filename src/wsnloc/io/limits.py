@@ -3,8 +3,10 @@ reporting numbers from it.
 
 Two shares, each quarantined records / records (data lines, usable or not):
   per file:  of each raw file or table alone, so that a damaged uwb.log is not diluted by
-             the run's many 500 Hz IMU lines (config key ingest.max_quarantine_share_per_file);
-  per run:   of all the run's files together (config key ingest.max_quarantine_share).
+             the run's many 500 Hz IMU lines (config key ingest.max_quarantine_share_per_file,
+             option --max-quarantine-share-per-file of `wsnloc ingest` / `estimate`);
+  per run:   of all the run's files together (config key ingest.max_quarantine_share, option
+             --max-quarantine-share).
 The stop message names the file, its dominant reasons with counts and the values that
 occur most in those reasons (e.g. an anchor id missing from the anchors), and where the
 quarantine table was kept.
@@ -24,15 +26,18 @@ from wsnloc.metrics.data_quality import reason_category
 
 DEFAULT_PER_RUN = 0.2          # the defaults of config/schema.yaml (a test keeps them equal)
 DEFAULT_PER_FILE = 0.2
+CONFIG_KEYS = ("config key 'ingest.max_quarantine_share'", "config key 'ingest.max_quarantine_share_per_file'")
 _QUOTED = re.compile(r"'([^']*)'")
 
 
 @dataclass(frozen=True)
 class QuarantineLimits:
-    """Largest quarantined shares (0..1) allowed per run and per file."""
+    """Largest quarantined shares (0..1) allowed per run and per file, and what sets each (per
+    run, per file), named in the stop message: the workflow's config keys, or a command's options."""
 
     per_run: float = DEFAULT_PER_RUN
     per_file: float = DEFAULT_PER_FILE
+    set_by: tuple[str, str] = CONFIG_KEYS
 
 
 def quarantine_share(inventory: dict) -> float:
@@ -85,11 +90,11 @@ def check_quarantine_limits(run_dir: str | Path, inventory: dict, quarantine: pd
     if over:
         raise IngestError(
             f"{run_dir / over}: {file_shares(inventory)[over]:.1%} of its {inventory[over]['data_lines']} records are "
-            f"quarantined, more than config key 'ingest.max_quarantine_share_per_file' = {limits.per_file:.1%} "
+            f"quarantined, more than {limits.set_by[1]} = {limits.per_file:.1%} "
             f"allows; {describe(quarantine, over)}; quarantine table: {kept_at}")
     if over == "":
         worst = max(inventory, key=lambda name: inventory[name]["quarantined"])
         raise IngestError(
             f"{run_dir}: {quarantine_share(inventory):.1%} of the run's records are quarantined (most in {worst}), "
-            f"more than config key 'ingest.max_quarantine_share' = {limits.per_run:.1%} allows; {worst}: "
+            f"more than {limits.set_by[0]} = {limits.per_run:.1%} allows; {worst}: "
             f"{describe(quarantine, worst)}; quarantine table: {kept_at}")

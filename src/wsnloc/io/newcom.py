@@ -347,7 +347,8 @@ def _imu_candidates(raw: RawFile) -> tuple[np.ndarray, np.ndarray, list[tuple[in
 
 
 def parse_truth(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.DataFrame:
-    """truth.log: `t_ms rail_m` (or `path_m`); (x, y) from the campaign's path at that arc length."""
+    """truth.log: `t_ms rail_m` (or `path_m`); (x, y) from the campaign's path at that arc length,
+    and the height z where the path has a height profile (a 3-D scenario, Campaign.for_scenario)."""
     check_magic(raw, "-truth")
     length = campaign.path.length
     frame = _truth_plain(raw, length)
@@ -357,6 +358,8 @@ def parse_truth(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> pd.
         return tables.empty("truth")
     pose = campaign.path.evaluate(frame["s"].to_numpy())
     frame["x"], frame["y"] = pose["x"], pose["y"]
+    if "z" in pose:
+        frame["z"] = pose["z"]
     return frame
 
 

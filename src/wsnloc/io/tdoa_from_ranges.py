@@ -18,8 +18,8 @@ and so on, so a missing reference anchor does not drop the other anchors' ranges
 with a non-zero status or not finite are not used.
 
 Before pairing, each anchor's isolated outliers are left out (a Hampel identifier): a range
-further than HAMPEL_SIGMAS normalised MADs (1.4826 x the median absolute residual over that
-anchor's ranges, at least 1 cm) from the robust (repeated-median) line through its HAMPEL_NEIGHBOURS
+further than HAMPEL_SIGMAS normalised MADs (metrics.stats.robust_sigma: 1.4826 x the median absolute
+residual over that anchor's ranges, at least 1 cm) from the robust (repeated-median) line through its HAMPEL_NEIGHBOURS
 neighbours on each side within two windows of it (`outliers`). An NLOS or multipath excess of one two-way range would
 otherwise reach every difference it is paired into: the interpolations on both sides of it and,
 for the reference, every pair of its group; the tracker on the ranges meets it once and
@@ -42,6 +42,7 @@ import numpy as np
 import pandas as pd
 
 from wsnloc.errors import IngestError
+from wsnloc.metrics.stats import robust_sigma
 from wsnloc.io import generic
 from wsnloc.io.convert import QUARANTINE_FILE, Converted
 
@@ -112,7 +113,7 @@ def outliers(t: np.ndarray, r: np.ndarray, span_s: float) -> np.ndarray:
     each = np.column_stack([_nanmedian(slopes[:, j]) for j in range(len(steps))])
     slope = np.nan_to_num(_nanmedian(each))
     residual = r[tested] - _nanmedian(value - slope[:, None] * dt)
-    spread = max(1.4826 * np.median(np.abs(residual)), HAMPEL_FLOOR_M)
+    spread = max(robust_sigma(residual), HAMPEL_FLOOR_M)
     flagged = np.zeros(n, dtype=bool)
     flagged[tested] = np.abs(residual) > HAMPEL_SIGMAS * spread
     return flagged

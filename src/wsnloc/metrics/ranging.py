@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 
 from wsnloc.campaign import Campaign
+from wsnloc.metrics.stats import robust_sigma
 
 
 def truth_at(truth: pd.DataFrame, t: np.ndarray) -> np.ndarray:
@@ -25,7 +26,8 @@ def _with_geometry(frame: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign,
     true distance (m) and the walls crossed between the true position and the anchor (los: none).
 
     The distance is 3-D, sqrt(dx^2 + dy^2 + (z_anchor - h_tag)^2), when the anchor has a
-    height and the campaign gives the tag height; otherwise 2-D.
+    height and the tag's is known: the truth's z at t (a 3-D truth), else the campaign's fixed
+    tag height; otherwise 2-D.
     """
     position = truth_at(truth, frame["t"].to_numpy())
     inside = np.flatnonzero(np.isfinite(position[:, 0]))
@@ -35,8 +37,15 @@ def _with_geometry(frame: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign,
     if (slot < 0).any():
         raise KeyError(f"anchors not in the anchor table: {sorted(set(frame['anchor_id'][slot < 0]))}")
     anchor_xy = anchors[["x", "y"]].to_numpy(dtype=float)
+    if "z" in truth and np.isfinite(truth["z"].to_numpy(float)).any():      # the tag's height at each time
+        z = anchors["z"].to_numpy(dtype=float)[slot] if "z" in anchors else np.full(len(slot), np.nan)
+        given = np.isfinite(truth["z"].to_numpy(float))
+        tag_z = np.interp(frame["t"].to_numpy(float), truth["t"][given], truth["z"][given])
+        dz = np.where(np.isfinite(z), z - tag_z, 0.0)
+    else:
+        dz = _height_difference(anchors, campaign.tag_height_m)[slot]
     distance = np.sqrt((position[:, 0] - anchor_xy[slot, 0]) ** 2 + (position[:, 1] - anchor_xy[slot, 1]) ** 2
-                       + _height_difference(anchors, campaign.tag_height_m)[slot] ** 2)
+                       + dz ** 2)
     new = {"true_x": position[:, 0], "true_y": position[:, 1], "true_distance_m": distance,
            "walls": _walls_per_anchor(position, slot, anchor_xy, campaign)}
     new["los"] = new["walls"] == 0
@@ -173,7 +182,7 @@ def fit_range_bias(range_m, true_distance_m, anchor_id) -> dict:
     if len(r) < len(anchors) + 2:
         raise ValueError(f"range calibration needs more samples than unknowns ({len(r)} for {len(anchors) + 1})")
     scale, offsets = _weighted_line(r, d, column, np.ones(len(r)))
-    f_scale = max(1.4826 * np.median(np.abs(r - scale * d - offsets[column])), 1e-3)
+    f_scale = max(robust_sigma(r - scale * d - offsets[column]), 1e-3)
     floor, last_moved = RANGE_FIT_ROUNDING * np.max(np.abs(r)), np.inf
     for _ in range(RANGE_FIT_MAX_ITERATIONS):
         residual = r - scale * d - offsets[column]
@@ -187,7 +196,7 @@ def fit_range_bias(range_m, true_distance_m, anchor_id) -> dict:
         raise ValueError(f"range calibration: no convergence in {RANGE_FIT_MAX_ITERATIONS} iterations")
     residual = r - scale * d - offsets[column]
     return {"scale": float(scale), "offsets_m": {str(a): float(b) for a, b in zip(anchors, offsets)},
-            "sigma_m": float(1.4826 * np.median(np.abs(residual - np.median(residual)))), "samples": int(len(r))}
+            "sigma_m": robust_sigma(residual - np.median(residual)), "samples": int(len(r))}
 
 
 def fit_tdoa_bias(tdoa_m, true_anchor_m, true_ref_m, anchor_id, ref_id) -> dict:
@@ -221,12 +230,12 @@ def fit_tdoa_bias(tdoa_m, true_anchor_m, true_ref_m, anchor_id, ref_id) -> dict:
         raise ValueError(f"TDOA calibration: {len(z)} differences do not determine the scale and "
                          f"{len(anchors)} offsets (distinct distance differences needed)")
     start = np.linalg.lstsq(design, z, rcond=None)[0]
-    f_scale = max(1.4826 * np.median(np.abs(z - design @ start)), 1e-3)
+    f_scale = max(robust_sigma(z - design @ start), 1e-3)
     theta = least_squares(lambda th: design @ th - z, start, loss="soft_l1", f_scale=f_scale).x
     residual = z - design @ theta
     offsets = {str(gauge): 0.0, **{str(anchor): float(theta[k]) for anchor, k in column.items()}}
     return {"scale": float(theta[0]), "offsets_m": offsets,
-            "sigma_m": float(1.4826 * np.median(np.abs(residual - np.median(residual)))), "samples": int(len(z))}
+            "sigma_m": robust_sigma(residual - np.median(residual)), "samples": int(len(z))}
 
 
 def _weighted_line(r: np.ndarray, d: np.ndarray, column: np.ndarray, w: np.ndarray) -> tuple[float, np.ndarray]:

@@ -21,6 +21,17 @@ _TINY = 1e-300              # Lentz's guard against a zero denominator
 _MAX_TERMS = 10_000         # continued-fraction terms (at most 54 used for 1 <= dof <= 1e6, q <= 0.999)
 _NEWTON_STOP = 1e-9         # relative Newton step after which the next error is ~(step)^2 << ulp
 _MAX_NEWTON = 100           # Newton steps (at most 12 used for 1 <= dof <= 1e6, q <= 0.999)
+# 1 / Phi^-1(3/4) = 1.4826: the median absolute deviation of a normal sample times this estimates its sigma
+MAD_TO_SIGMA = 1.0 / NormalDist().inv_cdf(0.75)
+
+
+def robust_sigma(deviations) -> float:
+    """The normalised median absolute deviation MAD_TO_SIGMA * median |deviations| of deviations
+    from a centre the caller chose (the sample's median, a per-group median or a fitted line): a
+    standard deviation that outliers do not inflate. As scipy.stats.median_abs_deviation(x,
+    scale="normal") for deviations x - median(x); not imported here (scipy.stats costs each job
+    a few tenths of a second)."""
+    return float(MAD_TO_SIGMA * np.median(np.abs(deviations)))
 
 
 def _stirling_remainder(x: float) -> float:

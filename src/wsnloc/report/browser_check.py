@@ -5,7 +5,8 @@ summary and every report page reachable from it by links: no console errors; no 
 request other than the report's own files (and inline data: images); every image decodes;
 every link to a page of the report reaches an existing page and, with a #fragment, an
 element of that id; every page of the report folder is linked from the summary; every paper
-section holds its tables. Saves screenshots (at a set width). Needs Debian's `chromium` and
+section holds its tables; no box of class `fit` (a table meant to fit the page) scrolls sideways
+at the check's width. Saves screenshots (at a set width). Needs Debian's `chromium` and
 `chromium-driver` and the `selenium` package;
 `python -m wsnloc.report.browser_check reports/index.html --screenshots DIR`.
 
@@ -209,6 +210,11 @@ def check_report(html: str | Path, screenshot: str | Path | None = None,
                 if not complete or image_width == 0:
                     problems.append(f"{name}: image does not decode: {alt!r}")
             problems += [f"{name}: {p}" for p in figure_overlap_problems([(src, alt, title) for _, _, alt, src, title in images])]
+            for heading in driver.execute_script(
+                    "return Array.from(document.querySelectorAll('.fit')).filter(e => e.scrollWidth > e.clientWidth + 1)"
+                    ".map(e => { let h = e.previousElementSibling; while (h && !/^H[1-6]$/.test(h.tagName)) "
+                    "h = h.previousElementSibling; return h ? h.textContent : e.textContent.slice(0, 60); });"):
+                problems.append(f"{name}: a table that must fit the page width scrolls sideways: {heading!r}")
             text = driver.execute_script("return document.body.innerText;")
             problems += [f"{name}: {p}" for p in empty_interval_problems(text) + long_number_problems(text)]
             ids[page] = set(driver.execute_script("return Array.from(document.querySelectorAll('[id]')).map(e => e.id);"))
@@ -251,7 +257,8 @@ def check_report(html: str | Path, screenshot: str | Path | None = None,
                 problems.append(f"section {section} is missing or has no paper table")
         for request in requests:
             target = _local_target(request, root)
-            if target is None and not request.startswith(("data:", "chrome://", "about:")):
+            # chrome:// and chrome-untrusted:// are the browser's own pages (its new-tab page), not the report's
+            if target is None and not request.startswith(("data:", "chrome://", "chrome-untrusted://", "about:")):
                 problems.append(f"network request beyond the report: {request}")
         return {"problems": problems, "images": image_count, "requests": requests,
                 "pages": sorted(p.relative_to(root).as_posix() for p in seen)}

@@ -20,6 +20,7 @@ import pandas as pd
 from wsnloc.analysis.setup_facts import SETUP_TABLE
 from wsnloc.campaign import Campaign
 from wsnloc.experiments import claims as claims_of
+from wsnloc.sim.imu import ACCEL_BIAS, bias_sigma
 
 
 class Numbers:
@@ -55,20 +56,17 @@ class Numbers:
         """Mean run duration (s) of a scenario (data summary per run)."""
         return _mean([_number(r.get("duration_s")) for r in self.summaries.get(scenario, {}).get("per_run", [])])
 
-    def accel_bias_sigma(self, scenario: str) -> float:
-        """Per-axis sigma (m/s^2) of the simulated accelerometer's per-run turn-on bias of a scenario
-        (campaign imu.accel_bias_sigma_mps2 under the `mems` noise model; 0 under paper B's `snr`
-        model, which has none); NaN without a campaign or a simulated IMU."""
+    def imu_bias_sigma(self, scenario: str, key: str) -> float:
+        """The per-run bias sigma of a scenario's simulated IMU by campaign key (sim.imu.bias_sigma:
+        ACCEL_BIAS in m/s^2 per axis, GYRO_BIAS in deg/s; 0 under paper B's
+        `snr` model); NaN without a campaign or a simulated IMU."""
         dataset, _, name = scenario.partition("/")
         if self.config is None or dataset not in self.config.get("datasets", {}):
             return math.nan
         campaign = campaign_of(self.config, scenario)
-        imu = campaign.spec.get("imu")
-        if imu is None or name not in campaign.spec.get("scenarios", {}):
+        if "imu" not in campaign.spec or name not in campaign.spec.get("scenarios", {}):
             return math.nan
-        model = campaign.section("scenarios", name).get("overrides", {}).get("imu_noise_model") \
-            or imu.get("noise_model", "mems")
-        return _number(imu.get("accel_bias_sigma_mps2")) if model == "mems" else 0.0
+        return bias_sigma(campaign, name, key)
 
     def rss_fit(self, scenario: str) -> dict[str, float]:
         """Path-loss fit over all links (mean over runs): exponent n and residual sigma (dB)."""
@@ -155,7 +153,7 @@ def cell_mechanism(n: Numbers, experiment: str, scenario: str, *labels: str) -> 
         if pd.notna(value):
             shown = f"{value:.0%}" if "share" in fact else f"{value:.1f}"
             at_rest = "static" in fact and value < STILL_SHARE and words & set(DRIFT_WORDS) \
-                and n.accel_bias_sigma(scenario) != 0.0          # a simulated IMU without bias: nothing to measure
+                and n.imu_bias_sigma(scenario, ACCEL_BIAS) != 0.0     # a simulated IMU without bias: nothing to measure
             parts.append(f"{fact} {shown}" + (" (no rest to measure the IMU biases in: dead reckoning integrates them)"
                                               if at_rest else ""))
     return "; ".join(parts)
@@ -193,7 +191,7 @@ def contributions(n: Numbers, experiment: str, scenario: str, table: dict, row: 
         out.append((f"rests: RMSE - moving-epoch RMSE = {value:.3f} - {moving:.3f} = {value - moving:+.3f} m",
                     value - moving))
     static = n.fact(experiment, "static share of epochs", scenario)
-    sigma_b, duration = n.accel_bias_sigma(scenario), n.duration_s(scenario)
+    sigma_b, duration = n.imu_bias_sigma(scenario, ACCEL_BIAS), n.duration_s(scenario)
     if (words & set(DEAD_RECKONING_WORDS) and not words & set(FUSION_WORDS) and finite(static, sigma_b, duration)
             and static < STILL_SHARE and sigma_b > 0):
         drift = math.sqrt(2.0) * sigma_b * duration**2 / (2.0 * math.sqrt(5.0))

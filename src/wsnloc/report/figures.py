@@ -495,6 +495,7 @@ def curve_with_interval(curves: dict[str, pd.DataFrame], xlabel: str, ylabel: st
 
 
 BAR_LABEL = {"rmse": "RMSE"}
+MIN_BAR_ROWS = 3      # estimator_bars: a panel at least this many groups high
 
 
 @gc_paused
@@ -503,8 +504,8 @@ def estimator_bars(panels: dict[str, dict[str, dict[str, tuple[float, float, flo
     estimator cell) and one bar per statistic: its value with the 95% interval as an error bar
     where there is one (panels: title -> label -> statistic -> (value, low, high)). A value
     that is not finite is left out, with "(not finite)" after the label."""
-    fig, axes = plt.subplots(1, len(panels), figsize=(5.4 * len(panels), 0.9 + 0.42 * max(
-        [len(labels) for labels in panels.values()] or [1]) * 1.6), squeeze=False)
+    groups = max([len(labels) for labels in panels.values()] + [MIN_BAR_ROWS])   # the legend below needs the room
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.4 * len(panels), 0.9 + 0.42 * groups * 1.6), squeeze=False)
     for ax, (title, labels) in zip(axes[0], panels.items()):
         names = list(dict.fromkeys(stat for stats in labels.values() for stat in stats))
         height = 0.8 / max(1, len(names))
@@ -524,7 +525,7 @@ def estimator_bars(panels: dict[str, dict[str, dict[str, tuple[float, float, flo
         ax.set_xlabel(f"position error [{unit}]")
         ax.set_title(title, fontsize=10)
         ax.grid(axis="x", alpha=0.3)
-        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16 - 0.35 / len(labels)),
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16 - 0.35 / groups),
                   ncols=len(names), frameon=False)        # below the axes: never over a bar
     return fitted_png(fig)
 

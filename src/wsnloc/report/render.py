@@ -112,7 +112,9 @@ def data_banner(config: dict) -> list[str]:
     for name, spec in config["datasets"].items():
         kind = dataset_kind(spec)
         if kind == "simulated":
-            lines.append(f"{name}: SIMULATED campaign (wsnloc simulator, {config['runs']} runs per scenario, "
+            own = spec.get("scenario_runs") or {}
+            fewer = f" ({', '.join(f'{s}: {n}' for s, n in own.items())})" if own else ""
+            lines.append(f"{name}: SIMULATED campaign (wsnloc simulator, {config['runs']} runs per scenario{fewer}, "
                          f"base seed {config['seed']}) — not the papers' measurements.")
         else:
             lines.append(f"{name}: {KIND_LABEL[kind]} logs from {spec['raw_dir']}.")

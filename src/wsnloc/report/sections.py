@@ -215,18 +215,20 @@ def summary(papers: list[dict]) -> list[dict]:
     return out
 
 
-def sensitivity_table(results: pd.DataFrame, experiment: str, claims: list[dict]) -> dict:
-    """A paper's claims against its sensitivity settings (experiments.sensitivity): the verdict
-    over all runs, the baseline and every setting on the sampled runs, and whether the sampled
-    verdict is the same at every setting (robust) or flips."""
+def sensitivity_table(results: pd.DataFrame, experiment: str, claims: list[dict], table: str) -> dict:
+    """A paper's claims against the settings of one sensitivity table of results.csv (the
+    a-priori sigmas, experiments.sensitivity.TABLE; the UWB ranging levels,
+    analysis.nlos_severity.CLAIMS_TABLE): the verdict over all runs, each setting's (the
+    baseline first where there is one), and whether the verdict is the same at every setting
+    (robust) or flips."""
     from wsnloc.experiments.claims import VERDICT_CODE
-    from wsnloc.experiments.sensitivity import BASELINE, TABLE
+    from wsnloc.experiments.sensitivity import BASELINE
 
     verdict_of = {code: verdict for verdict, code in VERDICT_CODE.items()}
-    sel = results[(results["experiment"] == experiment) & (results["table"] == TABLE)]
+    sel = results[(results["experiment"] == experiment) & (results["table"] == table)]
     if sel.empty:
         return {"settings": [], "rows": []}
-    settings = [BASELINE] + [c for c in dict.fromkeys(sel["column"]) if c != BASELINE]
+    settings = sorted(dict.fromkeys(sel["column"]), key=lambda setting: setting != BASELINE)     # stable
     rows = []
     for c in claims:
         mine = sel[sel["row"] == c["claim"]]

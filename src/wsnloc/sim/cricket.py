@@ -21,6 +21,7 @@ import numpy as np
 
 from wsnloc.campaign import Campaign
 from wsnloc.sim import trajectory as motion
+from wsnloc.sim.imu import noise_model_of
 from wsnloc.sim.logs import imu_text, lines_text, positions, truth_text, write_run
 from wsnloc.sim.seeding import model_rng
 
@@ -87,8 +88,7 @@ def simulate_run(campaign: Campaign, scenario: str, seeds: np.random.SeedSequenc
                  *, imu_noise: str | None = None, meta: dict | None = None, **_ignored) -> Path:
     """Simulate `scenario` (e.g. speed_40) and write its raw logs into `out_dir`."""
     scenario_spec = campaign.section("scenarios", scenario)
-    imu_noise = imu_noise or scenario_spec.get("overrides", {}).get("imu_noise_model") \
-        or campaign.section("imu").get("noise_model", "mems")
+    imu_noise = imu_noise or noise_model_of(campaign, scenario)
     clock_ms = int(campaign.spec.get("clock_start_ms", 0))
     traj = motion.for_scenario(scenario_spec, campaign.path.length, model_rng(seeds, "motion"))
     files = {

@@ -38,8 +38,26 @@ from __future__ import annotations
 
 import numpy as np
 
+from wsnloc.campaign import Campaign
+
 MICRO_G = 1e-6
 NOISE_MODELS = ("mems", "snr")
+DEFAULT_NOISE_MODEL = "mems"       # campaign imu.noise_model when not given
+ACCEL_BIAS, GYRO_BIAS = "accel_bias_sigma_mps2", "gyro_bias_sigma_dps"     # campaign imu keys of the per-run biases
+
+
+def noise_model_of(campaign: Campaign, scenario: str) -> str:
+    """The IMU noise model a scenario is simulated with: its overrides.imu_noise_model, else
+    the campaign's imu.noise_model, else DEFAULT_NOISE_MODEL."""
+    override = campaign.section("scenarios", scenario).get("overrides", {}).get("imu_noise_model")
+    return override or campaign.spec.get("imu", {}).get("noise_model", DEFAULT_NOISE_MODEL)
+
+
+def bias_sigma(campaign: Campaign, scenario: str, key: str) -> float:
+    """The per-run bias sigma a scenario's IMU is simulated with, by campaign key: imu.`key`
+    (ACCEL_BIAS in m/s^2 per axis, GYRO_BIAS in deg/s) under the `mems`
+    noise model, 0 under paper B's `snr` model, which has no bias (noise_model_of)."""
+    return float(campaign.section("imu", key)) if noise_model_of(campaign, scenario) == "mems" else 0.0
 
 
 def body_motion(v, a, curvature, gravity: float) -> tuple[np.ndarray, np.ndarray]:
@@ -142,7 +160,7 @@ def sensor_readings(t, force, yaw_rate, v, spec: dict, gravity: float,
     s (m): arc length at each sample, needed by the tilt model (`tilt_angles`)."""
     fs = spec["rate_hz"]
     n = len(t)
-    model = spec.get("noise_model", "mems")
+    model = spec.get("noise_model", DEFAULT_NOISE_MODEL)
     if model not in NOISE_MODELS:
         raise ValueError(f"imu.noise_model: unknown noise model {model!r}; expected one of {NOISE_MODELS}")
     if model == "snr":
@@ -151,12 +169,12 @@ def sensor_readings(t, force, yaw_rate, v, spec: dict, gravity: float,
         return force + rng.normal(0.0, sigma_fs, (n, 3)), np.array(yaw_rate, dtype=float)
     if spec.get("mount_tilt_sigma_deg", 0.0) or spec.get("floor_slope_sigma_deg", 0.0):
         force = tilt_leakage(force, *tilt_angles(s, spec, rng), gravity)
-    accel_bias = rng.normal(0.0, spec["accel_bias_sigma_mps2"], 3)
+    accel_bias = rng.normal(0.0, spec[ACCEL_BIAS], 3)
     accel_sigma = spec["accel_noise_ug_per_rthz"] * MICRO_G * gravity * np.sqrt(fs / 2.0)
     accel = force + accel_bias                                  # ((f + b) + noise) + vibration, drawn in that order
     accel += rng.normal(0.0, accel_sigma, (n, 3))
     accel += vibration(t, v, spec, rng)
-    gyro_bias = np.deg2rad(rng.normal(0.0, spec["gyro_bias_sigma_dps"]))
+    gyro_bias = np.deg2rad(rng.normal(0.0, spec[GYRO_BIAS]))
     gyro_sigma = np.deg2rad(spec["gyro_noise_dps_per_rthz"] * np.sqrt(fs / 2.0))
     gyro = yaw_rate + gyro_bias + rng.normal(0.0, gyro_sigma, n)
     return accel, gyro

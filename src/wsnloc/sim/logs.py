@@ -16,10 +16,23 @@ GENERATOR = "wsnloc-sim"
 
 
 def positions(campaign: Campaign, traj: Trajectory, times_s: np.ndarray) -> dict:
-    """Path state (s, v, a) and pose (x, y, heading, curvature) at the given times."""
+    """Path state (s, v, a) and pose (x, y, heading, curvature; z on a path with a height
+    profile) at the given times; `tag_z` the tag's height (m): z, else the campaign's fixed
+    tag_height_m, else 0 (as the estimators take it, RunData)."""
     state = traj.at(times_s)
     pose = campaign.path.evaluate(state["s"])
-    return {**state, **pose, "xy": np.column_stack([pose["x"], pose["y"]])}
+    tag_z = pose["z"] if "z" in pose else np.full(len(pose["x"]), float(campaign.tag_height_m or 0.0))
+    return {**state, **pose, "xy": np.column_stack([pose["x"], pose["y"]]), "tag_z": tag_z}
+
+
+def with_heights(horizontal: np.ndarray, tag_z: np.ndarray, anchor_z: np.ndarray) -> np.ndarray:
+    """Tag-anchor distances (m) from the horizontal ones (..., anchors): sqrt(d^2 + (z_anchor -
+    z_tag)^2) for anchors with a height (finite z), d for the others; `tag_z` broadcasts
+    against `horizontal`. Unchanged (the same array) when no anchor has a height."""
+    if not np.isfinite(anchor_z).any():
+        return horizontal
+    dz = np.where(np.isfinite(anchor_z), anchor_z - tag_z, 0.0)
+    return np.sqrt(horizontal**2 + dz**2)
 
 
 def _scaled_integers(values: np.ndarray, decimals: int) -> np.ndarray:

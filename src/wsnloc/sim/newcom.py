@@ -3,7 +3,9 @@
 Writes exactly the files of shared/spec/raw-formats.md (uwb.log, zigbee.log, imu.log,
 truth.log) plus meta.yaml; nothing else (no hidden true ranges). A scenario with the override
 `uwb_tdoa: true` also writes `tdoa.csv` (generic format: one-way UWB TDOA with synchronised
-anchors, sim.tdoa; settings in radio.uwb.tdoa). Byte-for-byte
+anchors, sim.tdoa; settings in radio.uwb.tdoa). A 3-D scenario (`tag_height_m`,
+`anchor_heights_m`: Campaign.for_scenario) ranges in 3-D; its truth.log stays the arc length
+(the ingest reads the height from the same profile) and its imu.log the planar cart's. Byte-for-byte
 deterministic for a given campaign file, scenario and seed sequence.
 """
 
@@ -17,8 +19,9 @@ from wsnloc.sim import link_budget
 from wsnloc.sim import rss as rss_model
 from wsnloc.sim import trajectory as motion
 from wsnloc.sim import uwb_channel
+from wsnloc.sim.imu import noise_model_of
 from wsnloc.sim.tdoa import tdoa_text
-from wsnloc.sim.logs import imu_text, lines_text, positions as _positions, truth_text, write_run
+from wsnloc.sim.logs import imu_text, lines_text, positions as _positions, truth_text, with_heights, write_run
 from wsnloc.sim.seeding import model_rng
 
 
@@ -52,6 +55,15 @@ def twr_clock_bias_m(spec: dict, rng: np.random.Generator, n_anchors: int, c: fl
     return c * spec.get("twr_reply_time_us", 0.0) * 1e-6 * (offsets[0] - offsets[1:]) / 2
 
 
+def ranging_rounds_ms(spec: dict, n_anchors: int, duration_s: float) -> np.ndarray:
+    """Nominal start of every UWB ranging round (ms after the trajectory's start): one each
+    `ranging_period_ms` from one period on, while the round's n_anchors rangings
+    (`anchor_spacing_ms` apart) end inside the run of duration_s (s). _uwb_lines jitters each
+    start by up to +-period_jitter_ms."""
+    period = spec["ranging_period_ms"]
+    return np.arange(period, duration_s * 1000 - n_anchors * spec["anchor_spacing_ms"], period)
+
+
 def _uwb_lines(campaign: Campaign, spec: dict, traj, rng_time, rng_channel, rng_fault, rng_clock, rng_shadow,
                detector: str, clock_ms: int) -> list[str]:
     """`uwb.log`: one two-way time of flight per (round, anchor) whose link closes, in time order.
@@ -71,15 +83,17 @@ def _uwb_lines(campaign: Campaign, spec: dict, traj, rng_time, rng_channel, rng_
     """
     c = campaign.spec["speed_of_light_mps"]
     anchors = campaign.anchors_of("uwb")
-    period, jitter = spec["ranging_period_ms"], spec["period_jitter_ms"]
-    rounds = np.arange(period, traj.duration * 1000 - len(anchors) * spec["anchor_spacing_ms"], period)
+    jitter = spec["period_jitter_ms"]
+    rounds = ranging_rounds_ms(spec, len(anchors), traj.duration)
     round_ms = rounds + rng_time.uniform(-jitter, jitter, len(rounds))
     times_ms = np.round(round_ms[:, None] + np.arange(len(anchors))[None, :] * spec["anchor_spacing_ms"])
     state = _positions(campaign, traj, times_ms.ravel() / 1000.0)
     pos = state["xy"].reshape(len(rounds), len(anchors), 2)
     walls = np.column_stack([campaign.walls_between(pos[:, j], a) for j, a in
                              enumerate(anchors[["x", "y"]].to_numpy(float))])
-    dist = np.hypot(pos[..., 0] - anchors["x"].to_numpy()[None, :], pos[..., 1] - anchors["y"].to_numpy()[None, :])
+    dist = with_heights(np.hypot(pos[..., 0] - anchors["x"].to_numpy()[None, :],
+                                 pos[..., 1] - anchors["y"].to_numpy()[None, :]),
+                        state["tag_z"].reshape(len(rounds), len(anchors)), anchors["z"].to_numpy(float)[None, :])
     # the shadowing field at the round's path position (the anchors of a round are ranged within
     # len(anchors) * anchor_spacing_ms, a few cm of travel, far below the decorrelation distance)
     arc = state["s"].reshape(len(rounds), len(anchors))[:, 0]
@@ -133,7 +147,8 @@ def _zigbee_lines(campaign: Campaign, traj, rng, clock_ms: int) -> list[str]:
     state = _positions(campaign, traj, times_ms / 1000.0)
     xy = state["xy"]
     axy = anchors[["x", "y"]].to_numpy(float)
-    dist = np.hypot(xy[:, None, 0] - axy[None, :, 0], xy[:, None, 1] - axy[None, :, 1])
+    dist = with_heights(np.hypot(xy[:, None, 0] - axy[None, :, 0], xy[:, None, 1] - axy[None, :, 1]),
+                        state["tag_z"][:, None], anchors["z"].to_numpy(float)[None, :])
     walls = np.column_stack([campaign.walls_between(xy, a) for a in axy])
     shadow = rss_model.correlated_shadowing(state["s"], len(anchors), spec["shadowing_sigma_db"],
                                             spec["shadowing_decorrelation_m"], rng)
@@ -188,9 +203,10 @@ def simulate_run(campaign: Campaign, scenario: str, seeds: np.random.SeedSequenc
     imu.noise_model); the scenario may also set them under `overrides`.
     """
     scenario_spec = campaign.section("scenarios", scenario)
+    campaign = campaign.for_scenario(scenario)       # a 3-D scenario's height profile and anchor heights
     overrides = scenario_spec.get("overrides", {})
     detector = detector or overrides.get("uwb_detector") or campaign.section("radio", "uwb")["detector"]
-    imu_noise = imu_noise or overrides.get("imu_noise_model") or campaign.section("imu").get("noise_model", "mems")
+    imu_noise = imu_noise or noise_model_of(campaign, scenario)
     clock_ms = int(campaign.spec.get("clock_start_ms", 0))
 
     traj = motion.for_scenario(scenario_spec, campaign.path.length, model_rng(seeds, "motion"))

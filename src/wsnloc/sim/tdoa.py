@@ -23,7 +23,7 @@ delay_j the detected excess delay of the link's channel model (CM3 LOS, CM4 NLOS
 its realisation carries P_rx, the direct path loses direct_path_wall_loss_db per wall),
 noise_j ~ N(0, timing_noise_ns). One row per linked anchor j other than the reference and
 blink whose reference is linked: tdoa_m = c (T_j - T_ref) (eps_ref = 0: the reference is the
-time master), t = the blink time on the logger clock. d_j is 3-D when anchors have z.
+time master), t = the blink time on the logger clock. d_j is 3-D when anchors have z (sim.logs.with_heights).
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ import numpy as np
 from wsnloc.campaign import Campaign
 from wsnloc.sim import link_budget, uwb_channel
 from wsnloc.sim import rss as rss_model
-from wsnloc.sim.logs import positions as _positions
+from wsnloc.sim.logs import positions as _positions, with_heights
 
 
 def _sync_errors(n_anchors: int, times_s: np.ndarray, sync_period_s: float, jitter_s: float,
@@ -67,9 +67,7 @@ def tdoa_text(campaign: Campaign, uwb: dict, traj, rng_time: np.random.Generator
     axy = anchors[["x", "y"]].to_numpy(float)
     walls = np.column_stack([campaign.walls_between(xy, a) for a in axy])
     dist = np.hypot(xy[:, None, 0] - axy[None, :, 0], xy[:, None, 1] - axy[None, :, 1])
-    z = anchors["z"].to_numpy(float) if "z" in anchors else np.full(len(anchors), np.nan)
-    dz = np.where(np.isfinite(z), z - campaign.tag_height_m if campaign.tag_height_m is not None else z, 0.0)
-    dist = np.sqrt(dist**2 + dz[None, :] ** 2)
+    dist = with_heights(dist, state["tag_z"][:, None], anchors["z"].to_numpy(float)[None, :])
     shadow = rss_model.correlated_shadowing(state["s"], len(anchors), 1.0, uwb["shadowing_decorrelation_m"],
                                             rng_shadow)
     power_dbm = link_budget.received_power_dbm(uwb, dist, walls > 0, shadow)

@@ -235,9 +235,11 @@ def for_scenario(scenario: dict, length: float, rng: np.random.Generator) -> Tra
     """Build the trajectory a campaign scenario describes (``motion: constant|variable``).
 
     `length` is the campaign path's length (m); a scenario with `path_length_m` follows only the
-    first path_length_m metres of it (at most `length`).
+    first path_length_m metres of it (at most `length`). The motion is along the path: a 3-D
+    scenario's height profile (`tag_height_m`, `anchor_heights_m`) is the path's (Campaign.for_scenario).
     """
-    params = {k: v for k, v in scenario.items() if k not in ("motion", "overrides", "path_length_m")}
+    params = {k: v for k, v in scenario.items() if k not in ("motion", "overrides", "path_length_m", "tag_height_m",
+                                                             "anchor_heights_m")}
     part = scenario.get("path_length_m", length)
     if not 0 < part <= length:
         raise ValueError(f"scenario path_length_m = {part:g} m: must lie in (0, {length:.2f}] m (the campaign path)")

@@ -15,8 +15,9 @@ import pandas as pd
 from wsnloc import results
 from wsnloc.analysis import setup_facts
 from wsnloc.estimators import batched
+from wsnloc.campaign import Campaign
 from wsnloc.estimators.run_data import RunData
-from wsnloc.experiments import cells, claims as claims_of
+from wsnloc.experiments import calibration, cells, claims as claims_of
 from wsnloc.metrics import verdicts
 from wsnloc.metrics.stats import mean_ci95
 from wsnloc.metrics.tracking import cell_metrics, score
@@ -55,6 +56,25 @@ def run_all(datas: list[RunData], spec: dict, label: str) -> list[pd.DataFrame]:
     labels = {"row": [row_label(row) for row, _ in grid], "table": [table for _, table in grid]}
     return [score(batched.stacked(tracks[i * len(grid):(i + 1) * len(grid)], labels), data.table("truth"))
             for i, data in enumerate(datas)]
+
+
+def rss_models_for_runs(run_tables: dict[str, dict], campaign: Campaign, spec: dict, label: str) -> dict[str, dict]:
+    """RSS model per run (wsnloc.experiments.calibration), fitted on every ZigBee anchor with the
+    first cell's parameters (every cell shares rss_calibration)."""
+    zigbee = list(campaign.anchors_of("zigbee")["anchor_id"])
+    return calibration.rss_models_for_runs(run_tables, campaign, zigbee,
+                                           cell_params(spec, label, TABLES[0], spec["rows"][0]))
+
+
+def evaluate_runs(run_tables: dict[str, dict], campaign: Campaign, spec: dict, label: str) -> pd.DataFrame:
+    """Per-run metrics (run_metrics, column `run`) of every cell on runs given as tables (e.g.
+    extra simulated runs of scenario `label`), each run's RSS model as in the workflow
+    (rss_models_for_runs)."""
+    models = rss_models_for_runs(run_tables, campaign, spec, label)
+    estimates = run_all([RunData(tables, campaign, models[name], name) for name, tables in run_tables.items()],
+                        spec, label)
+    return pd.concat([run_metrics(est, tables["truth"]).assign(run=name)
+                      for (name, tables), est in zip(run_tables.items(), estimates)], ignore_index=True)
 
 
 def run(data: RunData, spec: dict, label: str) -> pd.DataFrame:
@@ -136,9 +156,14 @@ def claims(metrics: dict[str, pd.DataFrame], motions: dict[str, str], spec: dict
             claims_of.record("Motion detection improves every row", verdicts.claim(detection))]
 
 
+# Set-up facts: the measurements the filter of Table I's first TOA / RSS row used per epoch (its n_meas,
+# after the preliminary filter and range limit), not the anchors the logs hold (pl0_sensitivity counts those)
+MEASUREMENTS_USED = {"toa": "UWB ranges the TOA filter used per epoch", "rss": "ZigBee RSS the RSS filter used per epoch"}
+
+
 def setup_rows(estimates: dict[str, pd.DataFrame], spec: dict) -> list[dict]:
     """Set-up facts per scenario (analysis.setup_facts) on Table I's first TOA and RSS rows:
-    the static share of epochs and the UWB / ZigBee anchors used per epoch."""
+    the static share of epochs and the measurements used per epoch (MEASUREMENTS_USED)."""
     first = {kind: next((row_label(r) for r in spec["rows"] if r["measurements"] == kind), None)
              for kind in ("toa", "rss")}
     rows = []
@@ -148,7 +173,7 @@ def setup_rows(estimates: dict[str, pd.DataFrame], spec: dict) -> list[dict]:
         if cells:
             rows.append(setup_facts.fact_row(EXPERIMENT, "static share of epochs", label,
                                              setup_facts.static_share(next(iter(cells.values()))), "share"))
-        for kind, name in (("toa", "UWB anchors ranged per epoch"), ("rss", "ZigBee anchors heard per epoch")):
+        for kind, name in MEASUREMENTS_USED.items():
             if kind in cells:
                 rows.append(setup_facts.fact_row(EXPERIMENT, name, label,
                                                  setup_facts.measurements_per_epoch(cells[kind]), "count"))

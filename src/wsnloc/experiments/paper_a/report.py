@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import pandas as pd
 
-from wsnloc.experiments.paper_a import (DETAIL_METRICS, EXPERIMENT as A, STATIC_TABLE, TABLES, cell_params,
-                                        row_label)
+from wsnloc.experiments.paper_a import (DETAIL_METRICS, EXPERIMENT as A, MEASUREMENTS_USED, STATIC_TABLE, TABLES,
+                                        cell_params, row_label)
 from wsnloc.report.explanations import Numbers, campaign_of, finite
 from wsnloc.report.sections import cell_of, columns_of, bound_line, grid_table, paper_section
 
@@ -49,9 +49,9 @@ def why(n: Numbers, config: dict, scenarios: list[str], spec: dict, epoch_s: flo
             out.append(f"{sc}: motion detection can only help while the cart stands still, {static:.0%} of the epochs "
                        f"here (the paper does not state its share); Table II changes the {hybrid} RMSE by "
                        f"{ours:+.3f} m, the paper's by {paper:+.3f} m.")
-        uwb, zigbee = (n.fact(A, f, sc) for f in ("UWB anchors ranged per epoch", "ZigBee anchors heard per epoch"))
+        uwb, zigbee = (n.fact(A, MEASUREMENTS_USED[kind], sc) for kind in ("toa", "rss"))
         if finite(uwb, zigbee):
-            out.append(f"{sc}: the robot hears {uwb:.1f} UWB and {zigbee:.1f} ZigBee anchors per {epoch_s:g} s "
+            out.append(f"{sc}: the filters use {uwb:.1f} UWB ranges and {zigbee:.1f} ZigBee RSS values per {epoch_s:g} s "
                        f"epoch (links that close in the campaign's link budget: UWB 802.15.4a path loss and "
                        f"shadowing against the receiver's sensitivity, ZigBee RSS against the CC2420 sensitivity); "
                        f"the paper: \"only few UWB and few ZigBee anchor nodes\" (paper A, §V).")

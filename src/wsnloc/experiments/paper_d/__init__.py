@@ -19,10 +19,10 @@ from wsnloc import results
 from wsnloc.analysis import setup_facts
 from wsnloc.campaign import Campaign
 from wsnloc.experiments import calibration
-from wsnloc.estimators import batched, fixes
+from wsnloc.estimators import batched, trackers
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import cells, claims as claims_of
-from wsnloc.estimators.trackers import FixSource, fix_measurement, fix_motion
+from wsnloc.estimators.trackers import fix_measurement, fix_motion
 from wsnloc.filters.kalman import KalmanFilter
 from wsnloc.metrics import op_counts, verdicts
 from wsnloc.metrics.ranging import truth_at
@@ -94,21 +94,24 @@ def run_metrics(estimates: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
 
 
 SPEEDLESS_ROW = "Kalman filter without speed input"      # Table 3's counterfactual row (speed_input_metrics)
-SPEED_INPUT_METRICS = ("true_speed_mps", "speed_input_mps", "speed_bias_mps", "speed_rmse_mps",
+SPEED_INPUT_METRICS = ("speed_input_share", "true_speed_mps", "speed_input_mps", "speed_bias_mps", "speed_rmse_mps",
                        "rmse_without_speed_m")
+CELL_KEY = ["localizer", "technique", "stage"]
 
 
 def speed_input_metrics(datas: list[RunData], spec: dict, label: str) -> list[pd.DataFrame]:
     """Per run, for every KF cell (stage "kalman") fed the velocity algorithm's speed
-    (`speed_input`, seed 004 4.2): the speed it is fed against the truth at the same fixes, and
-    the same KF without it (a counterfactual). Columns: localizer, technique, stage and
-    SPEED_INPUT_METRICS: mean true speed ||p(t_k) - p(t_k-1)|| / (t_k - t_k-1) at the fixes that
-    have a speed estimate (metrics.tracking.true_speeds, m/s), mean v_hat (eq. 1, m/s), mean and
-    RMS of v_hat - v (m/s), and the RMSE (m) of the KF with speed_input false. An empty frame
-    per run when the KF cell has no speed input."""
+    (`speed_input`, seed 004 4.2): the speed it is fed (trackers.fix_source, the KF's own input)
+    against the truth at the same fixes, and the same KF without it (a counterfactual). Columns:
+    CELL_KEY and SPEED_INPUT_METRICS: the share of the KF's fixes that carry a speed estimate
+    inside the truth span (v_hat needs two fixes; 0: the speed metrics are NaN), mean true speed
+    ||p(t_k) - p(t_k-1)|| / (t_k - t_k-1) at the fixes that have a speed estimate
+    (metrics.tracking.true_speeds, m/s), mean v_hat (eq. 1, m/s), mean and RMS of v_hat - v (m/s),
+    and the RMSE (m) of the KF with speed_input false. Without a fed KF cell, frames of CELL_KEY
+    only (merging them adds nothing)."""
     kalman = [cell for cell in cell_list(spec, label, ("kalman",)) if cell[4]["speed_input"]]
     if not kalman:
-        return [pd.DataFrame(columns=["localizer", "technique", "stage", *SPEED_INPUT_METRICS]) for _ in datas]
+        return [pd.DataFrame(columns=CELL_KEY) for _ in datas]
     variant = copy.deepcopy(spec)
     variant["estimators"]["kalman"]["speed_input"] = False
     without = [run_metrics(est, data.table("truth")) for data, est in zip(datas, run_all(datas, variant, label,
@@ -117,7 +120,7 @@ def speed_input_metrics(datas: list[RunData], spec: dict, label: str) -> list[pd
     for data, plain in zip(datas, without):
         truth, rows = data.table("truth"), []
         for localizer, technique, stage, _, p in kalman:
-            source = FixSource.of(fixes.epoch_fixes(data, p, p["fixes"]), (p["window"], p["speed_from"]))
+            source = trackers.fix_source(data, p)
             fixed = source.has_fix()
             t, v_hat = source.t[fixed], source.speed[fixed]
             v = true_speeds(t, *truth_at(truth, t).T)
@@ -125,8 +128,8 @@ def speed_input_metrics(datas: list[RunData], spec: dict, label: str) -> list[pd
             v, v_hat = v[fed], v_hat[fed]
             cell = plain[(plain["localizer"] == localizer) & (plain["technique"] == technique)]
             rows.append({"localizer": localizer, "technique": technique, "stage": stage,
-                         "true_speed_mps": _mean_or_nan(v), "speed_input_mps": _mean_or_nan(v_hat),
-                         "speed_bias_mps": _mean_or_nan(v_hat - v),
+                         "speed_input_share": _mean_or_nan(fed), "true_speed_mps": _mean_or_nan(v),
+                         "speed_input_mps": _mean_or_nan(v_hat), "speed_bias_mps": _mean_or_nan(v_hat - v),
                          "speed_rmse_mps": float(np.sqrt(_mean_or_nan((v_hat - v) ** 2))),
                          "rmse_without_speed_m": float(cell["rmse"].iloc[0]) if len(cell) else np.nan})
         out.append(pd.DataFrame(rows))
@@ -135,6 +138,11 @@ def speed_input_metrics(datas: list[RunData], spec: dict, label: str) -> list[pd
 
 def _mean_or_nan(values: np.ndarray) -> float:
     return float(values.mean()) if len(values) else float("nan")
+
+
+def speed_fed(spec: dict, label: str) -> dict[tuple[str, str], bool]:
+    """Per (localizer, technique): whether its KF cell on scenario `label` is fed the speed."""
+    return {(loc, tech): bool(p["speed_input"]) for loc, tech, _, _, p in cell_list(spec, label, ("kalman",))}
 
 
 def rss_models_for_runs(run_tables: dict[str, dict], campaign: Campaign, spec: dict, label: str) -> dict[str, dict]:
@@ -164,8 +172,12 @@ TABLES = {
 }
 
 
-def results_rows(metrics: pd.DataFrame, scenario: str) -> list[dict]:
-    """results.csv rows: Tables 1-3 (RMSE) and their detail metrics, mean over runs with 95% CI."""
+def results_rows(metrics: pd.DataFrame, scenario: str, spec: dict) -> list[dict]:
+    """results.csv rows: Tables 1-3 (RMSE) and their detail metrics, mean over runs with 95% CI;
+    for each KF cell fed the speed (speed_fed, from the config) its SPEED_INPUT_METRICS, NaN over
+    runs without a speed estimate (speed_input_share tells how many fixes had one). ValueError
+    when a fed cell's metrics lack them (speed_input_metrics not merged)."""
+    fed_cells = speed_fed(spec, scenario)
     rows = []
     common = {"experiment": EXPERIMENT, "scenario": scenario}
     for table, (stage, _) in TABLES.items():
@@ -184,7 +196,12 @@ def results_rows(metrics: pd.DataFrame, scenario: str) -> list[dict]:
             for metric in ("rmse", "median", "p95", "max"):
                 rows.append(results.row_over_runs(sel[metric], table="Table 3", row=row, column=tech_label,
                                                   metric=f"{metric}_m", **common))
-            if stage == "kalman" and "speed_input_mps" in sel and sel["speed_input_mps"].notna().any():
+            if stage == "kalman" and fed_cells[("minmax", technique)]:
+                missing = [metric for metric in SPEED_INPUT_METRICS if metric not in sel]
+                if missing:
+                    raise ValueError(f"paper D {scenario}: the Kalman filter on Min-Max {tech_label} fixes is fed the "
+                                     f"speed (speed_input) but its per-run metrics lack {', '.join(missing)} "
+                                     "(speed_input_metrics not merged)")
                 rows += [results.row_over_runs(sel[metric], table="Table 3", row=row, column=tech_label,
                                                metric=metric, **common) for metric in SPEED_INPUT_METRICS[:-1]]
                 rows.append(results.row_over_runs(sel["rmse_without_speed_m"], table="Table 3",
