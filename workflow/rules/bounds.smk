@@ -48,7 +48,7 @@ rule subset_monte_carlo:
         sizes=lambda w: config["bounds"]["subset_sizes"][w.dataset],
         shown=config.get("bounds", {}).get("shown", 3),
         estimators=config.get("bounds", {}).get("monte_carlo", {}).get("estimators", {}),
-    priority: PRIORITY["cell"]
+    priority: PRIORITY["opt_in"]
     log:
         "logs/subset_monte_carlo/{dataset}-{scenario}.log",
     conda:

@@ -20,12 +20,13 @@ ENV = "../envs/wsnloc.yaml"
 
 
 # Job order on few cores (higher first among ready jobs): the data chain (simulate, ingest)
-# first, Newcom++ before Cricket, so that every estimator job is ready early; then papers A, C
-# and D (5-10 s each: estimators, then tables and figures) and the geometry job (floor plans,
-# static bounds), then the short study cells. The study summary waits for every cell: paper B,
-# the shortest paper job, comes last so that it runs beside it instead of leaving a core idle
-# before the report.
-PRIORITY = {"simulate_newcom": 6, "simulate_cricket": 5, "ingest": 5, "paper": 4, "geometry": 4, "cell": 3,
+# first, Newcom++ before Cricket, so that every estimator job is ready early; then the study
+# scenario jobs (the longest, about twice paper A: started last, one of them was the build's
+# serial tail), then papers A, C and D (5-15 s each: estimators, then tables and figures) and
+# the geometry job (floor plans, static bounds). The study summaries wait for their scenarios:
+# paper B, the shortest paper job, comes last so that it runs beside them instead of leaving a
+# core idle before the report. Opt-in analyses (subset Monte Carlo) run after the papers.
+PRIORITY = {"simulate_newcom": 6, "simulate_cricket": 5, "ingest": 5, "study": 5, "paper": 4, "geometry": 4, "opt_in": 3,
             "summary": 2, "last_paper": 2}
 RAW_FILES = {"newcom": ["uwb.log", "zigbee.log", "imu.log", "truth.log"],
              "cricket": ["listener.log", "imu.log", "truth.log"]}

@@ -15,7 +15,7 @@ rule study_scenario:
         subsets=lambda w: STUDIES[w.study].get("subsets") or ["all"],
         runs=lambda w: STUDIES[w.study].get("runs"),
         label="{dataset}/{scenario}",
-    priority: PRIORITY["cell"]
+    priority: PRIORITY["study"]
     log:
         "logs/studies/{study}/{dataset}-{scenario}.log",
     conda:
