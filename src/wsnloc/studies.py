@@ -268,7 +268,8 @@ def run_cell(label: str, cell: str, name: str, p: dict, subsets: list[str], runs
 # ---- summary ---------------------------------------------------------------------------------
 def results_rows(study: str, cell: str, label: str, metrics: pd.DataFrame) -> list[dict]:
     """results.csv rows of one cell: every reported metric, mean over runs with its 95% interval;
-    the 3-D RMSE where the run has heights; the fitted range calibration (donor scale, self-calibrated scale and offset) where the cell has one;
+    the 3-D RMSE where the run has heights; the fitted range calibration (donor scale, self-calibrated
+    scale and offset) where the cell has one;
     the diagnosis (NIS per dof and its band's upper end, range scale and largest per-anchor offset
     against the estimated track) where the run has it. metrics.csv has every diag_* value per run."""
     rows = []

@@ -10,6 +10,7 @@ from pathlib import Path
 import pandas as pd
 
 from wsnloc import results
+from wsnloc.errors import WsnlocError
 from wsnloc.io import tables
 from wsnloc.report import bound_figures, figures
 from wsnloc.experiments.realdata import scenario_reference_rows
@@ -24,6 +25,9 @@ rows, estimates, bayesian = [], {}, []
 for cell in sm.params.cells:          # in the config's order: scenario, then cell
     metrics, estimated, quality = (frame[frame["cell"] == cell["cell"]].drop(columns="cell")
                                    for frame in scenarios[cell["label"]])
+    if metrics.empty or estimated.empty:   # a cell never vanishes from results.csv unnoticed
+        raise WsnlocError(f"study {study}: cell {cell['cell']} has no rows in the outputs of {cell['label']} "
+                          f"(data/processed/studies/{study}/{cell['label']}/); re-run its scenario job")
     rows += results_rows(study, cell["cell"], cell["label"], metrics)
     estimates[(cell["label"], cell["cell"])] = estimated
     if len(quality):
