@@ -106,7 +106,7 @@ def test_updater_is_pluggable_and_the_gate_is_counted():
     plain update) counts what it offered and what it kept; `used` is the kept count."""
     p = registry.get("ekf").resolve({"gate_probability": 0.999})
 
-    def drop_first(filt, z, H, R, hx):
+    def drop_first(filt, z, H, R, hx, S):
         keep = np.arange(len(z)) > 0
         filt.update(z[keep], H=H[keep], R=R[np.ix_(keep, keep)], hx=hx[keep])
         return keep

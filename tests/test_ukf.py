@@ -81,8 +81,8 @@ def test_linear_measurement_update_equals_the_kalman_filter():
     class Linear:
         z = np.array([1.2, 0.4])
 
-        def h(self, x):
-            return H @ x
+        def h_many(self, X):
+            return X @ H.T
 
         def R(self):
             return R

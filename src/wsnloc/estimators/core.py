@@ -258,17 +258,19 @@ def epoch_loop(bank, runs: list[RunInputs], motion, period: float, initiator, de
 def sequential_loop(make, run: RunInputs, motion, initiator, deleter, forward=None) -> tuple[np.ndarray, int]:
     """(estimate rows (COLUMNS), resets) of one run in sequential mode (module docstring);
     make(x0, P0, motion): a filter."""
-    source, times, static, inputs = run.source, run.times, run.static, run.inputs
+    source, times, static, inputs = run.source, np.asarray(run.times, dtype=float), run.static, run.inputs
     records = source.records()
-    bounds = records.groups()
+    bounds = records.groups().tolist()
     epoch_of = np.minimum(np.searchsorted(times, records.t, side="left"), len(times) - 1)   # (t_k - T, t_k]
+    # the loop reads scalars: Python numbers index and compare faster than numpy scalars (same values)
+    record_t, moving, epoch_of = records.t.tolist(), (~np.asarray(static, dtype=bool)).tolist(), epoch_of.tolist()
     rows, resets, filt, t_filter, last_update = [], 0, None, -np.inf, -np.inf
     g = 0
-    for k, t_k in enumerate(times):
+    for k, t_k in enumerate(times.tolist()):
         n_meas, nis = 0, np.nan
-        while g < len(bounds) - 1 and records.t[bounds[g]] <= t_k:
+        while g < len(bounds) - 1 and record_t[bounds[g]] <= t_k:
             a, b = bounds[g], bounds[g + 1]
-            t = records.t[a]
+            t = record_t[a]
             g += 1
             if filt is not None and deleter.delete(t, last_update, False):
                 filt, resets = None, resets + 1
@@ -280,7 +282,7 @@ def sequential_loop(make, run: RunInputs, motion, initiator, deleter, forward=No
                         forward.start(filt)
                 continue
             step = None
-            if t > t_filter and not static[epoch_of[a]]:
+            if t > t_filter and moving[epoch_of[a]]:
                 u = None if inputs is None else inputs[epoch_of[a]]
                 F, Q, B = motion.matrices(t - t_filter, u)
                 step = predict_step(filt, F, Q, B, u)
@@ -302,7 +304,7 @@ def sequential_loop(make, run: RunInputs, motion, initiator, deleter, forward=No
         if forward is not None or motion.input_dependent:
             # smoothing: the output time becomes a node of the recorded chain; odometry: the
             # filter follows every epoch's input (module docstring)
-            if t_k > t_filter and not static[k]:
+            if t_k > t_filter and moving[k]:
                 F, Q, B = motion.matrices(t_k - t_filter, u)
                 step = predict_step(filt, F, Q, B, u)
                 if forward is not None:
@@ -311,7 +313,7 @@ def sequential_loop(make, run: RunInputs, motion, initiator, deleter, forward=No
             if forward is not None:
                 forward.output()
         x, P = filt.x[:motion.dim], filt.P[:motion.dim, :motion.dim]      # without calibration states
-        if t_k > t_filter and not static[k]:
+        if t_k > t_filter and moving[k]:
             F, Q, B = motion.matrices(t_k - t_filter, u)
             x, P = F @ x, F @ P @ F.T + Q
             if B is not None and u is not None and np.all(np.isfinite(u)):

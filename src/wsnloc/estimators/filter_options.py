@@ -14,10 +14,11 @@ with the KalmanFilter interface (x, P, predict(F, Q, u, B), update(z, H, R, hx))
   tag that every receiver hears is among them.
 
 The gate and the robust update are one pluggable component, the **updater**
-(`default_updater(p)`): a callable updater(filt, z, H, R, hx) -> bool mask of the measurements
-used, which updates `filt` (x, P, update(z, H, R, hx)) with the model linearised at the prior
-(the EKF's Jacobian, or a filter's own `linearise(h) -> (hx, H, Omega)`, the UKF's statistical
-linear regression, Omega added to R)
+(`default_updater(p)`): a callable updater(filt, z, H, R, hx, S) -> bool mask of the measurements
+used, which updates `filt` (x, P, update(z, H, R, hx, S)) with the model linearised at the prior
+(the EKF's Jacobian, or a filter's own `linearise(h_many) -> (hx, H, Omega)`, the UKF's
+statistical linear regression, Omega added to R); S = H P- H^T + R is the prior's innovation
+covariance, computed once per update for the innovation record, the gate and the update
 (robust.robust_update with the configured gate and loss by default; pass another as `updater`
 to configured_factory / ConfiguredFilter for another gate or likelihood). The adapter counts
 the measurements offered and gated over a run (across track restarts), judges the track lost
@@ -37,6 +38,7 @@ import numpy as np
 from wsnloc.errors import ConfigError
 from wsnloc.estimators import robust, self_calibration
 from wsnloc.estimators.parameters import Param
+from wsnloc.filters.kalman import innovation_covariance
 from wsnloc.filters.measurement_models import RangeModel
 
 STANDARD_GATE = 0.999     # the registry's gate (3.29 sigma): tracker, Kalman filters and the self-fit's passes
@@ -120,6 +122,7 @@ class ConfiguredFilter:
         self.updater = updater or default_updater(p)
         self.per_wall = p["range_sigma_per_wall_m"]
         self.used = 0
+        self._augmented: tuple = (None, None, None, None)   # the last (F, Q, B) and their augmentation
 
     # -- the interface the filter loops use --
     @property
@@ -136,8 +139,17 @@ class ConfiguredFilter:
 
     def predict(self, F, Q, u=None, B=None) -> None:
         if self.extra:
-            F, Q, B = self_calibration.augment_motion(F, Q, B, self.extra)
+            F, Q, B = self._augment(F, Q, B)
         self.filt.predict(F, Q, u=u, B=B)
+
+    def _augment(self, F, Q, B) -> tuple:
+        """self_calibration.augment_motion of (F, Q, B), kept for the next step with the same
+        matrices (motion.MotionModel.matrices shares them per step length)."""
+        last_F, last_Q, last_B, augmented = self._augmented
+        if F is not last_F or Q is not last_Q or B is not last_B:
+            augmented = self_calibration.augment_motion(F, Q, B, self.extra)
+            self._augmented = (F, Q, B, augmented)
+        return augmented
 
     def update_model(self, model) -> None:
         """Linearise at the prior (calibration states applied), set the per-link noise, then
@@ -148,30 +160,34 @@ class ConfiguredFilter:
         maximum-likelihood noise fit (estimators.self_fit)."""
         R = self.noise(model)
         if hasattr(self.filt, "linearise"):     # the UKF: statistical linear regression over its sigma points
-            hx, H, omega = self.filt.linearise(lambda x: self_calibration.linearise(model, x, self.mode)[0])
+            hx, H, omega = self.filt.linearise(lambda X: self_calibration.h_many(model, X, self.mode))
             R = R + omega
         else:
             hx, H = self_calibration.linearise(model, self.filt.x, self.mode)
         y = model.z - hx
-        S = np.einsum("ij,jk,ik->i", H, self.filt.P, H) + np.diag(R)
-        self.counts.innovations.append((y, S))
-        keep = self.updater(self.filt, model.z, H, R, hx)
+        S = innovation_covariance(self.filt.P, H, R)
+        variances = np.diag(S)
+        self.counts.innovations.append((y, variances))
+        keep = self.updater(self.filt, model.z, H, R, hx, S=S)
         if self.bounds is not None:         # estimate projection onto the site box
             self.filt.x[:2] = np.clip(self.filt.x[:2], self.bounds[0], self.bounds[1])
-        self.used = int(keep.sum())
+        offered = len(keep)
+        self.used = used = int(np.count_nonzero(keep))
         if self.gated_filter:            # offered / gated count what a gate saw (the bare array EKF has none)
-            self.counts.offered += len(keep)
-            self.counts.gated += len(keep) - self.used
-        self.counts.calibration = self.calibration()
-        self.recent.append((len(keep), len(keep) - self.used, float(np.max(y**2 / S, initial=0.0))))
-        offered, gated, _ = (sum(column) for column in zip(*self.recent))
-        if len(self.recent) == LOSS_WINDOW and gated > self.loss_share * offered:
+            self.counts.offered += offered
+            self.counts.gated += offered - used
+        if self.extra:
+            self.counts.calibration = self.calibration()
+        self.recent.append((offered, offered - used, float(np.max(y**2 / variances, initial=0.0))))
+        if len(self.recent) < LOSS_WINDOW:
+            return
+        if sum(r[1] for r in self.recent) > self.loss_share * sum(r[0] for r in self.recent):
             if self.widened:
                 self.lost = True        # the deleter drops the track (core.update_step, CoastingDeleter)
                 self.counts.track_losses += 1
             else:
                 self.widen()
-        elif len(self.recent) == LOSS_WINDOW:
+        else:
             self.widened = False
 
     def widen(self) -> None:
@@ -189,10 +205,11 @@ class ConfiguredFilter:
         self.counts.widenings += 1
 
     def noise(self, model) -> np.ndarray:
-        """R of the model; with range_sigma_per_wall_m the range rows get sigma + n_walls * per_wall."""
-        R = np.array(model.R(), dtype=float)
+        """R of the model (not to be written to); with range_sigma_per_wall_m the range rows get
+        sigma + n_walls * per_wall."""
         if not self.per_wall:
-            return R
+            return model.R()
+        R = np.array(model.R(), dtype=float)
         k = 0
         for part in getattr(model, "parts", [model]):
             m = len(part.R())

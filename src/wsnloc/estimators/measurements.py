@@ -269,6 +269,8 @@ class Records:
     def split(self, a: int, b: int) -> tuple:
         """(range ids, ranges, RSS ids, RSS) of records a..b-1."""
         k = self.kind[a:b]
+        if not k.any():                 # ranges only
+            return self.anchor[a:b], self.value[a:b], self.anchor[:0], self.value[:0]
         return self.anchor[a:b][k == 0], self.value[a:b][k == 0], self.anchor[a:b][k == 1], self.value[a:b][k == 1]
 
     def window_means(self, a: int, b: int) -> tuple:

@@ -16,6 +16,7 @@ Odometry (state [x, y, hx, hy], the heading as a unit vector): the unicycle mode
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -23,6 +24,7 @@ from wsnloc.filters.motion_models import constant_velocity, position_only, pva, 
 
 MOTIONS = ("p", "pv", "pva", "odometry")
 STATE_DIM = {"p": 2, "pv": 4, "pva": 6, "odometry": 4}       # in 2-D
+STEP_CACHE = 4096                  # step lengths whose (F, Q, B) are kept (sequential updates repeat a few dt)
 THREE_D = ("p", "pv")              # the models with a 3-D state
 HEADING_VARIANCE = 0.5             # variance of cos(theta) and sin(theta) for a uniform unknown heading
 
@@ -57,7 +59,14 @@ class MotionModel:
 
     def matrices(self, dt: float, u: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """(F, Q, B) for a step of dt seconds; B is None without an input (B u). u: the step's
-        odometry (v, w) for the odometry model (F depends on it), unused by the others."""
+        odometry (v, w) for the odometry model (F depends on it), unused by the others, whose
+        matrices are computed once per (model, dt) and shared (read-only): a sequential filter
+        steps over the same few intervals of its anchors' schedule again and again."""
+        if self.kind == "odometry":
+            return self._matrices(dt, u)
+        return _step_matrices(self, float(dt))
+
+    def _matrices(self, dt: float, u: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         if self.kind == "p":
             F, Q = position_only(self.p_sigma_m * np.sqrt(dt / self.period_s), axes=self.dimensions)
             return F, Q, None
@@ -81,3 +90,13 @@ class MotionModel:
         variances = [self.initial_sigma_m**2] * n + [self.initial_speed_sigma_mps**2] * n \
             + [self.initial_bias_sigma_mps2**2] * n
         return np.diag(variances[:self.dim])
+
+
+@lru_cache(maxsize=STEP_CACHE)
+def _step_matrices(motion: MotionModel, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """MotionModel.matrices of an input-independent model, computed once per (model, dt), read-only."""
+    matrices = motion._matrices(dt, None)
+    for m in matrices:
+        if m is not None:
+            m.flags.writeable = False
+    return matrices

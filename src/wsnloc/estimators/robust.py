@@ -34,6 +34,8 @@ from statistics import NormalDist
 
 import numpy as np
 
+from wsnloc.filters.kalman import innovation_covariance
+
 LOSSES = ("none", "huber", "cauchy")
 DEFAULT_TUNING = {"huber": 1.345, "cauchy": 2.385}
 ROBUST_ITERATIONS = 10
@@ -75,20 +77,23 @@ class UpdateOptions:
 
 
 def robust_update(filt, z: np.ndarray, H: np.ndarray, R: np.ndarray, hx: np.ndarray,
-                  options: UpdateOptions) -> np.ndarray:
-    """Gate, then update `filt` (a KalmanFilter: x, P, update(z, H, R, hx)) with the kept
-    measurements, reweighting R by the loss. Returns the mask of the measurements used;
-    with none kept the filter is left unchanged."""
+                  options: UpdateOptions, S: np.ndarray | None = None) -> np.ndarray:
+    """Gate, then update `filt` (a KalmanFilter: x, P, update(z, H, R, hx, S)) with the kept
+    measurements, reweighting R by the loss. S: the prior's S = H P- H^T + R when the caller
+    has it (filters.kalman.innovation_covariance; else computed where needed), shared by the
+    gate and the plain update. Returns the mask of the measurements used; with none kept the filter
+    is left unchanged."""
     keep = np.ones(len(z), dtype=bool)
     if options.gate_probability > 0.0:
-        S = H @ filt.P @ H.T + R
+        S = innovation_covariance(filt.P, H, R) if S is None else S
         keep = gate(z - hx, S, options.gate_probability)
     if not keep.any():
         return keep
     if not keep.all():
-        z, H, R, hx = z[keep], H[keep], R[np.ix_(keep, keep)], hx[keep]
+        index = np.ix_(keep, keep)
+        z, H, R, hx, S = z[keep], H[keep], R[index], hx[keep], None if S is None else S[index]
     if options.loss == "none":
-        filt.update(z, H=H, R=R, hx=hx)
+        filt.update(z, H=H, R=R, hx=hx, S=S)
         return keep
     x0, P0 = filt.x.copy(), filt.P.copy()
     sigma = np.sqrt(np.diag(R))

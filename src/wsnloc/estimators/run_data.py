@@ -56,6 +56,7 @@ class RunData:
         # 3-D ranges where the anchor has a height: dz = z_anchor - h_tag (h_tag 0 without a campaign value)
         self._dz = {a: (float(z) - self.tag_height_m) if np.isfinite(z) else 0.0
                     for a, z in zip(anchors["anchor_id"], heights.astype(float))}
+        self._three_d = any(v != 0.0 for v in self._dz.values())
 
     def table(self, name: str) -> pd.DataFrame:
         """A canonical table of the run (empty, with its columns, when the run has none)."""
@@ -84,7 +85,8 @@ class RunData:
 
     @property
     def three_d(self) -> bool:
-        return any(v != 0.0 for v in self._dz.values())
+        """Whether some anchor is not at the tag height (3-D ranges; read per measurement group)."""
+        return self._three_d
 
     def members(self, expression: str) -> set[str]:
         """Anchor ids of a subset expression: 'all', or campaign subset names joined by '+'

@@ -48,18 +48,25 @@ def augment_motion(F: np.ndarray, Q: np.ndarray, B: np.ndarray | None, extra: in
     return Fa, Qa, Ba
 
 
+def _calibration(X: np.ndarray, mode: str) -> tuple[int, np.ndarray | float, np.ndarray | float]:
+    """(n, s, b) of augmented states X (..., n + extra): the motion state's size, the scale
+    (1 without one) and the offset (0 without one), each (..., 1) to scale a row of ranges."""
+    names = extra_states(mode)
+    n = X.shape[-1] - len(names)
+    scale = X[..., n + names.index("scale"), None] if "scale" in names else 1.0
+    offset = X[..., n + names.index("offset"), None] if "offset" in names else 0.0
+    return n, scale, offset
+
+
 def linearise(model, x: np.ndarray, mode: str) -> tuple[np.ndarray, np.ndarray]:
     """(h(x), H) of a measurement model (filters.measurement_models) at the augmented state x."""
     if mode == "none":
-        return model.h(x), model.jacobian(x)
+        return model.linearise(x)
     names = extra_states(mode)
-    n = len(x) - len(names)
-    scale = x[n + names.index("scale")] if "scale" in names else 1.0
-    offset = x[n + names.index("offset")] if "offset" in names else 0.0
-    parts = getattr(model, "parts", [model])
+    n, scale, offset = _calibration(x, mode)
     hs, Hs = [], []
-    for part in parts:
-        h, J = part.h(x[:n]), part.jacobian(x[:n])
+    for part in getattr(model, "parts", [model]):
+        h, J = part.linearise(x[:n])
         H = np.zeros((len(h), len(x)))
         if isinstance(part, RangeModel):
             H[:, :n] = scale * J
@@ -71,3 +78,12 @@ def linearise(model, x: np.ndarray, mode: str) -> tuple[np.ndarray, np.ndarray]:
         hs.append(h)
         Hs.append(H)
     return np.concatenate(hs), np.vstack(Hs)
+
+
+def h_many(model, X: np.ndarray, mode: str) -> np.ndarray:
+    """h at every augmented state of X (N, n + extra): (N, m), the range rows s d_i + b."""
+    if mode == "none":
+        return model.h_many(X)
+    n, scale, offset = _calibration(X, mode)
+    return np.hstack([scale * part.h_many(X[:, :n]) + offset if isinstance(part, RangeModel)
+                      else part.h_many(X[:, :n]) for part in getattr(model, "parts", [model])])

@@ -45,7 +45,7 @@ def predict(x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray, Bu: np.n
     x = (F @ x[..., None])[..., 0]
     if Bu is not None:
         x = x + Bu
-    return x, F @ P @ np.swapaxes(F, -1, -2) + Q
+    return x, F @ P @ F.swapaxes(-1, -2) + Q
 
 
 class Update(NamedTuple):
@@ -60,20 +60,29 @@ class Update(NamedTuple):
     ok: np.ndarray
 
 
-def joseph_update(x: np.ndarray, P: np.ndarray, y: np.ndarray, H: np.ndarray, R: np.ndarray) -> Update:
+def innovation_covariance(P: np.ndarray, H: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """S = H P H^T + R (..., m, m), evaluated as H (P H^T) + R, as joseph_update does."""
+    return H @ (P @ H.swapaxes(-1, -2)) + R
+
+
+def joseph_update(x: np.ndarray, P: np.ndarray, y: np.ndarray, H: np.ndarray, R: np.ndarray,
+                  S: np.ndarray | None = None) -> Update:
     """The Kalman measurement update (module docstring), written once for one filter and for a
     bank of them: any leading axes are a batch (one run: none; many runs: (runs,)), broadcast
     between the arguments: x (..., n), P (..., n, n), innovation y = z - h(x) (..., m),
     H (..., m, n), R (..., m, m). S = H P H^T + R, K = P H^T S^-1, x <- x + K y,
-    P <- (I - K H) P (I - K H)^T + K R K^T. Where S is singular or the result not finite,
-    `ok` is False and x, P are the prior's (guarded)."""
-    PHt = P @ np.swapaxes(H, -1, -2)
-    S = H @ PHt + R
+    P <- (I - K H) P (I - K H)^T + K R K^T. S: the innovation covariance when the caller has
+    it already (innovation_covariance of these P, H, R: a gate computed it), else computed
+    here. Where S is singular or the result not finite, `ok` is False and x, P are the prior's
+    (guarded)."""
+    PHt = P @ H.swapaxes(-1, -2)
+    if S is None:
+        S = H @ PHt + R
     S_inv = inverse(S)
     K = PHt @ S_inv
     x_new = x + (K @ y[..., None])[..., 0]
     joseph = np.eye(x.shape[-1]) - K @ H
-    P_new = joseph @ P @ np.swapaxes(joseph, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
+    P_new = joseph @ P @ joseph.swapaxes(-1, -2) + K @ R @ K.swapaxes(-1, -2)
     ok = np.isfinite(x_new).all(axis=-1) & np.isfinite(P_new).all(axis=(-2, -1))
     if not ok.all():
         x_new = np.where(ok[..., None], x_new, x)
@@ -107,13 +116,14 @@ class KalmanFilter:
         Q = self.Q if Q is None else Q
         self.x, self.P = predict(self.x, self.P, F, Q, None if u is None else B @ u)
 
-    def update(self, z, H=None, R=None, hx=None) -> None:
+    def update(self, z, H=None, R=None, hx=None, S=None) -> None:
         """Measurement update (joseph_update); `hx` is the predicted measurement h(x) of a
-        linearised model (default H x). The measurement size may change from call to call."""
+        linearised model (default H x); S = H P H^T + R when the caller computed it (a gate).
+        The measurement size may change from call to call."""
         H = self.H if H is None else H
         R = self.R if R is None else R
         y = z - (H @ self.x if hx is None else hx)
-        new = joseph_update(self.x, self.P, y, H, R)
+        new = joseph_update(self.x, self.P, y, H, R, S)
         if not new.ok:
             self.guards.skipped += 1
             return
@@ -140,5 +150,6 @@ class ExtendedKalmanFilter(KalmanFilter):
         self.update(z, H=jacobian(self.x), R=R, hx=h(self.x))
 
     def update_model(self, model) -> None:
-        """Update with a measurement model object (z, h(x), jacobian(x), R())."""
-        self.update(model.z, H=model.jacobian(self.x), R=model.R(), hx=model.h(self.x))
+        """Update with a measurement model object (z, linearise(x) -> (h(x), H), R())."""
+        hx, H = model.linearise(self.x)
+        self.update(model.z, H=H, R=model.R(), hx=hx)

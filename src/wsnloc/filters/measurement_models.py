@@ -22,7 +22,8 @@ d_i = ||p - a_i|| (floored at 1 mm to keep the Jacobian finite).
   matrix D (D[i, a_i] = 1, D[i, b_i] = -1) the pairs' noise is R = D diag(sigma^2) D^T, so
   two pairs sharing a reference are correlated (covariance sigma_ref^2; correlation 1/2 for
   equal sigmas) and one pair has variance sigma_a^2 + sigma_b^2.
-h_many(X) evaluates h at N states at once, X (N, n) -> (N, m) (particle filters).
+h_many(X) evaluates h at N states at once, X (N, n) -> (N, m) (particle filters, the UKF's
+sigma points); linearise(x) gives (h(x), H(x)) from one evaluation of the geometry (the EKF).
 """
 
 from __future__ import annotations
@@ -100,12 +101,19 @@ class RangeModel:
         return d if self.dz_m is None else np.sqrt(d**2 + self.dz_m[None, :] ** 2)
 
     def jacobian(self, x) -> np.ndarray:
+        return self.linearise(x)[1]
+
+    def linearise(self, x) -> tuple[np.ndarray, np.ndarray]:
+        """(h(x), H(x)) (m,), (m, n)."""
+        h, rows = range_rows(_geometry(x, self.anchors)[0], self.dz_m)
         H = np.zeros((len(self.anchors), len(x)))
-        H[:, :self.anchors.shape[1]] = range_rows(_geometry(x, self.anchors)[0], self.dz_m)[1]
-        return H
+        H[:, :self.anchors.shape[1]] = rows
+        return h, H
 
     def R(self) -> np.ndarray:
-        return np.diag(np.broadcast_to(np.asarray(self.sigma_m, dtype=float) ** 2, (len(self.anchors),)))
+        R = np.zeros((len(self.anchors), len(self.anchors)))
+        np.fill_diagonal(R, np.asarray(self.sigma_m, dtype=float) ** 2)     # sigma_m (m,) or one for all
+        return R
 
 
 @dataclass
@@ -127,10 +135,14 @@ class RssModel:
         return self.p0_dbm - 10.0 * self.exponent * np.log10(D / self.d0_m)
 
     def jacobian(self, x) -> np.ndarray:
+        return self.linearise(x)[1]
+
+    def linearise(self, x) -> tuple[np.ndarray, np.ndarray]:
+        """(h(x), H(x)) (m,), (m, n)."""
+        h, rows = rss_rows(_geometry(x, self.anchors)[0], self.p0_dbm, self.exponent, self.d0_m, self.dz_m)
         H = np.zeros((len(self.anchors), len(x)))
-        H[:, :self.anchors.shape[1]] = rss_rows(_geometry(x, self.anchors)[0], self.p0_dbm, self.exponent, self.d0_m,
-                                                self.dz_m)[1]
-        return H
+        H[:, :self.anchors.shape[1]] = rows
+        return h, H
 
     def R(self) -> np.ndarray:
         return np.eye(len(self.anchors)) * self.sigma_db**2
@@ -157,11 +169,15 @@ class TdoaModel:
         return r[:, self.pairs[:, 0]] - r[:, self.pairs[:, 1]]
 
     def jacobian(self, x) -> np.ndarray:
+        return self.linearise(x)[1]
+
+    def linearise(self, x) -> tuple[np.ndarray, np.ndarray]:
+        """(h(x), H(x)) (m,), (m, n)."""
         diff, _ = _geometry(x, self.receivers)
-        _, unit = range_rows(diff, self.dz_m)
+        r, unit = range_rows(diff, self.dz_m)
         H = np.zeros((len(self.pairs), len(x)))
         H[:, :diff.shape[1]] = unit[self.pairs[:, 0]] - unit[self.pairs[:, 1]]
-        return H
+        return r[self.pairs[:, 0]] - r[self.pairs[:, 1]], H
 
     def pair_rows(self, X, pair) -> tuple[np.ndarray, np.ndarray]:
         """(h_i, the position columns of H_i) of pair `pair[i]` at the position X[i] (N, k), one
@@ -204,11 +220,21 @@ class Stacked:
         return np.hstack([p.h_many(X) for p in self.parts])
 
     def jacobian(self, x) -> np.ndarray:
-        return np.vstack([p.jacobian(x) for p in self.parts])
+        return self.linearise(x)[1]
+
+    def linearise(self, x) -> tuple[np.ndarray, np.ndarray]:
+        """(h(x), H(x)): the parts' stacked (one part: its own)."""
+        if len(self.parts) == 1:
+            return self.parts[0].linearise(x)
+        hs, Hs = zip(*(p.linearise(x) for p in self.parts))
+        return np.concatenate(hs), np.vstack(Hs)
 
     def R(self) -> np.ndarray:
         """blockdiag(R_1, R_2, ...); built once (it does not depend on the state), so filter
         variants run on the same epochs share it. Read-only."""
+        if self._R is None and len(self.parts) == 1:
+            self._R = self.parts[0].R()
+            self._R.flags.writeable = False
         if self._R is None:
             blocks = [p.R() for p in self.parts]
             n = sum(len(b) for b in blocks)

@@ -53,8 +53,9 @@ class FilterpyEKF:
         self.ekf.B = 0 if u is None else B
         self.ekf.predict(0 if u is None else u)
 
-    def update(self, z, H, R, hx) -> None:
-        """Update with a model linearised elsewhere (the gate and robust update)."""
+    def update(self, z, H, R, hx, S=None) -> None:
+        """Update with a model linearised elsewhere (the gate and robust update); filterpy
+        computes S = H P H^T + R itself (a caller's S is not passed on)."""
         self._update(z, lambda x: H, lambda x: hx, R)
 
     def update_model(self, model) -> None:

@@ -30,7 +30,7 @@ from wsnloc.filters.numerics import Guards, safe_cholesky
 
 
 class UnscentedKalmanFilter:
-    """UKF over a linear motion model and any measurement model with z, h(x), R().
+    """UKF over a linear motion model and any measurement model with z, h_many(X), R().
 
     alpha (> 0) sets the sigma points' spread, beta = 2 is optimal for Gaussian priors,
     kappa a secondary scaling. The defaults alpha = 1, kappa = 0 (lambda = 0) put the points
@@ -70,8 +70,9 @@ class UnscentedKalmanFilter:
             self.x = self.x + B @ u
         self.P = F @ self.P @ F.T + Q
 
-    def linearise(self, h) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Statistical linear regression of z = h(x) over the sigma points of (x, P):
+    def linearise(self, h_many) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Statistical linear regression of z = h(x) over the sigma points of (x, P), h_many(X)
+        (N, m) evaluating h at every row of X (N, n) (the measurement models' h_many):
         z_hat = sum Wm_i h(chi_i), H = Pxz^T P^-1 and the linearisation error
         Omega = Pzz - H P H^T (Pzz = sum Wc_i (Z_i - z_hat)(Z_i - z_hat)^T). The linear update
         `update(z, H, R + Omega, z_hat)` is then the unscented update: S = Pzz + R, K = Pxz S^-1
@@ -79,7 +80,7 @@ class UnscentedKalmanFilter:
         reweighting (estimators.robust) applies to the UKF as to the EKF. A singular P gives a
         NaN H, and the update is then skipped (counted)."""
         chi = self.sigma_points()
-        Z = np.array([h(c) for c in chi])                     # (2n + 1, m)
+        Z = h_many(chi)                                       # (2n + 1, m)
         z_hat = self.Wm @ Z
         dZ = Z - z_hat
         Pzz = (self.Wc[:, None] * dZ).T @ dZ
@@ -90,21 +91,22 @@ class UnscentedKalmanFilter:
             H = np.full(Pxz.T.shape, np.nan)
         return z_hat, H, Pzz - H @ Pxz
 
-    def update(self, z, H, R, hx) -> None:
+    def update(self, z, H, R, hx, S=None) -> None:
         """Linear update with the predicted measurement hx and the regression H (R includes
         linearise's Omega): y = z - hx and the Kalman update of filters.kalman.joseph_update,
-        whose S = H P H^T + R is Pzz + R and whose Joseph-form P equals P - K S K^T (K = Pxz S^-1)."""
+        whose S = H P H^T + R is Pzz + R and whose Joseph-form P equals P - K S K^T (K = Pxz S^-1);
+        S: that S when the caller computed it (a gate)."""
         y = z - hx
-        new = joseph_update(self.x, self.P, y, H, R)
+        new = joseph_update(self.x, self.P, y, H, R, S)
         if not new.ok:                         # a singular S or a non-finite model: the prior is kept
             self.guards.skipped += 1
             return
         self.S, self._S_inv, self.y, self.x, self.P = new.S, new.S_inv, y, new.x, new.P
 
     def update_model(self, model) -> None:
-        """Unscented update with model.z, model.h and model.R() (the size of z may vary):
+        """Unscented update with model.z, model.h_many and model.R() (the size of z may vary):
         linearise, then update."""
-        hx, H, omega = self.linearise(model.h)
+        hx, H, omega = self.linearise(model.h_many)
         self.update(model.z, H, model.R() + omega, hx)
 
     @property
