@@ -22,9 +22,9 @@ Update modes
   output the rest at t_k. An input-dependent motion model (odometry) is predicted run by run
   with its own F(u).
 - `sequential_loop` (one run): predicts to each measurement group's own time and updates with
-  it (records sharing a time stamp update together); before each group and at each output
-  time t_k the deleter is asked; output at t_k predicted from the last update
-  (x(t_k) = F(t_k - t) x (+ B u), P(t_k) = F P F^T + Q(t_k - t), not stored). With an
+  it (records sharing a time stamp update together; the source's group_models, built once);
+  before each group and at each output time t_k the deleter is asked; output at t_k predicted
+  from the last update (x(t_k) = F(t_k - t) x (+ B u), P(t_k) = F P F^T + Q(t_k - t), not stored). With an
   input-dependent motion model (odometry) the filter is instead predicted to every t_k with
   that epoch's input (stored), so a gap is bridged epoch by epoch with each epoch's odometry.
 Both return a `Track` per run: rows of COLUMNS (COLUMNS_3D with a 3-D state) and the number of
@@ -260,7 +260,7 @@ def sequential_loop(make, run: RunInputs, motion, initiator, deleter, forward=No
     make(x0, P0, motion): a filter."""
     source, times, static, inputs = run.source, np.asarray(run.times, dtype=float), run.static, run.inputs
     records = source.records()
-    bounds = records.groups().tolist()
+    bounds, models = records.groups().tolist(), source.group_models
     epoch_of = np.minimum(np.searchsorted(times, records.t, side="left"), len(times) - 1)   # (t_k - T, t_k]
     # the loop reads scalars: Python numbers index and compare faster than numpy scalars (same values)
     record_t, moving, epoch_of = records.t.tolist(), (~np.asarray(static, dtype=bool)).tolist(), epoch_of.tolist()
@@ -269,7 +269,7 @@ def sequential_loop(make, run: RunInputs, motion, initiator, deleter, forward=No
     for k, t_k in enumerate(times.tolist()):
         n_meas, nis = 0, np.nan
         while g < len(bounds) - 1 and record_t[bounds[g]] <= t_k:
-            a, b = bounds[g], bounds[g + 1]
+            a, model = bounds[g], models[g]
             t = record_t[a]
             g += 1
             if filt is not None and deleter.delete(t, last_update, False):
@@ -287,7 +287,7 @@ def sequential_loop(make, run: RunInputs, motion, initiator, deleter, forward=No
                 F, Q, B = motion.matrices(t - t_filter, u)
                 step = predict_step(filt, F, Q, B, u)
             t_filter = max(t, t_filter)
-            used, group_nis, lost = update_step(filt, source.model(*records.split(a, b)))
+            used, group_nis, lost = update_step(filt, model)
             if used:
                 n_meas, nis, last_update = n_meas + used, group_nis, t
             if deleter.delete(t, last_update, lost):

@@ -220,6 +220,12 @@ class MeasurementSource:
         return self.data.cached(("records", self._data_key), lambda: Records.of(
             *[(self._coded(kind), self._rows(kind)) for kind in ("ranges", "rss")]))
 
+    @cached_property
+    def group_models(self) -> list[Stacked | None]:
+        """The model of every record group (Records.groups): built once per source, so the
+        sequential filters of a run that read the same measurements with the same noise share them."""
+        return self.records().models(self.model)
+
     def window_fix(self, t: float, window: float, axes: int = 2) -> np.ndarray | None:
         """Multilateration (fix, or fix_3d with axes 3) on the per-anchor means of the records in
         (t - window, t] (Records.window_means), on RSS alone the weighted centroid of the receivers
@@ -265,6 +271,11 @@ class Records:
         if len(self.t) == 0:
             return np.array([0])
         return np.r_[np.flatnonzero(np.r_[True, self.t[1:] != self.t[:-1]]), len(self.t)]
+
+    def models(self, build) -> list:
+        """build(*split(a, b)) of every group of groups(): its measurement model (None: none)."""
+        bounds = self.groups().tolist()
+        return [build(*self.split(a, b)) for a, b in zip(bounds[:-1], bounds[1:])]
 
     def split(self, a: int, b: int) -> tuple:
         """(range ids, ranges, RSS ids, RSS) of records a..b-1."""

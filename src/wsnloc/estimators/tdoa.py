@@ -19,6 +19,8 @@ scale and per-anchor offsets, donor-fitted or configured) applied to the differe
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 import pandas as pd
 
@@ -115,6 +117,11 @@ class TdoaSource:
     # ---- time-ordered records ----------------------------------------------------------
     def records(self) -> Records:
         return self._records
+
+    @cached_property
+    def group_models(self) -> list[Stacked | None]:
+        """The model of every record group (Records.groups), built once per source."""
+        return self._records.models(self.model)
 
     def window_fix(self, t: float, window: float, axes: int = 2) -> np.ndarray | None:
         """Hyperbolic fix on the per-pair means of the records in (t - window, t]; None with

@@ -188,13 +188,12 @@ def pcrb(P0, F, Q, information) -> np.ndarray:
     Q = np.broadcast_to(np.asarray(Q, dtype=float), steps)
     bounds = np.empty(information.shape)
     predicted = np.broadcast_to(np.asarray(P0, dtype=float), information.shape[:-3] + (n, n))
+    Ft = F.swapaxes(-1, -2)
     for k in range(K):
         if k:
-            Fk = F[..., k - 1, :, :]
-            predicted = Fk @ bounds[..., k - 1, :, :] @ np.swapaxes(Fk, -1, -2) + Q[..., k - 1, :, :]
-        J = np.linalg.inv(predicted) + information[..., k, :, :]
-        inverse = np.linalg.inv(J)
-        bounds[..., k, :, :] = 0.5 * (inverse + np.swapaxes(inverse, -1, -2))   # symmetric to rounding
+            predicted = F[..., k - 1, :, :] @ bounds[..., k - 1, :, :] @ Ft[..., k - 1, :, :] + Q[..., k - 1, :, :]
+        inverse = np.linalg.inv(np.linalg.inv(predicted) + information[..., k, :, :])
+        bounds[..., k, :, :] = 0.5 * (inverse + inverse.swapaxes(-1, -2))   # symmetric to rounding
     return bounds
 
 
