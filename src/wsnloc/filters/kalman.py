@@ -83,8 +83,10 @@ def joseph_update(x: np.ndarray, P: np.ndarray, y: np.ndarray, H: np.ndarray, R:
     x_new = x + (K @ y[..., None])[..., 0]
     joseph = np.eye(x.shape[-1]) - K @ H
     P_new = joseph @ P @ joseph.swapaxes(-1, -2) + K @ R @ K.swapaxes(-1, -2)
-    ok = np.isfinite(x_new).all(axis=-1) & np.isfinite(P_new).all(axis=(-2, -1))
-    if not ok.all():
+    # finite where x and P are: a NaN or an infinity makes their sum so (finite entries overflow it
+    # only beyond 1e308, a result no filter keeps); one test instead of one per array
+    ok = np.isfinite(x_new.sum(axis=-1) + P_new.sum(axis=(-2, -1)))
+    if not np.all(ok):
         x_new = np.where(ok[..., None], x_new, x)
         P_new = np.where(ok[..., None, None], P_new, P)
     return Update(x_new, P_new, S, S_inv, K, ok)
