@@ -63,3 +63,20 @@ def test_a_simulated_runs_scenario_gives_the_campaign_its_heights(tmp_path):
     expected = Campaign.load(source).for_scenario("flight")
     assert flight.anchors["z"].equals(expected.anchors["z"]) and flight.anchors["z"].notna().sum() == 12   # UWB heights
     assert planar.anchors["z"].isna().all()
+
+
+def test_estimate_tracks_in_3d_where_the_campaign_declares_varying_heights():
+    """estimators.auto.dimensions_for: 3 on a declared height profile (the flight), 2 on the planar
+    campaign, a height that varies by less than VARYING_HEIGHT_M, or an explicit setting."""
+    from wsnloc.campaign import Campaign
+    from wsnloc.estimators.auto import VARYING_HEIGHT_M, dimensions_for
+    from wsnloc.geometry.path import Path as TagPath
+
+    campaign = Campaign.load(str(ROOT / "config" / "campaigns" / "newcom.yaml"))
+    flight = campaign.for_scenario("flight")
+    p = {"dimensions": 2, "motion": "pv"}
+    assert dimensions_for(flight, p, set())["dimensions"] == 3
+    assert dimensions_for(flight, p, {"dimensions"}) == p and dimensions_for(campaign, p, set()) == p
+    assert dimensions_for(flight, {"motion": "pv"}, set()) == {"motion": "pv"}      # no such parameter
+    flight.path = TagPath(flight.path.points, flight.path.corner_radius, [[0.0, 1.0], [10.0, 1.0 + VARYING_HEIGHT_M / 2]])
+    assert dimensions_for(flight, p, set()) == p
