@@ -55,9 +55,9 @@ estimator's own filter or smoother then runs once with the fitted values (`outpu
    are not, yet a constant fitted to them can pass that test: on simulated newcom/tdoa run 1
    anchors behind walls carry NLOS biases of 0.3-3.4 m that change along the path, the constant
    offsets fitted to them (1-2 m) turn gated differences into inliers and raise the likelihood by
-   495 against a penalty of 38, and make the RMSE 1.01 m against 0.235 m as measured. So the
-   correction is also tested against one fitted on the segment alone (the same fit on the first
-   track's part over the segment's time span: the offsets the segment itself calls for): it is
+   495 against a penalty of 38, and make the RMSE 1.01 m against 0.235 m without them. So the
+   correction is also tested against one fitted on the segment alone (the same fit against the
+   part of the track it was fitted on that spans the segment: what the segment calls for): it is
    kept only when that local correction does not raise max_c L(c) over the constant one by more
    than the BIC penalty of its own parameters (k_local / 2 ln n; nested in the sense that a
    constant over the run is a local fit that happens to hold everywhere). On that run 82 > 38: not
