@@ -73,9 +73,9 @@ def test_diagonal_update_equals_the_joseph_update(n, m):
     np.testing.assert_allclose(one.x, full.x[3], rtol=1e-9, atol=1e-9)
 
 
-def test_diagonal_update_falls_back_to_the_joseph_update_where_p_is_singular():
-    """A singular P (e.g. a known coordinate) has no information form: that run takes the Joseph
-    update, which handles it; a non-finite measurement keeps the prior (ok False) as there."""
+def test_diagonal_update_of_a_singular_p_and_a_non_finite_measurement():
+    """A singular P (e.g. a known coordinate) needs no P^-1 in the solved form and gives the Joseph
+    update; a non-finite measurement keeps the prior (ok False, NIS NaN) as there."""
     x, P, y, H, r = _bank(np.random.default_rng(7), 4, 4, 6)
     P[1] = np.diag([1.0, 1.0, 0.0, 0.0])
     y[2, 0] = np.nan
