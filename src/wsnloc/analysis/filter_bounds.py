@@ -28,6 +28,7 @@ import numpy as np
 import pandas as pd
 
 from wsnloc.estimators import bayes
+from wsnloc.estimators.epochs import sorted_codes
 from wsnloc.estimators.motion import MotionModel
 from wsnloc.estimators.run_data import RunData
 from wsnloc.metrics.bounds import (available_information, model_information, pcrb, rss_information_terms,
@@ -45,10 +46,9 @@ def is_bayesian(function) -> bool:
 
 def _counts(step_of: np.ndarray, anchors: np.ndarray, n_steps: int) -> tuple[list[str], np.ndarray]:
     """(the distinct anchors, sorted; (steps, anchors) number of measurements of each at each step)."""
-    ids, column = np.unique(np.asarray(anchors, dtype=object), return_inverse=True)
-    counts = np.bincount(np.asarray(step_of, dtype=np.intp) * len(ids) + column.reshape(-1),
-                         minlength=n_steps * len(ids))
-    return list(ids), counts.reshape(n_steps, len(ids)).astype(float)
+    ids, column = sorted_codes(np.asarray(anchors, dtype=object))
+    counts = np.bincount(np.asarray(step_of, dtype=np.intp) * len(ids) + column, minlength=n_steps * len(ids))
+    return ids.tolist(), counts.reshape(n_steps, len(ids)).astype(float)
 
 
 def _measurement_steps(source, times: np.ndarray, p: dict):
@@ -90,7 +90,7 @@ def _pcrb_inputs(data: RunData, p: dict):
         steps, information, outputs = _tdoa_information(data, source, times, p)
         return _with_motion(data, p, times, outputs, steps, information)
     steps, range_step, range_ids, rss_step, rss_ids, outputs = _measurement_steps(source, times, p)
-    position = truth_at(data.require("truth", "the PCRB"), steps)
+    position = _truth_at(data, steps)
     information = np.zeros((len(steps), 3))
     (toa_ids, toa_counts), (rss_members, rss_counts) = (_counts(range_step, range_ids, len(steps)),
                                                         _counts(rss_step, rss_ids, len(steps)))
@@ -119,13 +119,19 @@ def _tdoa_information(data: RunData, source, times: np.ndarray, p: dict):
         outputs = np.searchsorted(steps, times)
         models = [source.model(*records.split(a, b)) for a, b in zip(bounds[:-1], bounds[1:])]
         step_of = np.searchsorted(steps, records.t[bounds[:-1]])
-    position = truth_at(data.require("truth", "the PCRB"), steps)
+    position = _truth_at(data, steps)
     information = np.zeros((len(steps), 3))
     for k, model in zip(step_of, models):
         if model is not None and np.all(np.isfinite(position[k])):
             J = model_information(model, position[k][None])[0]
             information[k] += (J[0, 0], J[0, 1], J[1, 1])
     return steps, information, outputs
+
+
+def _truth_at(data: RunData, steps: np.ndarray) -> np.ndarray:
+    """The run's true position at the bound's steps (metrics.ranging.truth_at), once per run and
+    steps (the cells of a run on one epoch grid share it)."""
+    return data.cached(("truth_at", steps.tobytes()), lambda: truth_at(data.require("truth", "the PCRB"), steps))
 
 
 def _with_motion(data: RunData, p: dict, times, outputs, steps, information):

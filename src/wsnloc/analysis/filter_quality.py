@@ -23,6 +23,7 @@ import pandas as pd
 
 from wsnloc import results
 from wsnloc.analysis.filter_bounds import bound_model, filter_pcrb, filter_pcrbs
+from wsnloc.estimators.epochs import sorted_codes
 from wsnloc.estimators.run_data import RunData
 from wsnloc.metrics.consistency import consistency_test, normalized_squared
 from wsnloc.metrics.tracking import cell_rows
@@ -110,7 +111,7 @@ def _runs_by_epoch(quality: pd.DataFrame, column: str, period: float) -> tuple[n
     first value that is not NaN (inf counts: a singular covariance) of run r at epoch k in
     row order (NaN where it has none)."""
     k = _epoch_index(quality["t"], period)
-    runs, run_code = np.unique(quality["run"].to_numpy(), return_inverse=True)
+    runs, run_code = sorted_codes(quality["run"])
     epochs, epoch_code = np.unique(k, return_inverse=True)
     values = quality[column].to_numpy(float)
     present = np.flatnonzero(~np.isnan(values))
