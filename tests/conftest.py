@@ -45,7 +45,8 @@ SMALL_WORKBENCH = ("tracker", "ekf", "pf", "ekf_rts", "sliding_window", "ekf_gat
 
 def small_workflow(target: Path, shards: int = 1) -> Path:
     """A copy of the workflow with a small configuration: 2 runs, one scenario per dataset (and
-    newcom's tdoa and flight, 1 run each, for the workbench_spatial study)."""
+    newcom's tdoa and flight, 1 run each, for the workbench_spatial study); the opt-in
+    sensitivity grids of papers A, B and D on."""
     target.mkdir(parents=True, exist_ok=True)
     shutil.copy(ROOT / "Snakefile", target)
     shutil.copytree(ROOT / "workflow", target / "workflow")
@@ -68,6 +69,8 @@ def small_workflow(target: Path, shards: int = 1) -> Path:
     experiments["paper_c"]["table_2_scenario"] = "cricket/speed_40"
     experiments["paper_c"]["overrides"] = {key: layer for key, layer in (experiments["paper_c"].get("overrides") or {}).items()
                                            if key in ("cricket", "cricket/speed_40")}   # its P sigma per speed
+    for paper in ("paper_a", "paper_b", "paper_d"):    # the opt-in sensitivity grids on (paper C's stays off)
+        experiments[paper]["sensitivity"]["runs"] = 2
     config["ranging_validation"]["scenarios"] = ["newcom/constant"]
     workbench = config["studies"]["workbench"]
     workbench["scenarios"] = ["newcom/constant", "cricket/speed_40"]

@@ -177,3 +177,26 @@ def test_why_formulas_and_every_non_holding_claim_gets_a_mechanism():
     assert "why" not in out[1]
     with pytest.raises(KeyError, match="no computed mechanism"):
         why._attach([{"claim": "unknown", "verdict": DOES_NOT_HOLD}], {})
+
+
+def test_paper_a_speed_mechanism_reads_the_campaign_accelerations_and_the_model_sigma(newcom):
+    """Paper A's constant-vs-variable `why` states each profile's peak acceleration from the campaign
+    (ramp speed / time, or the variable profile's limit) against the PV model's sigma, not typed values."""
+    from wsnloc.experiments import why
+    from wsnloc.metrics.verdicts import DOES_NOT_HOLD
+
+    sections = {f"newcom/{s}": newcom.section("scenarios", s) for s in ("constant", "variable")}
+    peaks = {label: trajectory.peak_acceleration(section) for label, section in sections.items()}
+    assert peaks["newcom/constant"] == pytest.approx(sections["newcom/constant"]["speed_mps"]
+                                                     / sections["newcom/constant"]["accel_time_s"])
+    assert peaks["newcom/variable"] == sections["newcom/variable"]["max_accel_mps2"]
+    rows = ["TOA 12", "TOA 9", "RSS 21", "RSS 17", "hybrid 33", "hybrid 26"]
+    per_run = pd.DataFrame([{"table": t, "row": r, "rmse": 1.0, "rmse_moving": 1.0, "run": f"run-0{k}"}
+                            for t in ("Table I", "Table II") for r in rows for k in (1, 2)])
+    claim = "Constant speed is tracked better than variable speed"
+    records = [{"claim": claim, "verdict": DOES_NOT_HOLD}]
+    metrics = {label: per_run for label in sections}
+    within = why.explain_a(records, metrics, rows, peaks, 0.5)[0]["why"]
+    assert f"newcom/variable {peaks['newcom/variable']:.2g}" in within and "lie within" in within and "(0.5 m/s^2)" in within
+    beyond = why.explain_a([dict(records[0])], metrics, rows, {**peaks, "newcom/variable": 0.9}, 0.5)[0]["why"]
+    assert "newcom/variable 0.9" in beyond and "exceed" in beyond

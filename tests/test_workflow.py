@@ -84,13 +84,15 @@ def test_verdicts_sensitivity_and_explanations_reach_results_and_report(workdir)
     assert set(verdicts["column"]) <= {"holds", "does not hold", "inconclusive"}
     assert set(verdicts["value"]) <= {-1, 0, 1}
     sensitivity = results[results["table"] == "Sensitivity"]
-    assert set(sensitivity["experiment"]) == {"A", "B", "C", "D"} and "x1" in set(sensitivity["column"])
+    assert set(sensitivity["experiment"]) == {"A", "B", "D"} and "x1" in set(sensitivity["column"])   # C: off
     summary = (workdir / "reports" / "index.html").read_text()
     links = [f'href="pages/{page}.html"' for page in ("study-workbench", "paper-A", "data-newcom", "provenance")]
     assert 'id="overview"' in summary                     # the navigation: studies, papers, data, provenance
     assert summary.index(links[0]) < summary.index(links[1]) < summary.index(links[2]) < summary.index(links[3])
     html = report_html(workdir)
     assert all(f'id="why-{p}"' in html and f'id="sensitivity-{p}"' in html for p in "ABCD")
+    paper_c = (workdir / "reports" / "pages" / "paper-C.html").read_text()
+    assert "not run in this build" in paper_c and "experiments.paper_c.sensitivity.runs" in paper_c   # opt-in, named
     assert "paper: —" not in html
     cricket = (workdir / "reports" / "pages" / "data-cricket.html").read_text()
     assert "ZigBee" not in cricket and "status 0" not in cricket

@@ -52,15 +52,18 @@ NOTES = {"rf_only": "RF-only record(s) (no range)", "reordered": "row(s) out of 
 
 
 def _ingest_campaign(args) -> Campaign | None:
-    """The --campaign file, else the format's default; a generic run needs none (its meta.yaml
-    may give the tag height: io.generic.run_campaign)."""
-    if args.campaign:
-        return Campaign.load(args.campaign)
-    if args.format == "generic":
+    """The --campaign file, else the format's default, as the run's scenario sees it (the
+    `scenario` its meta.yaml names, as the simulator writes it: a 3-D scenario's heights,
+    Campaign.for_scenario); a generic run needs none (its meta.yaml may give the tag height:
+    io.generic.run_campaign)."""
+    if args.format == "generic" and not args.campaign:
         from wsnloc.io.generic import run_campaign
 
         return run_campaign(args.run_dir)
-    return Campaign.load(_default_campaign(args.format))
+    campaign = Campaign.load(args.campaign or _default_campaign(args.format))
+    meta = Path(args.run_dir) / "meta.yaml"
+    scenario = (read_yaml(meta) or {}).get("scenario") if meta.is_file() else None
+    return campaign.for_scenario(str(scenario)) if scenario else campaign
 
 
 def cmd_ingest(args) -> int:

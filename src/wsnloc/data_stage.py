@@ -1,6 +1,6 @@
 """The data stage of a scenario, shared by the workflow's job scripts: raw logs of a shard of
 runs -> Parquet tables (with a quarantine of unusable lines) and the IMU resampled to a low
-rate; then, when one job holds all the scenario's runs, the data summary and its figures.
+rate (ingest jobs); the data summary of a scenario and its figures (summary jobs).
 
 Each step reads what the previous one wrote to disk, exactly as separate jobs would, so a
 simulated run, a real run and a re-run of one step take the same path.

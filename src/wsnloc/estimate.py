@@ -20,7 +20,7 @@ from wsnloc.campaign import Campaign
 from wsnloc.errors import WsnlocError
 from wsnloc.diagnosis import diagnose_run, metrics_of as diagnosis_metrics, report as diagnosis_report
 from wsnloc.estimators import registry
-from wsnloc.estimators.auto import measurements_for, motion_for
+from wsnloc.estimators.auto import dimensions_for, measurements_for, motion_for
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments.calibration import calibrate_ranges, calibrate_tdoa, donor_model_for
 from wsnloc.io import tables
@@ -109,7 +109,8 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
     (the text of diagnosis.report). A donor (`calibration_dir`) alone turns on the range
     calibration from it (range_calibration=other_run) on a run with ranges unless overrides set
     range_calibration, and the RSS model when the estimator reads RSS;
-    measurements / fixes not in overrides follow the data (estimators.auto.measurements_for).
+    measurements / fixes, motion and dimensions not in overrides follow the data and the set-up
+    (estimators.auto: measurements_for, motion_for, dimensions_for).
     The run and the donor stop above the quarantine `limits` (IngestError)."""
     estimator = registry.get(name, "--estimator")
     p = estimator.resolve(overrides, "--set")
@@ -124,6 +125,8 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
               for k, v in chosen.items() if p[k] != v]
     p, chosen = chosen, motion_for(run_tables, chosen, set(overrides))
     notes += [f"{k}={v}: the run has odometry" for k, v in chosen.items() if p[k] != v]
+    p, chosen = chosen, dimensions_for(campaign, chosen, set(overrides))
+    notes += [f"{k}={v}: the campaign's path varies the tag height" for k, v in chosen.items() if p[k] != v]
     p = chosen
     if calibration_dir is not None and "range_calibration" in p and "range_calibration" not in overrides \
             and len(run_tables["ranges"]) and p.get("measurements", "toa") != "rss":

@@ -47,8 +47,8 @@ wildcard_constraints:
 
 
 def shard_runs(wildcards):
-    """The runs of one shard of a scenario (shard-1 for a rule whose paths name it)."""
-    return shards_of(config, wildcards.dataset, wildcards.scenario)[wildcards.get("shard", "shard-1")]
+    """The runs of one shard of a scenario."""
+    return shards_of(config, wildcards.dataset, wildcards.scenario)[wildcards.shard]
 
 
 def tables_of(dataset, scenario):
@@ -83,9 +83,7 @@ def campaign_file(wildcards):
     return config["datasets"][wildcards.dataset]["campaign"]
 
 
-# With one shard per scenario, the job that ingests a scenario's runs also writes its data
-# summary (it holds all the runs); with more, rule summarize_data reads all the shards' tables.
-SUMMARY_IN_INGEST = config["shards"] == 1
+# The data summary of a scenario (rule summarize_<dataset>, evaluate.smk).
 SUMMARY_FILES = {
     "summary": "data/processed/{dataset}/{scenario}/data_summary.json",
     "results": "data/processed/{dataset}/{scenario}/data_results.csv",
@@ -93,22 +91,18 @@ SUMMARY_FILES = {
     "rss": "data/processed/{dataset}/{scenario}/figures/rss_distance.png",
     "imu": "data/processed/{dataset}/{scenario}/figures/imu_resampling.png",
 }
-# The shard in the paths of the ingest rule, whose summary outputs have none: with one shard, its name.
-ONE_SHARD = "shard-1" if SUMMARY_IN_INGEST else "{shard}"
 
 
 def ingest_task(dataset, scenario, shard, keep_dir):
     """One scenario's shard in an ingest job (read by workflow/scripts/ingest.py): its format,
-    campaign, runs and their raw folders, its table and 5 Hz IMU folders, its data-summary
-    files when the job writes them (SUMMARY_FILES) and where a failed run's quarantine is kept."""
+    campaign, runs and their raw folders, its table and 5 Hz IMU folders and where a failed
+    run's quarantine is kept."""
     runs = shards_of(config, dataset, scenario)[shard]
     spec = config["datasets"][dataset]
     return {"label": f"{dataset}/{scenario}", "format": spec["format"], "campaign": spec["campaign"], "runs": runs,
             "raw_dirs": [raw_run_dir(config, dataset, scenario, run) for run in runs],
             "tables": f"data/processed/{dataset}/{scenario}/tables/{shard}",
             "imu_5hz": f"data/processed/{dataset}/{scenario}/imu_5hz/{shard}",
-            "summary": {name: path.format(dataset=dataset, scenario=scenario) for name, path in SUMMARY_FILES.items()}
-                       if SUMMARY_IN_INGEST else {},
             "keep_dir": keep_dir}
 
 

@@ -1,6 +1,6 @@
 # Raw logs -> one Parquet file per run and table, with a quarantine of unusable lines, and
 # the IMU resampled in passing (~500 Hz -> uniform grid -> anti-aliasing low-pass -> 5 Hz).
-# With one shard the job also writes each scenario's data summary (it holds all the runs).
+# The data summary is a job of its own (evaluate.smk), so the estimators wait for the tables only.
 # A run over the quarantine limits fails the job and leaves its quarantine table in
 # logs/ingest/<job>/ (outputs of failed jobs are deleted).
 #
@@ -31,7 +31,6 @@ for _format, _pairs in SIMULATED_PAIRS.items():
             output:
                 tables=[directory(task["tables"]) for task in _tasks],
                 imu_5hz=[directory(task["imu_5hz"]) for task in _tasks],
-                summaries=[path for task in _tasks for path in task["summary"].values()],
             params:
                 tasks=_tasks,
                 **INGEST_PARAMS,
@@ -51,16 +50,14 @@ rule ingest:
         raw=raw_inputs,
         campaign=campaign_file,
     output:
-        tables=directory(f"data/processed/{{dataset}}/{{scenario}}/tables/{ONE_SHARD}"),
-        imu_5hz=directory(f"data/processed/{{dataset}}/{{scenario}}/imu_5hz/{ONE_SHARD}"),
-        **(SUMMARY_FILES if SUMMARY_IN_INGEST else {}),
+        tables=directory("data/processed/{dataset}/{scenario}/tables/{shard}"),
+        imu_5hz=directory("data/processed/{dataset}/{scenario}/imu_5hz/{shard}"),
     params:
-        tasks=lambda w: [ingest_task(w.dataset, w.scenario, w.get("shard", "shard-1"),
-                                     f"logs/ingest/{w.dataset}-{w.scenario}-{w.get('shard', 'shard-1')}")],
+        tasks=lambda w: [ingest_task(w.dataset, w.scenario, w.shard, f"logs/ingest/{w.dataset}-{w.scenario}-{w.shard}")],
         **INGEST_PARAMS,
     priority: PRIORITY["ingest"]
     log:
-        f"logs/ingest/{{dataset}}-{{scenario}}-{ONE_SHARD}.log",
+        "logs/ingest/{dataset}-{scenario}-{shard}.log",
     conda:
         ENV
     script:

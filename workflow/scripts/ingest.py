@@ -1,6 +1,5 @@
 """Snakemake adapter: ingest one shard of the runs of each of the job's scenarios into Parquet
-tables, resample each run's IMU (config `resample`) in passing and, when the shard holds all
-the scenario's runs, write the scenario's data summary (see wsnloc.data_stage).
+tables and resample each run's IMU (config `resample`) in passing (see wsnloc.data_stage).
 
 A run over the quarantine limits fails the job; its quarantine table is kept beside the
 job's log (the task's keep_dir, logs/ingest/<job>/...), which Snakemake does not delete.
@@ -11,10 +10,8 @@ from wsnloc.workflow import start_job
 sm = snakemake  # noqa: F821  (given by Snakemake: the rule's input, output, params, wildcards, log)
 log = start_job(sm)  # from here on, errors and their tracebacks go to the rule's log
 
-from types import SimpleNamespace
-
 from wsnloc.campaign import Campaign
-from wsnloc.data_stage import ingest_shard, summarize_scenario
+from wsnloc.data_stage import ingest_shard
 from wsnloc.errors import IngestError
 from wsnloc.io.limits import QuarantineLimits
 
@@ -30,6 +27,3 @@ for task in sm.params.tasks:
     except IngestError as exc:
         log.error("%s: %s", task["label"], exc)
         raise
-    if task["summary"]:
-        summarize_scenario(task["tables"], task["imu_5hz"], campaign, task["label"], SimpleNamespace(**task["summary"]),
-                           log)

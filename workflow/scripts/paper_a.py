@@ -23,15 +23,16 @@ from wsnloc.experiments import cells, claims as claims_of, paper_a, sensitivity,
 from wsnloc.io import tables
 from wsnloc.metrics.data_quality import load_runs
 from wsnloc.report import bound_figures, figures
+from wsnloc.sim.trajectory import peak_acceleration
 from wsnloc.workflow import each_scenario, read_scenario_files
 
 spec = sm.params.spec
 
 
-def run_scenario(label: str, campaign: Campaign, out: dict) -> str:
+def run_scenario(label: str, campaign: Campaign, out: dict) -> dict:
     """Every run of one scenario (RSS models calibrated on another run): estimates, per-run
     metrics, consistency and sensitivity grid written to out['estimates'], out['metrics'],
-    out['quality'], out['sensitivity']. Returns the scenario's motion profile (campaign)."""
+    out['quality'], out['sensitivity']. Returns the scenario's campaign section (its motion)."""
     runs = load_runs(sm.params.sources["tables_of"][label], paper_a.INPUT_TABLES)
     models = paper_a.rss_models_for_runs(runs, campaign, spec, label)
     data = {name: RunData(run_tables, campaign, models[name], name) for name, run_tables in runs.items()}
@@ -58,13 +59,14 @@ def run_scenario(label: str, campaign: Campaign, out: dict) -> str:
     grid = sensitivity.grid_metrics(spec, cells.where(paper_a.PAPER), metrics, variant_metrics)
     grid.to_csv(out["sensitivity"], index=False, float_format="%.6g")
     log.info("%s: %d runs done", label, len(runs))
-    return campaign.section("scenarios", label.split("/", 1)[1])["motion"]
+    return campaign.section("scenarios", label.split("/", 1)[1])
 
 
-def summarize(motions: dict[str, str]) -> None:
-    """Tables (results.csv), claims and figures of paper A over all its scenarios, from the
-    files run_scenario wrote (metrics as written, to 6 significant digits), with the opt-in
-    static-share sweep."""
+def summarize(scenarios: dict[str, dict]) -> None:
+    """Tables (results.csv), claims and figures of paper A over all its scenarios (their campaign
+    sections), from the files run_scenario wrote (metrics as written, to 6 significant digits),
+    with the opt-in static-share sweep."""
+    motions = {label: section["motion"] for label, section in scenarios.items()}
     paper = read_yaml(sm.input.papers)["A"]
     labels = list(sm.params.sources["labels"])
     files = read_scenario_files(sm.output, labels)
@@ -72,7 +74,9 @@ def summarize(motions: dict[str, str]) -> None:
     rows = [row for label in labels
             for row in paper_a.results_rows(per_run[label], label, motions[label], spec, paper)]
     decided = why.explain_a(paper_a.claims(per_run, motions, spec), per_run,
-                            [paper_a.row_label(r) for r in spec["rows"]])
+                            [paper_a.row_label(r) for r in spec["rows"]],
+                            {label: peak_acceleration(section) for label, section in scenarios.items()},
+                            cells.params(spec, paper_a.TABLES[0], labels[0], paper_a.PAPER)["accel_sigma_mps2"])
     rows += sensitivity.results_rows(paper_a.EXPERIMENT, files["sensitivity"],
                                      lambda m: paper_a.claims(m, motions, spec))
     rows += paper_a.setup_rows(estimates, spec)

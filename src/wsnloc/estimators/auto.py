@@ -8,6 +8,9 @@ model that ranges do not; TDOA gives less of the geometry than the ranges it may
 Applied by `wsnloc estimate` to parameters not given with --set.
 `motion_for`: a filter with the default constant-velocity model (`motion: pv`, 2-D) on a run
 with an odometry table uses it (`motion: odometry`, the unicycle model it drives).
+`dimensions_for`: an estimator with a `dimensions` parameter left at 2 tracks in 3-D where the
+run's campaign declares a height profile of the tag's path (a 3-D scenario: Campaign.for_scenario)
+that varies by VARYING_HEIGHT_M or more.
 
 `update_mode`: the Bayesian filters' `update: auto` (their default, bayes.run_filters) is
 `epoch` on synchronous rounds and `sequential` on asynchronous measurements.
@@ -102,3 +105,17 @@ def motion_for(run_tables: dict, p: dict, explicit: set[str]) -> dict:
             or explicit & {"motion", "dimensions"}:
         return p
     return dict(p, motion="odometry")
+
+
+VARYING_HEIGHT_M = 0.5      # m: a declared tag height that varies by less is a plane (the fixed-height 2-D model)
+
+
+def dimensions_for(campaign, p: dict, explicit: set[str]) -> dict:
+    """The parameters with `dimensions: 3` where the estimator has the key at 2, it was not set
+    explicitly and the campaign's path declares tag heights varying by VARYING_HEIGHT_M or more
+    (the set-up, never the truth); else p unchanged."""
+    heights = getattr(getattr(campaign, "path", None), "heights", None)
+    if p.get("dimensions") != 2 or "dimensions" in explicit or heights is None \
+            or np.ptp(heights[:, 1]) < VARYING_HEIGHT_M:
+        return p
+    return dict(p, dimensions=3)

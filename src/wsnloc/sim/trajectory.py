@@ -247,3 +247,11 @@ def for_scenario(scenario: dict, length: float, rng: np.random.Generator) -> Tra
     if scenario["motion"] == "constant":
         return constant_speed(length, **params)
     return variable_speed(length, rng, **params)
+
+
+def peak_acceleration(scenario: dict) -> float:
+    """The largest |a| (m/s^2) a campaign scenario's motion reaches: speed_mps / accel_time_s on
+    the constant-speed ramps (constant_speed), max_accel_mps2 for variable speed (variable_speed)."""
+    if scenario["motion"] == "constant":
+        return scenario["speed_mps"] / scenario["accel_time_s"]
+    return scenario["max_accel_mps2"]
