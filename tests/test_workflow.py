@@ -50,10 +50,12 @@ def test_builds_report_and_results(workdir):
     timing = study[study["metric"] == "time_per_step_us"]
     assert len(timing) == 2 * len(SMALL_WORKBENCH) and (timing["value"] > 0).all()
     robust = study.set_index(["row", "scenario", "column"])["value"]
-    # ekf gates and self-fits by default: a few wall-crossing links rejected, with or without the
-    # NLOS-aware noise (the self-fitted noise already takes most of them back: 0.064 against 0.072)
-    assert 0 < robust[("ekf", "newcom/constant", "gated")] < 0.1
-    assert 0 < robust[("ekf_gate_nlos", "newcom/constant", "gated")] < 0.1
+    # ekf gates and self-fits by default: some wall-crossing links rejected, with or without the
+    # NLOS-aware noise. Since the self-fit leaves out offsets fitted to NLOS biases that change along
+    # the path (self_fit's local test), those links are gated instead of absorbed: 0.064 -> 0.119
+    # here; on newcom/constant run 2 (seed 0) ekf gated 0.106 -> 0.175 and RMSE 0.467 -> 0.276 m
+    assert 0 < robust[("ekf", "newcom/constant", "gated")] < 0.2
+    assert 0 < robust[("ekf_gate_nlos", "newcom/constant", "gated")] < 0.2
     assert "gated" in html and "Range error per anchor" in html
     spatial = results[results["experiment"] == "study:workbench_spatial"].set_index(["scenario", "column"])
     assert set(spatial.index.get_level_values("scenario")) == {"newcom/tdoa", "newcom/flight"}

@@ -51,15 +51,31 @@ estimator's own filter or smoother then runs once with the fitted values (`outpu
    offsets are defined up to a common constant (the gauge anchor's is 0) (a likelihood-ratio test: the likelihood of nested
    models, the extra parameters paid for; the corrected ranges (r - b) / s pay n log s, the
    density of r); else the output pass reads the ranges as measured.
+   A correction is constant over the run; biases that change along the path (NLOS behind walls)
+   are not, yet a constant fitted to them can pass that test: on simulated newcom/tdoa run 1
+   anchors behind walls carry NLOS biases of 0.3-3.4 m that change along the path, the constant
+   offsets fitted to them (1-2 m) turn gated differences into inliers and raise the likelihood by
+   495 against a penalty of 38, and make the RMSE 1.01 m against 0.235 m without them. So the
+   correction is also tested against one fitted on the segment alone (the same fit against the
+   part of the track it was fitted on that spans the segment: what the segment calls for): it is
+   kept only when that local correction does not raise max_c L(c) over the constant one by more
+   than the BIC penalty of its own parameters (k_local / 2 ln n; nested in the sense that a
+   constant over the run is a local fit that happens to hold everywhere). On that run 82 > 38: not
+   applied, RMSE 0.257 m. A constant offset passes (the local fit finds the same offsets, gain
+   about 0). On ranges ranged one at a time at a few Hz the segment holds ~100 ranges, too few
+   for the local fit to tell a 1 m bias on part of the path from a constant (measured: a
+   synthetic walk with two anchors 1 m long on half the square, local gain 1-10 against 12; the
+   correction still applied there).
    attrs `self_fit_range_correction` (applied / not supported), `self_fit_range_ll_gain`,
-   `self_fit_range_ll_penalty`.
+   `self_fit_range_ll_penalty`, `self_fit_range_local_gain`, `self_fit_range_local_penalty`.
 
 Why three candidates: with only the configured one and a livelier one, a configured sigma
 smaller than the default (e.g. the true 0.1 m with the default accel) could never go calmer
 and tracked the noise (1.33x the best sigma of a grid on a synthetic walk); now the outcome
 hardly depends on where the configured values start.
 
-Cost: one augmented pass (step 1), four passes on 12% of the run, one full pass and the fits:
+Cost: one augmented pass (step 1), four passes on 12% of the run (five where the correction
+passes the first test), one full pass and the fits:
 about 2.7x one plain pass in CPU time on the shared real cases (benchmarks/realdata.py); on
 range differences two full passes in step 1 (the offsets are fitted twice). For the UKF,
 particle filter and smoothers the fitting passes are EKF passes, so the overhead is that of
@@ -302,6 +318,22 @@ def _segment(data, p: dict, share: float):
     return replace(data, tables=tables, _cache={})
 
 
+def _span(part) -> tuple[float, float]:
+    """The first and last measurement time (s) of a sub-run."""
+    t = np.concatenate([part.tables[name]["t"].to_numpy(float) for name in MEASUREMENT_TABLES if name in part.tables])
+    return float(t.min()), float(t.max())
+
+
+def _as_measured(score: tuple[float, float, int], model: dict, p: dict) -> float:
+    """max_c L(c) of a pass on measurements corrected by a range model, z' = (z - b) / s (ranges and
+    range differences alike), as the log-likelihood of the measurements as measured z: their density
+    is that of z' divided by s, so the pass's n innovations pay n log s (without this a scale above 1
+    would win by shrinking every residual). On `hybrid` the innovations mix ranges with RSS and the
+    range count is not separated: the term is left out there."""
+    ll, _, n = score
+    return ll - n * np.log(model["scale"]) if p["measurements"] in ("toa", "tdoa") else ll
+
+
 def refine(x: np.ndarray, ll: np.ndarray) -> float:
     """The maximum of the parabola through three points (x_i, ll_i) (x increasing) when the middle
     one is the best (a bracketed maximum), else the best point: an edge is not extrapolated."""
@@ -328,26 +360,26 @@ def two_pass(data, p: dict, run_pass, output) -> pd.DataFrame:
     -> estimates is the estimator's own single pass (filter or smoother), run once with the fit."""
     span = 2.0 * p["max_range_m"]
     q = dict(p, self_fit="none")
-    run, model, fitted = data, None, {}
+    run, model, fitted, correct, track = data, None, {}, None, None
     if p["measurements"] in ("toa", "hybrid") and p["range_calibration"] == "none" \
             and p["range_self_calibration"] == "none" and _anchors_ranged(data, p) >= MIN_ANCHORS_FOR_OFFSETS:
-        scaled, _ = run_pass(data, dict(q, range_self_calibration="scale"))
-        model = range_correction(data, scaled, p, float(scaled.attrs.get("range_scale", 1.0)))
-        if model is not None:
-            run = replace(data, range_model=model, _cache=data._cache)
-            q = dict(q, range_calibration="other_run")
+        track, _ = run_pass(data, dict(q, range_self_calibration="scale"))
+        scale = float(track.attrs.get("range_scale", 1.0))
+        correct = lambda track: range_correction(data, track, p, scale)    # noqa: E731
+        model = correct(track)
     elif p["measurements"] == "tdoa" and p["range_calibration"] == "none" \
             and _anchors_in_tdoa(data, p) >= MIN_ANCHORS_FOR_OFFSETS:
         track, _ = run_pass(data, q)
+        correct = lambda track: tdoa_correction(data, track, p)            # noqa: E731
         for refit in range(TDOA_FITS):
-            model = tdoa_correction(data, track, p)
+            model = correct(track)
             if model is None or refit == TDOA_FITS - 1:
                 break
             track, _ = run_pass(replace(data, range_model=model, _cache=data._cache),
                                 dict(q, range_calibration="other_run"))
-        if model is not None:
-            run = replace(data, range_model=model, _cache=data._cache)
-            q = dict(q, range_calibration="other_run")
+    if model is not None:
+        run = replace(data, range_model=model, _cache=data._cache)
+        q = dict(q, range_calibration="other_run")
     part = segment(run, q, SEARCH_SHARE)
     noise = PROCESS_NOISE[q.get("motion") == "p"]
     candidates = [dict(q, range_sigma_m=q["range_sigma_m"] * k_sigma, **{noise: q[noise] * k_accel})
@@ -361,19 +393,23 @@ def two_pass(data, p: dict, run_pass, output) -> pd.DataFrame:
                              self_fit_range_scale=model["scale"])
         return out
     best = int(np.argmax(ll))
-    if model is not None:                  # likelihood-ratio test of the range correction (module docstring, 4)
+    if model is not None:                  # likelihood-ratio tests of the range correction (module docstring, 4)
         plain = part.cached(("without range model",), lambda: replace(part, range_model=None, _cache={}))
+        n = scores[best][2]
         ll_plain = _score(run_pass, plain, dict(candidates[best], range_calibration="none"), span)[0]
-        penalty = 0.5 * model["parameters"] * np.log(scores[best][2])
-        # The corrected measurements z' = (z - b) / s (ranges and range differences alike) have
-        # the density of z times s: the corrected pass pays n log s, or a scale above 1 would
-        # win by shrinking every residual. On `hybrid` the innovations mix ranges with RSS and
-        # the range count is not separated: the term is left out there.
-        if p["measurements"] in ("toa", "tdoa"):
-            ll_plain += scores[best][2] * np.log(model["scale"])
-        supported = ll[best] - ll_plain > penalty
-        fitted.update(self_fit_range_correction="applied" if supported else "not supported",
-                      self_fit_range_ll_gain=float(ll[best] - ll_plain), self_fit_range_ll_penalty=float(penalty))
+        gain = _as_measured(scores[best], model, p) - ll_plain
+        penalty = 0.5 * model["parameters"] * np.log(n)
+        fitted.update(self_fit_range_ll_gain=float(gain), self_fit_range_ll_penalty=float(penalty))
+        supported = gain > penalty
+        local = correct(track[track["t"].between(*_span(part))]) if supported else None
+        if local is not None:              # constant over the run? (module docstring, 4)
+            local_score = _score(run_pass, replace(plain, range_model=local, _cache={}), candidates[best], span)
+            local_gain = _as_measured(local_score, local, p) - _as_measured(scores[best], model, p)
+            local_penalty = 0.5 * local["parameters"] * np.log(n)
+            fitted.update(self_fit_range_local_gain=float(local_gain),
+                          self_fit_range_local_penalty=float(local_penalty))
+            supported = local_gain <= local_penalty
+        fitted["self_fit_range_correction"] = "applied" if supported else "not supported"
         if supported:
             fitted["self_fit_range_scale"] = model["scale"]
         else:
