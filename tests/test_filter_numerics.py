@@ -1,11 +1,12 @@
 """Fast paths of the filters' small matrices: the motion models' F, B, Q against their block
-formulas (filters.motion_models docstring), and the Kalman update's 1 x 1 inverse against
-numpy.linalg.inv, bit for bit."""
+formulas (filters.motion_models docstring), the Kalman update's 1 x 1 inverse against
+numpy.linalg.inv, bit for bit, and the information-form update for a diagonal R against the
+Joseph-form update."""
 
 import numpy as np
 import pytest
 
-from wsnloc.filters.kalman import inverse
+from wsnloc.filters.kalman import diagonal_update, inverse, joseph_update, nis
 from wsnloc.filters.measurement_models import RangeModel
 from wsnloc.filters.motion_models import constant_velocity, pva
 
@@ -43,6 +44,49 @@ def test_inverse_of_a_matrix_is_numpys():
     A = rng.normal(size=(3, 3))
     S = A @ A.T + np.eye(3)
     np.testing.assert_array_equal(inverse(S), np.linalg.inv(S))
+
+
+def _bank(rng, runs, n, m):
+    """Random SPD P, H, y and diagonal variances r of a bank; each run's last rows padded
+    (H = 0, y = 0, r = 1) as the array EKF pads epochs."""
+    A = rng.normal(size=(runs, n, n))
+    P = A @ np.swapaxes(A, -1, -2) + 0.1 * np.eye(n)
+    H = rng.normal(size=(runs, m, n))
+    y = rng.normal(size=(runs, m))
+    r = rng.lognormal(-2, 1.5, size=(runs, m))
+    used = rng.integers(1, m + 1, runs)
+    pad = np.arange(m)[None, :] >= used[:, None]
+    H[pad], y[pad], r[pad] = 0.0, 0.0, 1.0
+    return rng.normal(size=(runs, n)), P, y, H, r
+
+
+@pytest.mark.parametrize("n, m", [(4, 1), (4, 33), (6, 5), (2, 12)])
+def test_diagonal_update_equals_the_joseph_update(n, m):
+    x, P, y, H, r = _bank(np.random.default_rng(n * 100 + m), 50, n, m)
+    info = diagonal_update(x, P, y, H, r)
+    full = joseph_update(x, P, y, H, r[..., None] * np.eye(m))
+    assert info.ok.all() and full.ok.all()
+    np.testing.assert_allclose(info.x, full.x, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(info.P, full.P, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(info.nis, nis(y, full.S_inv), rtol=1e-9, atol=1e-9)
+    one = diagonal_update(x[3], P[3], y[3], H[3], r[3])           # one filter: no batch axis
+    np.testing.assert_allclose(one.x, full.x[3], rtol=1e-9, atol=1e-9)
+
+
+def test_diagonal_update_of_a_singular_p_and_a_non_finite_measurement():
+    """A singular P (e.g. a known coordinate) needs no P^-1 in the solved form and gives the Joseph
+    update; a non-finite measurement keeps the prior (ok False, NIS NaN) as there."""
+    x, P, y, H, r = _bank(np.random.default_rng(7), 4, 4, 6)
+    P[1] = np.diag([1.0, 1.0, 0.0, 0.0])
+    y[2, 0] = np.nan
+    info = diagonal_update(x, P, y, H, r)
+    full = joseph_update(x, P, y, H, r[..., None] * np.eye(6))
+    np.testing.assert_array_equal(info.ok, [True, True, False, True])
+    np.testing.assert_array_equal(info.ok, full.ok)
+    np.testing.assert_allclose(info.x, full.x, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(info.P, full.P, rtol=1e-9, atol=1e-9)
+    np.testing.assert_array_equal(info.x[2], x[2])
+    assert np.isnan(info.nis[2])
 
 
 @pytest.mark.parametrize("sigma", [0.3, np.array([0.1, 0.25, 0.4])])

@@ -28,6 +28,7 @@ import numpy as np
 import pandas as pd
 
 from wsnloc.estimators import bayes
+from wsnloc.estimators.epochs import sorted_codes
 from wsnloc.estimators.motion import MotionModel
 from wsnloc.estimators.run_data import RunData
 from wsnloc.metrics.bounds import (available_information, model_information, pcrb, rss_information_terms,
@@ -43,25 +44,20 @@ def is_bayesian(function) -> bool:
     return function is bayes.run_filter
 
 
-def _counts(step_of: np.ndarray, anchors: np.ndarray, ids: list[str], n_steps: int) -> np.ndarray:
-    """(steps, len(ids)) number of measurements of each anchor at each step."""
-    out = np.zeros((n_steps, len(ids)))
-    if len(anchors):
-        column = {a: i for i, a in enumerate(ids)}
-        np.add.at(out, (step_of, np.array([column[a] for a in anchors], dtype=np.intp)), 1.0)
-    return out
+def _counts(step_of: np.ndarray, anchors: np.ndarray, n_steps: int) -> tuple[list[str], np.ndarray]:
+    """(the distinct anchors, sorted; (steps, anchors) number of measurements of each at each step)."""
+    ids, column = sorted_codes(np.asarray(anchors, dtype=object))
+    counts = np.bincount(np.asarray(step_of, dtype=np.intp) * len(ids) + column, minlength=n_steps * len(ids))
+    return ids.tolist(), counts.reshape(n_steps, len(ids)).astype(float)
 
 
 def _measurement_steps(source, times: np.ndarray, p: dict):
-    """(step times, step index of each range, its anchor, same for RSS, output index of times)."""
+    """(step times, step index of each range, its anchor, same for RSS, output index of times);
+    epoch updates: one step per epoch and each anchor's epoch mean (MeasurementSource.epoch_means)."""
     if p["update"] == "epoch":
-        epochs = source.epochs(times, p["epoch_s"])
-        step = np.arange(len(times))
-        range_step = np.repeat(step, [len(e.range_ids) for e in epochs])
-        rss_step = np.repeat(step, [len(e.rss_ids) for e in epochs])
-        range_ids = np.concatenate([e.range_ids for e in epochs] or [np.array([], dtype=object)])
-        rss_ids = np.concatenate([e.rss_ids for e in epochs] or [np.array([], dtype=object)])
-        return times, range_step, range_ids, rss_step, rss_ids, step
+        ranges, rss = source.epoch_means(times, p["epoch_s"])
+        return (times, ranges.epoch, source.anchor_ids(0)[ranges.code], rss.epoch, source.anchor_ids(1)[rss.code],
+                np.arange(len(times)))
     records = source.records()
     steps = np.union1d(records.t, times)
     record_step = np.searchsorted(steps, records.t)
@@ -94,17 +90,18 @@ def _pcrb_inputs(data: RunData, p: dict):
         steps, information, outputs = _tdoa_information(data, source, times, p)
         return _with_motion(data, p, times, outputs, steps, information)
     steps, range_step, range_ids, rss_step, rss_ids, outputs = _measurement_steps(source, times, p)
-    position = truth_at(data.require("truth", "the PCRB"), steps)
+    position = _truth_at(data, steps)
     information = np.zeros((len(steps), 3))
-    toa_ids, rss_members = sorted(set(range_ids)), sorted(set(rss_ids))
+    (toa_ids, toa_counts), (rss_members, rss_counts) = (_counts(range_step, range_ids, len(steps)),
+                                                        _counts(rss_step, rss_ids, len(steps)))
     if toa_ids:
         dz = data.height_offsets(toa_ids) if data.three_d else None
         terms = toa_information_terms(position, data.positions(toa_ids), p["range_sigma_m"], dz)
-        information += available_information(terms, _counts(range_step, range_ids, toa_ids, len(steps)))
+        information += available_information(terms, toa_counts)
     if rss_members:
         rss = source.rss_params
         terms = rss_information_terms(position, data.positions(rss_members), rss.path_loss_exponent, rss.sigma_db)
-        information += available_information(terms, _counts(rss_step, rss_ids, rss_members, len(steps)))
+        information += available_information(terms, rss_counts)
     information[~np.isfinite(position).all(axis=1)] = 0.0  # outside the truth span: unknown geometry
     return _with_motion(data, p, times, outputs, steps, information)
 
@@ -122,13 +119,19 @@ def _tdoa_information(data: RunData, source, times: np.ndarray, p: dict):
         outputs = np.searchsorted(steps, times)
         models = [source.model(*records.split(a, b)) for a, b in zip(bounds[:-1], bounds[1:])]
         step_of = np.searchsorted(steps, records.t[bounds[:-1]])
-    position = truth_at(data.require("truth", "the PCRB"), steps)
+    position = _truth_at(data, steps)
     information = np.zeros((len(steps), 3))
     for k, model in zip(step_of, models):
         if model is not None and np.all(np.isfinite(position[k])):
             J = model_information(model, position[k][None])[0]
             information[k] += (J[0, 0], J[0, 1], J[1, 1])
     return steps, information, outputs
+
+
+def _truth_at(data: RunData, steps: np.ndarray) -> np.ndarray:
+    """The run's true position at the bound's steps (metrics.ranging.truth_at), once per run and
+    steps (the cells of a run on one epoch grid share it)."""
+    return data.cached(("truth_at", steps.tobytes()), lambda: truth_at(data.require("truth", "the PCRB"), steps))
 
 
 def _with_motion(data: RunData, p: dict, times, outputs, steps, information):

@@ -23,8 +23,10 @@ import pandas as pd
 
 from wsnloc import results
 from wsnloc.analysis.filter_bounds import bound_model, filter_pcrb, filter_pcrbs
+from wsnloc.estimators.epochs import sorted_codes
 from wsnloc.estimators.run_data import RunData
 from wsnloc.metrics.consistency import consistency_test, normalized_squared
+from wsnloc.metrics.tracking import cell_rows
 
 NEES_DOF = 2   # position NEES
 QUALITY_COLUMNS = ["t", "error_m", "pcrb_m2", "nees", "nis", "n_meas"]
@@ -109,7 +111,7 @@ def _runs_by_epoch(quality: pd.DataFrame, column: str, period: float) -> tuple[n
     first value that is not NaN (inf counts: a singular covariance) of run r at epoch k in
     row order (NaN where it has none)."""
     k = _epoch_index(quality["t"], period)
-    runs, run_code = np.unique(quality["run"].to_numpy(), return_inverse=True)
+    runs, run_code = sorted_codes(quality["run"])
     epochs, epoch_code = np.unique(k, return_inverse=True)
     values = quality[column].to_numpy(float)
     present = np.flatnonzero(~np.isnan(values))
@@ -153,9 +155,11 @@ def grouped_quality(runs: list[tuple[RunData, pd.DataFrame]], keys: list[str],
 def _groups(scored: pd.DataFrame, keys: list[str]) -> tuple[np.ndarray, list[tuple]]:
     """Group number of every row of scored (-1: a missing key) in order of first appearance,
     and each group's key values."""
-    code = scored.groupby(keys, sort=False).ngroup().to_numpy()
-    first = np.unique(code[code >= 0], return_index=True)[1]
-    return code, list(scored[keys].iloc[np.flatnonzero(code >= 0)[first]].itertuples(index=False, name=None))
+    names, rows = cell_rows(scored, keys)
+    code = np.full(len(scored), -1, dtype=np.intp)
+    for g, members in enumerate(rows):
+        code[members] = g
+    return code, names
 
 
 def _run_groups(scored: pd.DataFrame, keys: list[str], code: np.ndarray, names: list[tuple],

@@ -12,8 +12,9 @@ Runs whose epoch grids and measurement sets differ:
 - per run, measurement i of an epoch is a range or an RSS value, h and H by
   filters.measurement_models (range_rows, rss_rows: distances with the anchor's height offset
   dz, RSS floored at d0) on the whole padded array; R is diagonal (range sigma^2, RSS sigma_dB^2).
-Predict and update are filters.kalman's (predict, joseph_update: the same functions as one
-filter's, here with a leading run axis).
+Predict and update are filters.kalman's (predict as one filter's, here with a leading run axis;
+the update is diagonal_update, the Joseph-form update's information form for a diagonal R: its
+inverses are state-sized, where the covariance form inverts the padded M_k x M_k S).
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ import numpy as np
 
 from wsnloc.estimators import filter_options
 from wsnloc.estimators.core import RunInputs
-from wsnloc.filters.kalman import joseph_update, nis, predict
+from wsnloc.filters.kalman import diagonal_update, predict
 from wsnloc.filters.measurement_models import range_rows, rss_rows
 from wsnloc.filters.numerics import Guards
 
@@ -61,7 +62,7 @@ class Measurements:
 
 
 def update(x: np.ndarray, P: np.ndarray, m: Measurements):
-    """The EKF update (filters.kalman.joseph_update) of every run with its (padded) measurements;
+    """The EKF update (filters.kalman.diagonal_update) of every run with its (padded) measurements;
     returns (x, P, NIS, ok). h and the position columns of H are filters.measurement_models'
     (range_rows, rss_rows), the other columns 0; R = diag(variance). A run whose update is
     not finite (ok False) keeps its prior, NIS NaN."""
@@ -76,8 +77,8 @@ def update(x: np.ndarray, P: np.ndarray, m: Measurements):
     H = np.zeros((runs, width, x.shape[1]))
     H[..., :2] = np.where(real[..., None], H_p, 0.0)
     y = np.where(real, m.z - h, 0.0)
-    new = joseph_update(x, P, y, H, m.variance[..., None] * np.eye(width))
-    return new.x, new.P, np.where(new.ok, nis(y, new.S_inv), np.nan), new.ok
+    new = diagonal_update(x, P, y, H, m.variance)
+    return new.x, new.P, np.where(new.ok, new.nis, np.nan), new.ok
 
 
 def pack(runs: list[RunInputs], period: float) -> tuple[Measurements, np.ndarray]:

@@ -32,11 +32,20 @@ def epoch_fixes(data: RunData, p: dict, technique: str) -> pd.DataFrame:
     max_range_m, the RSS model (measurements.rss_params) and pmix_toa_weight (w; the rss fix gets 1 - w).
     """
     if technique == "pmix":
-        return _pmix(epoch_fixes(data, p, "toa"), epoch_fixes(data, p, "rss"), p["pmix_toa_weight"])
+        build = lambda: _pmix(epoch_fixes(data, p, "toa"), epoch_fixes(data, p, "rss"), p["pmix_toa_weight"])  # noqa: E731
+    else:
+        build = lambda: _epoch_fixes(data, p, technique, rss_params(data, p) if technique != "toa" else None)  # noqa: E731
+    return data.cached(fix_key(data, p, technique), build)
+
+
+def fix_key(data: RunData, p: dict, technique: str) -> tuple:
+    """What epoch_fixes' table depends on (its RunData.cached key; also the key of what is
+    computed from it, e.g. trackers' velocity pass)."""
+    if technique == "pmix":
+        return ("fixes", technique, p["pmix_toa_weight"], fix_key(data, p, "toa"), fix_key(data, p, "rss"))
     rss = rss_params(data, p) if technique != "toa" else None
-    key = ("fixes", technique, p["solver"], p["anchors"], p["epoch_s"], p["k_smallest"], p["preliminary_filter"],
-           p["max_range_m"], rss, tuple(solver_options(p).items()))
-    return data.cached(key, lambda: _epoch_fixes(data, p, technique, rss))
+    return ("fixes", technique, p["solver"], p["anchors"], p["epoch_s"], p["k_smallest"], p["preliminary_filter"],
+            p["max_range_m"], rss, tuple(solver_options(p).items()))
 
 
 def solver_options(p: dict) -> dict:

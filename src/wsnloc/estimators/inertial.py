@@ -95,7 +95,7 @@ def heading_from_fixes(fixes: pd.DataFrame, baseline_m: float = HEADING_BASELINE
     xy = xy[np.all(np.isfinite(xy), axis=1)]
     if len(xy) < 4:
         return None
-    medians = np.stack([np.median(xy[k:k + 3], axis=0) for k in range(len(xy) - 2)])
+    medians = np.median(np.lib.stride_tricks.sliding_window_view(xy, 3, axis=0), axis=-1)   # (n - 2, 2)
     away = np.hypot(*(medians - medians[0]).T) >= baseline_m
     if not away.any():
         return None

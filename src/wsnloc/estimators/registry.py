@@ -195,7 +195,7 @@ def _solver_run(solver: str | None, technique: str | None):
 
 
 def _velocity_run(data: RunData, p: dict) -> pd.DataFrame:
-    return trackers.velocity_track(fixes.epoch_fixes(data, p, p["fixes"]), p["window"], p["speed_from"])
+    return trackers.run_velocity_track(data, p)
 
 
 def _kalman_run(data: RunData, p: dict) -> pd.DataFrame:

@@ -19,7 +19,6 @@ the predicted ||v|| < MIN_SPEED_MPS (no direction).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,12 +45,47 @@ def fix_measurement(position_sigma_m: float) -> tuple[np.ndarray, np.ndarray]:
     return np.hstack([np.eye(2), np.zeros((2, 2))]), np.eye(2) * position_sigma_m**2
 
 
+def velocity_pass(t: np.ndarray, xy: np.ndarray, window: int, speed_from: str) -> tuple[np.ndarray, np.ndarray]:
+    """The velocity-bounded tracker over per-epoch fixes t (s), xy (m; NaN rows: no fix): per
+    epoch its tracked position (m; NaN without a fix) and its speed v_hat (m/s) after the fix
+    (NaN: none yet); the epochs without a fix are skipped."""
+    tracker = VelocityBoundedTracker(window, speed_from)
+    tracked, speed = np.full(xy.shape, np.nan), np.full(len(t), np.nan)
+    for k in np.flatnonzero(np.isfinite(xy).all(axis=1)):
+        tracked[k] = tracker.update(float(t[k]), float(xy[k, 0]), float(xy[k, 1]))
+        speed[k] = tracker.speed
+    return tracked, speed
+
+
+def _table_arrays(fixes: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+    return fixes["t"].to_numpy(float), np.column_stack([fixes["x"].to_numpy(float), fixes["y"].to_numpy(float)])
+
+
 def velocity_track(fixes: pd.DataFrame, window: int, speed_from: str) -> pd.DataFrame:
     """Velocity-bounded tracker output (t, x, y) at the epochs with a fix (t in s, x, y in m)."""
-    tracker = VelocityBoundedTracker(window, speed_from)
-    columns = (fixes[c].to_numpy(float).tolist() for c in ("t", "x", "y"))
-    rows = [(t, *tracker.update(t, x, y)) for t, x, y in zip(*columns) if math.isfinite(x) and math.isfinite(y)]
-    return pd.DataFrame(rows, columns=["t", "x", "y"])
+    t, xy = _table_arrays(fixes)
+    return _track_frame(t, velocity_pass(t, xy, window, speed_from)[0])
+
+
+def _track_frame(t: np.ndarray, tracked: np.ndarray) -> pd.DataFrame:
+    fixed = np.isfinite(tracked).all(axis=1)
+    return pd.DataFrame({"t": t[fixed], "x": tracked[fixed, 0], "y": tracked[fixed, 1]})
+
+
+def _run_velocity_pass(data: RunData, p: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t, tracked, speed) of velocity_pass over the run's fixes (fixes.epoch_fixes with p["fixes"])
+    with p["window"], p["speed_from"]; once per run and settings (RunData.cached): the
+    velocity tracker's cells and the KF cells fed its speed share it."""
+    def build():
+        t, xy = _table_arrays(fixes.epoch_fixes(data, p, p["fixes"]))
+        return (t, *velocity_pass(t, xy, p["window"], p["speed_from"]))
+    return data.cached(("velocity_pass", fixes.fix_key(data, p, p["fixes"]), p["window"], p["speed_from"]), build)
+
+
+def run_velocity_track(data: RunData, p: dict) -> pd.DataFrame:
+    """The `velocity_tracker` cell with resolved parameters p on one run: velocity_track of its fixes."""
+    t, tracked, _ = _run_velocity_pass(data, p)
+    return _track_frame(t, tracked)
 
 
 @dataclass(frozen=True)
@@ -66,13 +100,8 @@ class FixSource:
     @classmethod
     def of(cls, fix_table: pd.DataFrame, velocity: tuple[int, str] | None = None) -> "FixSource":
         """velocity = (window, speed_from) of the velocity tracker whose speed is fed (None: none)."""
-        t, xy = fix_table["t"].to_numpy(float), fix_table[["x", "y"]].to_numpy(float)
-        speed = np.full(len(t), np.nan)
-        if velocity is not None:
-            tracker = VelocityBoundedTracker(*velocity)
-            for k in np.flatnonzero(np.isfinite(xy).all(axis=1)):
-                tracker.update(float(t[k]), float(xy[k, 0]), float(xy[k, 1]))
-                speed[k] = tracker.speed
+        t, xy = _table_arrays(fix_table)
+        speed = np.full(len(t), np.nan) if velocity is None else velocity_pass(t, xy, *velocity)[1]
         return cls(t, xy, speed)
 
     def has_fix(self) -> np.ndarray:
@@ -175,9 +204,11 @@ def fix_tracks(sources: list[FixSource], epoch_s: float, accel_sigma_mps2: float
 def fix_source(data: RunData, p: dict) -> FixSource:
     """What the `kf_tracker` cell with resolved parameters p is fed on one run: the fixes
     (fixes.epoch_fixes with p["fixes"]) and, with p["speed_input"], the velocity tracker's
-    speed (p["window"], p["speed_from"])."""
-    return FixSource.of(fixes.epoch_fixes(data, p, p["fixes"]),
-                        (p["window"], p["speed_from"]) if p["speed_input"] else None)
+    speed (p["window"], p["speed_from"]; the run's velocity pass, shared with its velocity cells)."""
+    table = fixes.epoch_fixes(data, p, p["fixes"])
+    t, xy = _table_arrays(table)
+    speed = _run_velocity_pass(data, p)[2] if p["speed_input"] else np.full(len(t), np.nan)
+    return FixSource(t, xy, speed)
 
 
 def kalman_tracks(datas: list[RunData], params: list[dict]) -> list[core.Track]:

@@ -4,6 +4,10 @@ State x (n,), covariance P (n, n), transition F, process noise Q, observation H,
   predict:  x <- F x (+ B u),        P <- F P F^T + Q
   update:   y = z - H x,  S = H P H^T + R,  K = P H^T S^-1
             x <- x + K y,  P <- (I - K H) P (I - K H)^T + K R K^T      (Joseph form)
+For a diagonal R (independent measurements, e.g. a bank's padded ranges / RSS values),
+diagonal_update computes the same update in information form with only n x n matrices:
+  P <- (P^-1 + H^T R^-1 H)^-1 = (I + P H^T R^-1 H)^-1 P,  x <- x + P H^T R^-1 y,  NIS = y^T R^-1 (y - H (x+ - x))
+(the Woodbury identity S^-1 = R^-1 - R^-1 H P+ H^T R^-1); equal to joseph_update up to rounding.
 The attribute names follow filterpy.kalman.KalmanFilter so results can be compared
 one to one; the innovation y, its covariance S and NIS = y^T S^-1 y of the last update
 are kept for diagnostics. An update with a singular S or a non-finite result (real data:
@@ -90,6 +94,47 @@ def joseph_update(x: np.ndarray, P: np.ndarray, y: np.ndarray, H: np.ndarray, R:
         x_new = np.where(ok[..., None], x_new, x)
         P_new = np.where(ok[..., None, None], P_new, P)
     return Update(x_new, P_new, S, S_inv, K, ok)
+
+
+class DiagonalUpdate(NamedTuple):
+    """What diagonal_update computes: the posterior x, P, the NIS y^T S^-1 y (NaN where skipped)
+    and `ok` (...,), False where the update is not finite (x, P then keep the prior)."""
+
+    x: np.ndarray
+    P: np.ndarray
+    nis: np.ndarray
+    ok: np.ndarray
+
+
+def diagonal_update(x: np.ndarray, P: np.ndarray, y: np.ndarray, H: np.ndarray, r: np.ndarray) -> DiagonalUpdate:
+    """The Kalman measurement update of joseph_update for a diagonal R = diag(r), r (..., m) the
+    variances (> 0; a padded row with H = 0, y = 0 and r = 1 changes nothing), in information form
+    (module docstring): P+ = (P^-1 + H^T R^-1 H)^-1, computed as the solution of
+    (I + P H^T R^-1 H) P+ = P (no inverse of P, which may be singular) and symmetrised,
+    x+ = x + P+ H^T R^-1 y,
+    NIS = y^T R^-1 e with the post-fit residual e = y - H (x+ - x) (= R S^-1 y). Mathematically
+    the same as joseph_update (equal to rounding, tests/test_filter_numerics.py); it solves one
+    n x n system instead of inverting the m x m S, which for a bank's padded epochs (m up to a
+    few dozen, n = 4) is most of the cost. Where the result is not finite, that batch entry falls
+    back to joseph_update (same guards: ok False only where it too is not finite)."""
+    HtRinv = np.swapaxes(H, -1, -2) / r[..., None, :]
+    try:                                          # (P^-1 + A)^-1 = (I + P A)^-1 P: one solve, no P^-1
+        P_new = np.linalg.solve(np.eye(x.shape[-1]) + P @ (HtRinv @ H), P)
+        P_new = 0.5 * (P_new + np.swapaxes(P_new, -1, -2))          # symmetric as a covariance is
+    except np.linalg.LinAlgError:
+        P_new = np.full(np.broadcast_shapes(P.shape, HtRinv.shape[:-2] + P.shape[-2:]), np.nan)
+    step = (P_new @ (HtRinv @ y[..., None]))[..., 0]                 # K y, K = P+ H^T R^-1
+    x_new = x + step
+    e = y - (H @ step[..., None])[..., 0]
+    nis_new = (y * e / r).sum(axis=-1)
+    ok = np.isfinite(x_new).all(axis=-1) & np.isfinite(P_new).all(axis=(-2, -1)) & np.isfinite(nis_new)
+    if not ok.all():                              # rare: the covariance form decides these entries
+        full = joseph_update(x, P, y, H, r[..., None] * np.eye(r.shape[-1]))
+        x_new = np.where(ok[..., None], x_new, full.x)
+        P_new = np.where(ok[..., None, None], P_new, full.P)
+        nis_new = np.where(ok, nis_new, np.where(full.ok, nis(y, full.S_inv), np.nan))
+        ok = ok | full.ok
+    return DiagonalUpdate(x_new, P_new, nis_new, ok)
 
 
 def nis(y: np.ndarray, S_inv: np.ndarray) -> np.ndarray:

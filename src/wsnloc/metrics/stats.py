@@ -217,13 +217,14 @@ def error_summary(errors) -> dict[str, float]:
     if len(e) == 0:
         return {k: float("nan") if k != "n" else 0.0 for k in ERROR_STATS}
     a = np.abs(e)
+    p75, p90, p95 = np.percentile(a, [75, 90, 95])    # one partition; each value as np.percentile(a, q)
     return {
         "rmse": float(np.sqrt(np.mean(e**2))),
         "mean": float(a.mean()),
         "median": float(np.median(a)),
-        "p75": float(np.percentile(a, 75)),
-        "p90": float(np.percentile(a, 90)),
-        "p95": float(np.percentile(a, 95)),
+        "p75": float(p75),
+        "p90": float(p90),
+        "p95": float(p95),
         "max": float(a.max()),
         "n": float(len(e)),
     }

@@ -129,7 +129,7 @@ def cell_metrics(scored: pd.DataFrame, keys: list[str], truth: pd.DataFrame) -> 
     """RUN_METRICS of each cell (group of `keys`, in order of first appearance; rows with a
     missing key are left out) of one run's scored estimates. The cells are index arrays into
     the columns (no sub-frame per cell); the truth span is read once."""
-    span, (names, cells) = truth_span(truth), _cell_rows(scored, keys)
+    span, (names, cells) = truth_span(truth), cell_rows(scored, keys)
     t, x, y, error, true_x, true_y = (scored[c].to_numpy(float) for c in ("t", "x", "y", "error_m", "true_x", "true_y"))
     finite = np.isfinite(x) & np.isfinite(y)
     records = [{**dict(zip(keys, name)), **error_summary(error[rows]),
@@ -139,7 +139,7 @@ def cell_metrics(scored: pd.DataFrame, keys: list[str], truth: pd.DataFrame) -> 
     return pd.DataFrame(records, columns=keys + list(RUN_METRICS) + ["rmse_moving"])
 
 
-def _cell_rows(frame: pd.DataFrame, keys: list[str]) -> tuple[list[tuple], list[np.ndarray]]:
+def cell_rows(frame: pd.DataFrame, keys: list[str]) -> tuple[list[tuple], list[np.ndarray]]:
     """(key values, row positions (ascending)) of each group of `keys`, in groupby(keys,
     sort=False) order (first appearance); rows with a missing key are in none. Each key
     column is factorized once (code -1: missing); a row's group is its codes combined,
