@@ -25,9 +25,11 @@ ENV = "../envs/wsnloc.yaml"
 # serial tail), then papers A, C and D (5-15 s each: estimators, then tables and figures) and
 # the geometry job (floor plans, static bounds). The study summaries wait for their scenarios:
 # paper B, the shortest paper job, comes last so that it runs beside them instead of leaving a
-# core idle before the report. Opt-in analyses (subset Monte Carlo) run after the papers.
+# core idle before the report. The data summaries run beside the papers: the ranging validation
+# waits for them, so a summary left to the end made a chain of two jobs before the report.
+# Opt-in analyses (subset Monte Carlo) run after the papers.
 PRIORITY = {"simulate_newcom": 6, "simulate_cricket": 5, "ingest": 5, "study": 5, "paper": 4, "geometry": 4,
-            "opt_in": 3, "summary": 2, "last_paper": 2}
+            "data_summary": 4, "opt_in": 3, "summary": 2, "last_paper": 2}
 RAW_FILES = {"newcom": ["uwb.log", "zigbee.log", "imu.log", "truth.log"],
              "cricket": ["listener.log", "imu.log", "truth.log"]}
 SIMULATED = [name for name, d in config["datasets"].items() if d["source"] == "simulate"]

@@ -19,7 +19,7 @@ for _dataset, _spec in config["datasets"].items():
             [path for task in _summaries for path in task["outputs"].values()],
         params:
             tasks=_summaries,
-        priority: PRIORITY["summary"]
+        priority: PRIORITY["data_summary"]
         log:
             f"logs/summarize_data/{_dataset}.log",
         conda:
