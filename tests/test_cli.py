@@ -78,5 +78,7 @@ def test_estimate_tracks_in_3d_where_the_campaign_declares_varying_heights():
     assert dimensions_for(flight, p, set())["dimensions"] == 3
     assert dimensions_for(flight, p, {"dimensions"}) == p and dimensions_for(campaign, p, set()) == p
     assert dimensions_for(flight, {"motion": "pv"}, set()) == {"motion": "pv"}      # no such parameter
+    for planar_only in ("pva", "odometry"):                                          # no 3-D state
+        assert dimensions_for(flight, dict(p, motion=planar_only), {"motion"})["dimensions"] == 2
     flight.path = TagPath(flight.path.points, flight.path.corner_radius, [[0.0, 1.0], [10.0, 1.0 + VARYING_HEIGHT_M / 2]])
     assert dimensions_for(flight, p, set()) == p

@@ -153,3 +153,29 @@ def test_paper_c_models_on_a_simulated_cricket_run(tmp_path):
     assert metrics["rmse"].max() < 1.0
     inputs = epoch_inputs(floor_input(data, 4.0), np.arange(10.5, 30.0, 0.5))
     assert inputs.shape == (39, 2) and np.isfinite(inputs).all()
+
+
+def test_ekf_update_model_takes_a_model_with_h_and_jacobian_only():
+    """A user's model without linearise(x) (z, h, jacobian, R) updates the EKF exactly as the
+    library's model with it (linearise gives h and H from one geometry evaluation)."""
+    class Plain:
+        def __init__(self, inner, z):
+            self.inner, self.z = inner, z
+
+        def h(self, x):
+            return self.inner.h(x)
+
+        def jacobian(self, x):
+            return self.inner.jacobian(x)
+
+        def R(self):
+            return self.inner.R()
+
+    inner = RangeModel(ANCHORS, np.full(4, 0.3))
+    z = np.array([3.1, 6.2, 4.4, 9.0])
+    ours, plain = (ExtendedKalmanFilter(np.array([2.0, 3.0, 0.1, 0.0]), np.eye(4), np.eye(4), np.eye(4) * 0.01)
+                   for _ in range(2))
+    inner.z = z
+    ours.update_model(inner)
+    plain.update_model(Plain(inner, z))
+    assert np.array_equal(ours.x, plain.x) and np.array_equal(ours.P, plain.P)

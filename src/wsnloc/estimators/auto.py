@@ -112,10 +112,13 @@ VARYING_HEIGHT_M = 0.5      # m: a declared tag height that varies by less is a 
 
 def dimensions_for(campaign, p: dict, explicit: set[str]) -> dict:
     """The parameters with `dimensions: 3` where the estimator has the key at 2, it was not set
-    explicitly and the campaign's path declares tag heights varying by VARYING_HEIGHT_M or more
-    (the set-up, never the truth); else p unchanged."""
+    explicitly, its motion model has a 3-D state (motion.THREE_D; e.g. not pva or odometry) and the
+    campaign's path declares tag heights varying by VARYING_HEIGHT_M or more (the set-up, never the
+    truth); else p unchanged."""
+    from wsnloc.estimators.motion import THREE_D
+
     heights = getattr(getattr(campaign, "path", None), "heights", None)
-    if p.get("dimensions") != 2 or "dimensions" in explicit or heights is None \
-            or np.ptp(heights[:, 1]) < VARYING_HEIGHT_M:
+    if p.get("dimensions") != 2 or "dimensions" in explicit or p.get("motion", "pv") not in THREE_D \
+            or heights is None or np.ptp(heights[:, 1]) < VARYING_HEIGHT_M:
         return p
     return dict(p, dimensions=3)

@@ -197,6 +197,7 @@ class ExtendedKalmanFilter(KalmanFilter):
         self.update(z, H=jacobian(self.x), R=R, hx=h(self.x))
 
     def update_model(self, model) -> None:
-        """Update with a measurement model object (z, linearise(x) -> (h(x), H), R())."""
-        hx, H = model.linearise(self.x)
+        """Update with a measurement model object (z, R() and linearise(x) -> (h(x), H), or h(x)
+        and jacobian(x) for a model without linearise)."""
+        hx, H = model.linearise(self.x) if hasattr(model, "linearise") else (model.h(self.x), model.jacobian(self.x))
         self.update(model.z, H=H, R=model.R(), hx=hx)
