@@ -117,7 +117,7 @@ def _tdoa_information(data: RunData, source, times: np.ndarray, p: dict):
         bounds = records.groups()
         steps = np.union1d(records.t, times)
         outputs = np.searchsorted(steps, times)
-        models = [source.model(*records.split(a, b)) for a, b in zip(bounds[:-1], bounds[1:])]
+        models = source.group_models            # the filters' own models of the record groups (built once per source)
         step_of = np.searchsorted(steps, records.t[bounds[:-1]])
     position = _truth_at(data, steps)
     information = np.zeros((len(steps), 3))

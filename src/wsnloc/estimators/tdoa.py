@@ -12,7 +12,7 @@ The initiator's fix is the hyperbolic solver (geometry.hyperbolic: Chan's closed
 Gauss-Newton) on the per-pair means of the initiator window.
 
 `TdoaSource` offers the interface the filter loops use of a measurement source
-(estimators.core, bayes): records(), model(*records.split(a, b)), group_models(), window_fix(t, window),
+(estimators.core, bayes): records(), model(*records.split(a, b)), group_models (cached), window_fix(t, window),
 epoch_models(times, period) and `correction`, the range calibration (range_calibration:
 scale and per-anchor offsets, donor-fitted or configured) applied to the differences.
 """
