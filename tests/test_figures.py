@@ -32,7 +32,7 @@ def stacked_figure(height: float = 3.8):
     fig, axes = plt.subplots(len(panels), 1, figsize=(8, height * len(panels)), squeeze=False)
     for ax, args in zip(axes[:, 0], panels):
         bound_figures._draw_pcrb(ax, *args)
-    bound_figures._fit_slots(fig, list(axes[:, 0]), height)
+    bound_figures._fit_slots(fig, list(axes[:, 0]), [height] * len(panels))
     return fig, list(axes[:, 0])
 
 
@@ -87,10 +87,33 @@ def test_fitted_figures_are_saved_as_laid_out(panels):
 def test_stacked_consistency_panels_record_no_overlaps():
     t = np.arange(200) * 0.5
     test = consistency_test(np.random.default_rng(0).chisquare(4, size=(10, 200)), 4)
-    png = bound_figures.consistency_panels([(t, test, "ANEES", f"cell {i}") for i in range(4)])
+    other = consistency_test(np.random.default_rng(1).chisquare(4, size=(6, 200)), 4)     # another band
+    panels = [(t, test, "ANEES", f"site: cell {i} [all]") for i in range(4)] + [(t, other, "ANEES", "other")]
+    png = bound_figures.consistency_panels(panels)
     image = Image.open(io.BytesIO(png))
-    assert image.size == (8 * PNG_DPI, round(4 * 3.6 * PNG_DPI))
+    rows = 1 + 4                                      # the band, one line per cell (one column)
+    height = (3.6 + bound_figures.LEGEND_ROW_IN * (rows - 2) + 3.6) * PNG_DPI     # two panels
+    assert image.size[0] == 8 * PNG_DPI and abs(image.size[1] - height) < 1
     assert image.text[OVERLAPS_KEY] == "[]"
+
+
+def test_cells_sharing_a_bound_or_band_share_a_panel():
+    t = np.arange(20) * 0.5
+    bound = np.full(20, 0.2)
+    panels = [(t, {"ekf": np.full(20, 0.3)}, bound, "PV", "site: ekf [all], 2 runs"),
+              (t, {"ukf": np.full(20, 0.4)}, bound.copy(), "PV", "site: ukf [all], 2 runs"),
+              (t, {"pf": np.full(20, 0.4)}, bound * 1.01, "PV", "site: pf [all], 2 runs"),     # its own bound
+              (t, {"tracker": np.full(20, 0.4)}, bound, "P", "site: tracker [all], 2 runs")]  # another model
+    merged = bound_figures.merged_pcrb_panels(panels)
+    assert [p[4] for p in merged] == ["site: ekf, ukf [all], 2 runs", "site: pf [all], 2 runs",
+                                      "site: tracker [all], 2 runs"]
+    assert list(merged[0][1]) == ["ekf", "ukf"] and merged[0][2] is bound
+    test = consistency_test(np.random.default_rng(0).chisquare(2, size=(5, 20)), 2)
+    anees = [(t, test, "ANEES", "site: ekf [all], 2 runs"), (t, test, "ANEES", "site: ukf [all], 2 runs"),
+             (t, test, "ANIS", "site: ekf [all], 2 runs")]
+    merged = bound_figures.merged_consistency_panels(anees)
+    assert [(p[3], list(p[1]), p[2]) for p in merged] == [("site [all], 2 runs", ["ekf", "ukf"], "ANEES"),
+                                                          ("site: ekf [all], 2 runs", [""], "ANIS")]
 
 
 
@@ -288,7 +311,7 @@ def test_panel_box_without_spines_is_matplotlibs_tight_box(kind):
         fig, axes = plt.subplots(2, 1, figsize=(8, 7.2), squeeze=False)
         axes = list(axes[:, 0])
         for ax in axes:
-            bound_figures._draw_consistency(ax, t, test, "ANEES", "cell")
+            bound_figures._draw_consistency(ax, t, {"": test}, "ANEES", "cell")
         fig.set_dpi(PNG_DPI)
     renderer = fig.canvas.get_renderer()
     for ax in axes:

@@ -3,6 +3,7 @@ ANEES / ANIS with their chi-square band. Each function returns PNG bytes."""
 
 from __future__ import annotations
 
+import os
 import textwrap
 
 import matplotlib as mpl
@@ -21,8 +22,9 @@ LEGEND_DROP_IN = 0.45      # inches from the bottom of the axes to the legend, b
 TITLE_WRAP_CHARS = 90      # a 9 pt title line of this many characters fits the 8 in wide figure
 
 
-def _finish_time_axes(ax, ylabel: str, title: str) -> None:
-    """Labels, grid, plain tick numbers and the legend below the axes (clear of the curves)."""
+def _finish_time_axes(ax, ylabel: str, title: str, columns: int = 2) -> int:
+    """Labels, grid, plain tick numbers and the legend below the axes (clear of the curves),
+    in `columns` columns; returns its number of rows."""
     ax.set_xlabel("t [s]")
     ax.set_ylabel(ylabel)
     ax.set_title(title, fontsize=9)
@@ -35,8 +37,9 @@ def _finish_time_axes(ax, ylabel: str, title: str) -> None:
     else:
         _minor_log_grid(ax, low, high)
     below = ScaledTranslation(0.0, -LEGEND_DROP_IN, ax.figure.dpi_scale_trans)
-    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, 0.0), bbox_transform=ax.transAxes + below,
-              ncol=2, frameon=False)
+    legend = ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, 0.0),
+                       bbox_transform=ax.transAxes + below, ncol=columns, frameon=False)
+    return -(-len(legend.legend_handles) // columns)
 
 
 def _minor_log_label(value: float, _position=None) -> str:
@@ -102,40 +105,112 @@ def bound_maps(campaign: Campaign, anchors: pd.DataFrame | dict[str, pd.DataFram
     return to_png(fig)
 
 
-def _draw_pcrb(ax, t, rmse: dict[str, np.ndarray], sqrt_pcrb: np.ndarray, bound_model: str, title: str) -> None:
+def _draw_pcrb(ax, t, rmse: dict[str, np.ndarray], sqrt_pcrb: np.ndarray, bound_model: str, title: str) -> int:
+    """RMSE curves (m) of one or more estimators over t (s) and the sqrt(PCRB) (m) they share;
+    returns the rows of the legend."""
     for label, values in rmse.items():
         ax.plot(t, values, lw=1.2, label=f"{label} RMSE")
     ax.plot(t, sqrt_pcrb, color="k", lw=1.8, ls="--", label="sqrt(PCRB)")
     ax.set_yscale("log")
-    _finish_time_axes(ax, "position error [m]",
+    return _finish_time_axes(ax, "position error [m]",
                       f"{title}\n" + textwrap.fill(f"bound for: {bound_model}", TITLE_WRAP_CHARS))
 
 
-def _draw_consistency(ax, t, test: ConsistencyTest, statistic: str, title: str) -> None:
-    ax.fill_between(t, test.low, test.high, color="tab:green", alpha=0.25, lw=0, label="95% band")
-    ax.plot(t, test.average, color="tab:blue", lw=1.0, label=statistic)
-    ax.axhline(test.time_average, color="tab:red", lw=1.2,
-               label=f"time average {test.time_average:.2f} "
-                     f"(band {test.time_low:.2f}-{test.time_high:.2f}): {test.verdict}")
+def _draw_consistency(ax, t, tests: dict[str, ConsistencyTest], statistic: str, title: str) -> int:
+    """The statistic (ANEES or ANIS) of one or more estimators (label -> test, all with the
+    same 95% band over t in s) and each one's time average as a horizontal line (one
+    estimator: red; several: dotted, of the curve's colour), that average with its band and
+    verdict in the legend. Returns the rows of the legend."""
+    band = next(iter(tests.values()))
+    ax.fill_between(t, band.low, band.high, color="tab:green", alpha=0.25, lw=0, label="95% band")
+    for k, (label, test) in enumerate(tests.items()):
+        average = (f"time average {test.time_average:.2f} "
+                   f"(band {test.time_low:.2f}-{test.time_high:.2f}): {test.verdict}")
+        if len(tests) == 1:
+            ax.plot(t, test.average, color="tab:blue", lw=1.0, label=statistic)
+            ax.axhline(test.time_average, color="tab:red", lw=1.2, label=average)
+        else:
+            line, = ax.plot(t, test.average, color=f"C{k}", lw=1.0, label=f"{label}: {average}")
+            ax.axhline(test.time_average, color=line.get_color(), lw=1.2, ls=":")
     ax.set_yscale("log")
-    _finish_time_axes(ax, statistic, title)
+    return _finish_time_axes(ax, statistic, title, columns=2 if len(tests) == 1 else 1)
+
+
+def _label_parts(titles: list[str]) -> tuple[str, list[str], str]:
+    """Titles of panels that differ only in their cell's name, split at spaces into the common
+    head, each title's own middle and the common tail: ("s: ekf [all]", "s: ukf [all]") ->
+    ("s: ", ["ekf", "ukf"], " [all]"). One title: (title, [""], "")."""
+    if len(titles) == 1:
+        return titles[0], [""], ""
+    head = os.path.commonprefix(titles)
+    head = head[:head.rfind(" ") + 1]
+    tail = os.path.commonprefix([title[len(head):][::-1] for title in titles])[::-1]
+    tail = tail[tail.find(" "):] if " " in tail else ""
+    return head, [title[len(head):len(title) - len(tail)] for title in titles], tail
+
+
+def _same(a, b) -> bool:
+    """Equal arrays (NaN equal to NaN, up to rounding)."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return a.shape == b.shape and bool(np.allclose(a, b, rtol=1e-9, atol=0.0, equal_nan=True))
+
+
+def _runs(panels: list[tuple], shared) -> list[list[tuple]]:
+    """Consecutive panels grouped while shared(first panel of the group, panel) holds."""
+    groups = []
+    for panel in panels:
+        if groups and shared(groups[-1][0], panel):
+            groups[-1].append(panel)
+        else:
+            groups.append([panel])
+    return groups
+
+
+def merged_pcrb_panels(panels: list[tuple]) -> list[tuple]:
+    """Consecutive pcrb panels (t, rmse, sqrt_pcrb, bound_model, title) with the same time
+    grid, bound model and sqrt(PCRB) (cells of one scenario whose bound is the same) as one
+    panel: all their RMSE curves beside the one bound, under a title naming every cell."""
+    merged = []
+    for group in _runs(panels, lambda a, b: a[3] == b[3] and _same(a[0], b[0]) and _same(a[2], b[2])):
+        head, names, tail = _label_parts([panel[4] for panel in group])
+        rmse = {label: values for panel in group for label, values in panel[1].items()}
+        t, _, sqrt_pcrb, bound_model, _ = group[0]
+        merged.append((t, rmse, sqrt_pcrb, bound_model, head + ", ".join(names) + tail))
+    return merged
+
+
+def merged_consistency_panels(panels: list[tuple]) -> list[tuple]:
+    """Consecutive consistency panels (t, test, statistic, title) of one statistic with the
+    same time grid and 95% band (cells of one scenario with the same runs) as one panel of
+    all their curves: (t, {cell name: test}, statistic, common title), the cell name being
+    what sets a title apart from the others of its group ("s: ekf [all]", "s: ukf [all]" ->
+    "s [all]")."""
+    merged = []
+    for group in _runs(panels, lambda a, b: a[2] == b[2] and _same(a[0], b[0]) and _same(a[1].low, b[1].low)
+                       and _same(a[1].high, b[1].high)):
+        head, names, tail = _label_parts([panel[3] for panel in group])
+        title = head.rstrip(" ,:") + tail if len(group) > 1 else head
+        merged.append((group[0][0], dict(zip(names, (panel[1] for panel in group))), group[0][2], title))
+    return merged
 
 
 STACK_PAD_IN = 0.08       # inches between a panel's decorations and the edge of its slot
+LEGEND_ROW_IN = 0.16      # inches a 7 pt legend row takes (its text and spacing)
 
 
 def _stacked(draw, panels: list[tuple], height: float) -> bytes:
-    """One axes per panel (the arguments of draw after the axes), stacked vertically in slots
-    of `height` inches, laid out by _fit_slots (one measuring pass, no layout engine)."""
+    """One axes per panel (the arguments of draw after the axes; draw returns the rows of the
+    legend), stacked vertically in slots of `height` inches plus LEGEND_ROW_IN per legend row
+    beyond the second, laid out by _fit_slots (one measuring pass, no layout engine)."""
     fig, axes = plt.subplots(len(panels), 1, figsize=(8, height * len(panels)), squeeze=False)
-    for ax, args in zip(axes[:, 0], panels):
-        draw(ax, *args)
-    _fit_slots(fig, list(axes[:, 0]), height)
+    heights = [height + LEGEND_ROW_IN * max(0, draw(ax, *args) - 2) for ax, args in zip(axes[:, 0], panels)]
+    fig.set_size_inches(8, sum(heights))
+    _fit_slots(fig, list(axes[:, 0]), heights)
     return to_png(fig, tight=False)
 
 
-def _fit_slots(fig, axes: list, height: float) -> None:
-    """Axes i fills slot i (the i-th band of `height` inches from the top) minus its
+def _fit_slots(fig, axes: list, heights: list[float]) -> None:
+    """Axes i fills slot i (the i-th band from the top, heights[i] inches high) minus its
     decorations: margins m = tight bbox - axes box, measured once (inches); all axes share
     the left edge max(m_left) + pad and the right edge width - max(m_right) - pad, and
     axes i spans [slot bottom + m_below + pad, slot top - m_above - pad].
@@ -150,10 +225,12 @@ def _fit_slots(fig, axes: list, height: float) -> None:
                                  inner.y0 - outer.y0, outer.y1 - inner.y1]) / fig.dpi)
     left = max(m[0] for m in margins) + STACK_PAD_IN
     right = width - max(m[1] for m in margins) - STACK_PAD_IN
-    for i, (ax, (_, _, below, above)) in enumerate(zip(axes, margins)):
-        top = total - i * height - above - STACK_PAD_IN
-        bottom = total - (i + 1) * height + below + STACK_PAD_IN
+    slot_top = total
+    for ax, height, (_, _, below, above) in zip(axes, heights, margins):
+        top = slot_top - above - STACK_PAD_IN
+        bottom = slot_top - height + below + STACK_PAD_IN
         ax.set_position([left / width, bottom / total, (right - left) / width, (top - bottom) / total])
+        slot_top -= height
 
 
 def _decorated_box(ax, renderer):
@@ -175,8 +252,9 @@ def pcrb_vs_rmse(t, rmse: dict[str, np.ndarray], sqrt_pcrb: np.ndarray, bound_mo
 
 @gc_paused
 def pcrb_panels(panels: list[tuple]) -> bytes:
-    """pcrb_vs_rmse for several cells, one panel each: (t, rmse, sqrt_pcrb, bound_model, title)."""
-    return _stacked(_draw_pcrb, panels, 3.8)
+    """pcrb_vs_rmse for several cells (t, rmse, sqrt_pcrb, bound_model, title), one panel per
+    run of cells that share the bound (merged_pcrb_panels)."""
+    return _stacked(_draw_pcrb, merged_pcrb_panels(panels), 3.8)
 
 
 def consistency_over_time(t, test: ConsistencyTest, statistic: str, title: str) -> bytes:
@@ -187,8 +265,9 @@ def consistency_over_time(t, test: ConsistencyTest, statistic: str, title: str) 
 
 @gc_paused
 def consistency_panels(panels: list[tuple]) -> bytes:
-    """consistency_over_time for several cells and statistics: (t, test, statistic, title)."""
-    return _stacked(_draw_consistency, panels, 3.6)
+    """consistency_over_time for several cells and statistics (t, test, statistic, title), one
+    panel per run of cells that share the band (merged_consistency_panels)."""
+    return _stacked(_draw_consistency, merged_consistency_panels(panels), 3.6)
 
 
 def bound_and_anees_figures(bound_panels: list[tuple], consistency: list[tuple],
