@@ -112,6 +112,10 @@ def test_cells_sharing_a_bound_or_band_share_a_panel():
     anees = [(t, test, "ANEES", "site: ekf [all], 2 runs"), (t, test, "ANEES", "site: ukf [all], 2 runs"),
              (t, test, "ANIS", "site: ekf [all], 2 runs")]
     merged = bound_figures.merged_consistency_panels(anees)
+    assert bound_figures._label_parts(["s: 6: B1..B6, P, 10 runs", "s: 6: B1..B6, PV, 10 runs"]) == \
+        ("s: 6: B1..B6, ", ["P", "PV"], ", 10 runs")
+    assert bound_figures._label_parts(["s: Table I, hybrid, 10 runs", "s: Table II, hybrid, 10 runs"]) == \
+        ("s: ", ["Table I", "Table II"], ", hybrid, 10 runs")
     assert [(p[3], list(p[1]), p[2]) for p in merged] == [("site [all], 2 runs", ["ekf", "ukf"], "ANEES"),
                                                           ("site: ekf [all], 2 runs", [""], "ANIS")]
 

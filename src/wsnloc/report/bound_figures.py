@@ -4,6 +4,7 @@ ANEES / ANIS with their chi-square band. Each function returns PNG bytes."""
 from __future__ import annotations
 
 import os
+import re
 import textwrap
 
 import matplotlib as mpl
@@ -137,15 +138,19 @@ def _draw_consistency(ax, t, tests: dict[str, ConsistencyTest], statistic: str, 
 
 
 def _label_parts(titles: list[str]) -> tuple[str, list[str], str]:
-    """Titles of panels that differ only in their cell's name, split at spaces into the common
-    head, each title's own middle and the common tail: ("s: ekf [all]", "s: ukf [all]") ->
-    ("s: ", ["ekf", "ukf"], " [all]"). One title: (title, [""], "")."""
+    """Titles of panels that differ only in their cell's name, split into the common head (up
+    to ": " or ", "), each title's own middle and the common tail (from a space or comma):
+    ("s: ekf [all]", "s: ukf [all]") -> ("s: ", ["ekf", "ukf"], " [all]"),
+    ("s: P, 10 runs", "s: PV, 10 runs") -> ("s: ", ["P", "PV"], ", 10 runs"). One title:
+    (title, [""], "")."""
     if len(titles) == 1:
         return titles[0], [""], ""
     head = os.path.commonprefix(titles)
-    head = head[:head.rfind(" ") + 1]
+    cut = max(head.rfind(": "), head.rfind(", "))
+    head = head[:cut + 2] if cut >= 0 else ""
     tail = os.path.commonprefix([title[len(head):][::-1] for title in titles])[::-1]
-    tail = tail[tail.find(" "):] if " " in tail else ""
+    separator = re.search(r"[ ,]", tail)
+    tail = tail[separator.start():] if separator else ""
     return head, [title[len(head):len(title) - len(tail)] for title in titles], tail
 
 

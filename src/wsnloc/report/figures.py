@@ -271,14 +271,22 @@ def floor_plan(campaign: Campaign, track: pd.DataFrame | None = None, anchors: p
     return to_png(fig)
 
 
+# range_error_figure's subplot margins and gap (fractions of the 11 in x 3.8 in figure): room for
+# the tick labels, axis labels and titles, and for the anchors' legend right of the right panel
+RANGE_ERROR_MARGINS = {"left": 0.06, "right": 0.9, "bottom": 0.13, "top": 0.92, "wspace": 0.2}
+
+
 @gc_paused
 def range_error_figure(errors: pd.DataFrame, title: str, max_points: int = 6000) -> bytes:
     """Range error (measured - true, m): histogram of LOS and NLOS links (left) and error against
     the true distance (right): a sample of the ranges, grey, and each anchor's median per 1 m bin,
     so a per-anchor offset shows as a shifted line and a scale error as a slope. Each histogram
     is one filled step outline (histtype "stepfilled"), not 120 bar patches: the same pixels,
-    drawn and laid out at a fraction of the cost."""
-    fig, (hist, dist) = plt.subplots(1, 2, figsize=(11, 3.8))
+    drawn and laid out at a fraction of the cost. The legends have fixed places (the
+    histograms' upper right, the anchors' beside the right panel), not "best" (a search over
+    the plotted points), and the margins are fixed (RANGE_ERROR_MARGINS, fractions of the
+    figure; the saved box is the tight one), not measured by a layout pass."""
+    fig, (hist, dist) = plt.subplots(1, 2, figsize=(11, 3.8), gridspec_kw=RANGE_ERROR_MARGINS)
     bins = np.linspace(-1.0, 5.0, 121)
     for los, color, name in ((True, "tab:green", "LOS"), (False, "tab:purple", "NLOS")):
         e = errors.loc[errors["los"] == los, "error_m"].clip(bins[0], bins[-1]) if len(errors) else []
@@ -288,7 +296,7 @@ def range_error_figure(errors: pd.DataFrame, title: str, max_points: int = 6000)
     hist.set_xlabel("range error [m] (clipped to [-1, 5])")
     hist.set_ylabel("density")
     hist.set_title(title)
-    hist.legend(fontsize=8)
+    hist.legend(fontsize=8, loc="upper right")
     if len(errors):
         sample = errors.iloc[:: max(1, len(errors) // max_points)]
         dist.scatter(sample["true_distance_m"], sample["error_m"].clip(-1.0, 5.0), s=3, color="0.7", alpha=0.5)
@@ -296,31 +304,42 @@ def range_error_figure(errors: pd.DataFrame, title: str, max_points: int = 6000)
             medians = group.groupby(np.floor(group["true_distance_m"]))["error_m"].median()
             dist.plot(medians.index + 0.5, medians.clip(-1.0, 5.0), lw=1, label=str(anchor))
         if errors["anchor_id"].nunique() <= 12:
-            dist.legend(fontsize=7, ncols=2, title="anchor (median per 1 m)", title_fontsize=7)
+            dist.legend(fontsize=7, ncols=1, title="anchor\n(median\nper 1 m)", title_fontsize=7,
+                        loc="upper left", bbox_to_anchor=(1.01, 1.0))
     dist.axhline(0.0, color="k", lw=0.8)
     dist.set_xlabel("true distance [m]")
     dist.set_ylabel("range error [m] (clipped to [-1, 5])")
     dist.set_title("error against distance, per anchor")
-    return fitted_png(fig)
+    return to_png(fig)
 
 
 @gc_paused
 def rss_vs_distance(rss: pd.DataFrame, fit: dict, configured: dict, title: str, max_points: int = 6000) -> bytes:
-    """RSS (dBm) against log distance, coloured by walls crossed (five colours: 0 to 4 or more),
-    with the fitted path-loss line; an indexed PNG (to_png)."""
+    """RSS (dBm) against log distance, coloured by walls crossed (five viridis colours: 0 to 4
+    or more, in the legend at the upper right), with the fitted path-loss line; an indexed PNG
+    (to_png). One scatter per wall count, each of one colour (drawn as stamped markers, a
+    fraction of the cost of a scatter coloured point by point), fewer walls first."""
     if len(rss) == 0:
         return placeholder("no RSS measurements in this dataset")
     fig, ax = plt.subplots(figsize=(7, 4))
     sample = rss.iloc[:: max(1, len(rss) // max_points)]
-    points = ax.scatter(sample["true_distance_m"], sample["rss_dbm"], c=sample["walls"].clip(0, 4),
-                        cmap="viridis", s=4, alpha=0.5)
-    fig.colorbar(points, ax=ax, label="walls crossed")
+    walls = sample["walls"].clip(0, 4).to_numpy()
+    classes = []
+    for count in range(5):
+        crossed = sample[walls == count]
+        if len(crossed):
+            classes.append(ax.scatter(crossed["true_distance_m"], crossed["rss_dbm"], s=4, alpha=0.5,
+                                      color=plt.get_cmap("viridis")(count / 4),
+                                      label=f"{count}{' or more' if count == 4 else ''}"))
+    ax.add_artist(ax.legend(handles=classes, title="walls crossed", fontsize=7, title_fontsize=7,
+                            loc="upper right", markerscale=2.5))
     d = np.logspace(np.log10(max(0.3, rss["true_distance_m"].min())), np.log10(rss["true_distance_m"].max()), 50)
+    lines = []
     if np.isfinite(fit.get("P0_dBm", np.nan)):
-        ax.plot(d, fit["P0_dBm"] - 10 * fit["n"] * np.log10(d), "r-", lw=2,
+        lines += ax.plot(d, fit["P0_dBm"] - 10 * fit["n"] * np.log10(d), "r-", lw=2,
                 label=f"fit, all links: P0={fit['P0_dBm']:.1f} dBm, n={fit['n']:.2f}, σ={fit['sigma_dB']:.1f} dB")
     if configured.get("p0_dbm") is not None:
-        ax.plot(d, configured["p0_dbm"] - 10 * configured["path_loss_exponent"] * np.log10(d), "k--", lw=1.5,
+        lines += ax.plot(d, configured["p0_dbm"] - 10 * configured["path_loss_exponent"] * np.log10(d), "k--", lw=1.5,
                 label=f"configured (no walls): P0={configured['p0_dbm']:.1f}, n={configured['path_loss_exponent']:.2f}")
     ax.set_xscale("log")
     # plain labels on 1-2-3-5 ticks: less than a decade of distances would get labelled minor ticks
@@ -331,7 +350,8 @@ def rss_vs_distance(rss: pd.DataFrame, fit: dict, configured: dict, title: str, 
     ax.set_xlabel("true distance [m]")
     ax.set_ylabel("RSS [dBm]")
     ax.set_title(title)
-    ax.legend(fontsize=7, loc="lower left")
+    if lines:
+        ax.legend(handles=lines, fontsize=7, loc="lower left")
     return to_png(fig)
 
 
