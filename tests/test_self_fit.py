@@ -30,10 +30,24 @@ def _median(tables, overrides=None):
     return run_metrics(score(estimates, tables["truth"]), tables["truth"])["median"], estimates
 
 
-@pytest.mark.parametrize("seed", [1, 2])
+# Seeds 3 and 7 fail the 1.3x line (measured 1.38x and 1.42x): the scale is found (1.068, 1.069) but
+# the offsets are fitted against the augmented pass's track, which absorbed part of them, and the
+# window-projection least squares of range_correction undoes that only roughly on ranges one anchor at
+# a time (1 s windows hold 2-4 ranges; even against the true track it leaves 0.04-0.08 m): offset
+# errors up to 0.13 m (seed 3: +0.09/+0.13/-0.06/-0.03; seed 7: -0.12/+0.09/+0.14/-0.01 m) on a clean
+# median of 0.12-0.14 m. With the true scale and offsets the median is the clean one (0.135/0.113 m);
+# one refit of the offsets on the corrected track brings 1.10x/1.03x but costs a full pass (issue 28's
+# 3x budget). Open, reported to the lead; strict, so a fix turns them into failures to re-mark.
+KNOWN_OFFSET_FIT_FAILURES = {3: "1.38x: offsets off by up to 0.13 m (see above)",
+                             7: "1.42x: offsets off by up to 0.14 m (see above)"}
+
+
+@pytest.mark.parametrize("seed", [pytest.param(s, marks=pytest.mark.xfail(strict=True, reason=KNOWN_OFFSET_FIT_FAILURES[s]))
+                                  if s in KNOWN_OFFSET_FIT_FAILURES else s for s in range(1, 9)])
 def test_default_tracker_absorbs_a_seven_percent_scale_offsets_and_two_gaps(seed):
     """Acceptance: median within 1.3x of the same run without the errors, gated share < 5%,
-    restarts <= gaps; the scale and the offsets found."""
+    restarts <= gaps; the scale and the offsets found. Seeds 1-8 measured: 1.04, 1.11, 1.38, 1.16,
+    1.12, 1.01, 1.42, 1.15x (3 and 7 fail: KNOWN_OFFSET_FIT_FAILURES)."""
     clean, _ = _median(_run(seed))
     median, estimates = _median(_run(seed, scale=1.07, offsets=OFFSETS))
     assert median <= 1.3 * clean

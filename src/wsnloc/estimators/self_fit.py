@@ -75,8 +75,12 @@ and tracked the noise (1.33x the best sigma of a grid on a synthetic walk); now 
 hardly depends on where the configured values start.
 
 Cost: one augmented pass (step 1), four passes on 12% of the run (five where the correction
-passes the first test), one full pass and the fits:
-about 2.7x one plain pass in CPU time on the shared real cases (benchmarks/realdata.py); on
+passes the first test), one full pass and the fits (the offsets' window projections batched by
+anchor count: 0.02 s a fit on a real case, was 0.1 s): 2.5-3.4x one plain pass in CPU time on the
+shared real cases (best of 3, on a loaded machine; benchmarks/realdata.py prints it per case), the
+3x of issue 28 not met on every case; on a synthetic run ranged one anchor at a time (340 s at
+4 Hz, tests/test_self_fit.py) 2.9x without range errors, 3.6-4.0x where the correction is applied
+(the fixed costs weigh more on a short run); on
 range differences two full passes in step 1 (the offsets are fitted twice). For the UKF,
 particle filter and smoothers the fitting passes are EKF passes, so the overhead is that of
 the EKF's (about 1.7 EKF passes) on top of their own single pass.
@@ -167,18 +171,14 @@ def range_correction(data, estimates: pd.DataFrame, p: dict, scale: float) -> di
     unit = diff / np.maximum(samples["true_distance_m"].to_numpy(float), 1e-3)[:, None]
     window = np.floor((samples["t"].to_numpy(float) - samples["t"].min()) / WINDOW_S).astype(int)
     frame = pd.DataFrame({"w": window, "a": column, "e": error, "ux": unit[:, 0], "uy": unit[:, 1]})
-    means = frame.groupby(["w", "a"]).median().reset_index()
+    means = frame.groupby(["w", "a"]).median().reset_index()     # sorted by window, then anchor
     m = len(anchors)
     G, g = np.zeros((m, m)), np.zeros(m)
-    for _, rows in means.groupby("w"):
-        if len(rows) < 3:
-            continue
-        a, H = rows["a"].to_numpy(), rows[["ux", "uy"]].to_numpy()
-        if np.linalg.svd(H, compute_uv=False)[-1] < MIN_SPREAD:
-            continue                    # anchors seen in nearly one direction: a shift along it is a bias
-        project = np.eye(len(a)) - H @ np.linalg.pinv(H)
-        G[np.ix_(a, a)] += project
-        g[a] += project @ rows["e"].to_numpy()
+    for a, H, e in _windows(means["w"].to_numpy(), means["a"].to_numpy(), means[["ux", "uy"]].to_numpy(),
+                            means["e"].to_numpy()):
+        project = np.eye(a.shape[1]) - H @ np.linalg.solve(np.swapaxes(H, 1, 2) @ H, np.swapaxes(H, 1, 2))
+        np.add.at(G, (a[:, :, None], a[:, None, :]), project)
+        np.add.at(g, a, np.einsum("wij,wj->wi", project, e))
     medians = pd.Series(error).groupby(column).median().to_numpy()
     if np.linalg.cond(G) < MAX_CONDITION:
         offsets = np.linalg.solve(G, g)
@@ -186,6 +186,24 @@ def range_correction(data, estimates: pd.DataFrame, p: dict, scale: float) -> di
         offsets = medians
     return {"scale": scale, "offsets_m": {str(a): float(b) for a, b in zip(anchors, offsets)},
             "parameters": 1 + len(anchors), "source": "self-fitted on the run (two-pass)"}
+
+
+def _windows(w: np.ndarray, a: np.ndarray, H: np.ndarray, e: np.ndarray):
+    """The windows of range_correction with >= 3 anchors ranged in directions spread enough to fix
+    a position (smallest singular value of H >= MIN_SPREAD), batched by their anchor count k: per k,
+    (a (N, k) anchor columns, H (N, k, 2) unit vectors, e (N, k) median residuals); rows sorted by
+    window w (N windows of k rows each)."""
+    starts = np.flatnonzero(np.r_[True, w[1:] != w[:-1]])
+    sizes = np.diff(np.r_[starts, len(w)])
+    for k in np.unique(sizes[sizes >= 3]):
+        rows = starts[sizes == k][:, None] + np.arange(k)[None, :]
+        Hk = H[rows]
+        gram = np.swapaxes(Hk, 1, 2) @ Hk                   # H'H (N, 2, 2): its eigenvalues are H's singular values^2
+        half_trace = 0.5 * (gram[:, 0, 0] + gram[:, 1, 1])
+        smallest = half_trace - np.sqrt(np.maximum(half_trace**2 - np.linalg.det(gram), 0.0))
+        spread = smallest >= MIN_SPREAD**2          # else anchors seen in nearly one direction: a shift along it is a bias
+        if spread.any():
+            yield a[rows[spread]], Hk[spread], e[rows[spread]]
 
 
 def _tdoa_track_residuals(data, estimates: pd.DataFrame, p: dict) -> pd.DataFrame | None:
