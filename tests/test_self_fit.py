@@ -36,7 +36,7 @@ def _median(tables, overrides=None):
 # a time (1 s windows hold 2-4 ranges; even against the true track it leaves 0.04-0.08 m): offset
 # errors up to 0.13 m (seed 3: +0.09/+0.13/-0.06/-0.03; seed 7: -0.12/+0.09/+0.14/-0.01 m) on a clean
 # median of 0.12-0.14 m. With the true scale and offsets the median is the clean one (0.135/0.113 m);
-# one refit of the offsets on the corrected track brings 1.10x/1.03x but costs a full pass (issue 28's
+# one refit of the offsets on the corrected track inside the two-pass run brings 1.12x/1.06x but costs a full pass (issue 28's
 # 3x budget). Open, reported to the lead; strict, so a fix turns them into failures to re-mark.
 KNOWN_OFFSET_FIT_FAILURES = {3: "1.38x: offsets off by up to 0.13 m (see above)",
                              7: "1.42x: offsets off by up to 0.14 m (see above)"}
