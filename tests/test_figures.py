@@ -120,6 +120,22 @@ def test_cells_sharing_a_bound_or_band_share_a_panel():
                                                           ("site: ekf [all], 2 runs", [""], "ANIS")]
 
 
+def test_the_same_estimator_in_two_tables_keeps_both_curves_under_one_bound():
+    """Paper A's hybrid EKF in Table I and Table II: the same bound and the same curve label.
+    Merged into one panel, one curve would hide under the other's label; each keeps a panel."""
+    t = np.arange(20) * 0.5
+    bound = np.full(20, 0.2)
+    first, second = np.full(20, 0.3), np.full(20, 0.5)
+    panels = [(t, {"hybrid": first}, bound, "PV", "s: Table I, hybrid, 10 runs"),
+              (t, {"hybrid": second}, bound, "PV", "s: Table II, hybrid, 10 runs")]
+    merged = bound_figures.merged_pcrb_panels(panels)
+    assert [(p[4], p[1]["hybrid"][0]) for p in merged] == [("s: Table I, hybrid, 10 runs", 0.3),
+                                                           ("s: Table II, hybrid, 10 runs", 0.5)]
+    test = consistency_test(np.random.default_rng(0).chisquare(2, size=(5, 20)), 2)
+    same_title = [(t, test, "ANEES", "s: ekf [all]"), (t, test, "ANEES", "s: ekf [all]")]
+    assert len(bound_figures.merged_consistency_panels(same_title)) == 2
+
+
 
 def test_bound_and_anees_figures_keep_the_anees_panels_and_say_when_there_are_none():
     t = np.arange(50) * 0.5

@@ -114,7 +114,7 @@ def _draw_pcrb(ax, t, rmse: dict[str, np.ndarray], sqrt_pcrb: np.ndarray, bound_
     ax.plot(t, sqrt_pcrb, color="k", lw=1.8, ls="--", label="sqrt(PCRB)")
     ax.set_yscale("log")
     return _finish_time_axes(ax, "position error [m]",
-                      f"{title}\n" + textwrap.fill(f"bound for: {bound_model}", TITLE_WRAP_CHARS))
+                             f"{title}\n" + textwrap.fill(f"bound for: {bound_model}", TITLE_WRAP_CHARS))
 
 
 def _draw_consistency(ax, t, tests: dict[str, ConsistencyTest], statistic: str, title: str) -> int:
@@ -161,10 +161,10 @@ def _same(a, b) -> bool:
 
 
 def _runs(panels: list[tuple], shared) -> list[list[tuple]]:
-    """Consecutive panels grouped while shared(first panel of the group, panel) holds."""
+    """Consecutive panels grouped while shared(the group so far, panel) holds."""
     groups = []
     for panel in panels:
-        if groups and shared(groups[-1][0], panel):
+        if groups and shared(groups[-1], panel):
             groups[-1].append(panel)
         else:
             groups.append([panel])
@@ -174,9 +174,16 @@ def _runs(panels: list[tuple], shared) -> list[list[tuple]]:
 def merged_pcrb_panels(panels: list[tuple]) -> list[tuple]:
     """Consecutive pcrb panels (t, rmse, sqrt_pcrb, bound_model, title) with the same time
     grid, bound model and sqrt(PCRB) (cells of one scenario whose bound is the same) as one
-    panel: all their RMSE curves beside the one bound, under a title naming every cell."""
+    panel: all their RMSE curves beside the one bound, under a title naming every cell. A panel
+    whose curve label is already in the group (the same estimator in another table or subset)
+    starts a panel of its own, so that no curve is hidden under another's label."""
+    def shared(group, b):
+        a = group[0]
+        return (a[3] == b[3] and _same(a[0], b[0]) and _same(a[2], b[2])
+                and not any(label in panel[1] for panel in group for label in b[1]))
+
     merged = []
-    for group in _runs(panels, lambda a, b: a[3] == b[3] and _same(a[0], b[0]) and _same(a[2], b[2])):
+    for group in _runs(panels, shared):
         head, names, tail = _label_parts([panel[4] for panel in group])
         rmse = {label: values for panel in group for label, values in panel[1].items()}
         t, _, sqrt_pcrb, bound_model, _ = group[0]
@@ -189,10 +196,14 @@ def merged_consistency_panels(panels: list[tuple]) -> list[tuple]:
     same time grid and 95% band (cells of one scenario with the same runs) as one panel of
     all their curves: (t, {cell name: test}, statistic, common title), the cell name being
     what sets a title apart from the others of its group ("s: ekf [all]", "s: ukf [all]" ->
-    "s [all]")."""
+    "s [all]"); a panel whose title is already in the group starts a panel of its own."""
+    def shared(group, b):
+        a = group[0]
+        return (a[2] == b[2] and _same(a[0], b[0]) and _same(a[1].low, b[1].low) and _same(a[1].high, b[1].high)
+                and all(panel[3] != b[3] for panel in group))
+
     merged = []
-    for group in _runs(panels, lambda a, b: a[2] == b[2] and _same(a[0], b[0]) and _same(a[1].low, b[1].low)
-                       and _same(a[1].high, b[1].high)):
+    for group in _runs(panels, shared):
         head, names, tail = _label_parts([panel[3] for panel in group])
         title = head.rstrip(" ,:") + tail if len(group) > 1 else head
         merged.append((group[0][0], dict(zip(names, (panel[1] for panel in group))), group[0][2], title))
