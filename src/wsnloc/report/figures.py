@@ -337,10 +337,10 @@ def rss_vs_distance(rss: pd.DataFrame, fit: dict, configured: dict, title: str, 
     lines = []
     if np.isfinite(fit.get("P0_dBm", np.nan)):
         lines += ax.plot(d, fit["P0_dBm"] - 10 * fit["n"] * np.log10(d), "r-", lw=2,
-                label=f"fit, all links: P0={fit['P0_dBm']:.1f} dBm, n={fit['n']:.2f}, σ={fit['sigma_dB']:.1f} dB")
+                         label=f"fit, all links: P0={fit['P0_dBm']:.1f} dBm, n={fit['n']:.2f}, σ={fit['sigma_dB']:.1f} dB")
     if configured.get("p0_dbm") is not None:
         lines += ax.plot(d, configured["p0_dbm"] - 10 * configured["path_loss_exponent"] * np.log10(d), "k--", lw=1.5,
-                label=f"configured (no walls): P0={configured['p0_dbm']:.1f}, n={configured['path_loss_exponent']:.2f}")
+                         label=f"configured (no walls): P0={configured['p0_dbm']:.1f}, n={configured['path_loss_exponent']:.2f}")
     ax.set_xscale("log")
     # plain labels on 1-2-3-5 ticks: less than a decade of distances would get labelled minor ticks
     # (2x10^0, 3x10^0, 4x10^0 ...) that overlap
