@@ -196,7 +196,13 @@ def test_paper_a_speed_mechanism_reads_the_campaign_accelerations_and_the_model_
     claim = "Constant speed is tracked better than variable speed"
     records = [{"claim": claim, "verdict": DOES_NOT_HOLD}]
     metrics = {label: per_run for label in sections}
-    within = why.explain_a(records, metrics, rows, peaks, 0.5)[0]["why"]
-    assert f"newcom/variable {peaks['newcom/variable']:.2g}" in within and "lie within" in within and "(0.5 m/s^2)" in within
-    beyond = why.explain_a([dict(records[0])], metrics, rows, {**peaks, "newcom/variable": 0.9}, 0.5)[0]["why"]
-    assert "newcom/variable 0.9" in beyond and "exceed" in beyond
+    sigmas = {label: 0.5 for label in sections}
+    within = why.explain_a(records, metrics, rows, peaks, sigmas)[0]["why"]
+    assert f"newcom/variable {peaks['newcom/variable']:.2g} <= 0.5 m/s^2" in within
+    assert "models both profiles" in within
+    beyond = why.explain_a([dict(records[0])], metrics, rows, {**peaks, "newcom/variable": 0.9}, sigmas)[0]["why"]
+    assert "newcom/variable 0.9 > 0.5 m/s^2" in beyond and "lags on the steepest ramps" in beyond
+    # each scenario against its own sigma (a per-scenario override), not the first scenario's
+    own = why.explain_a([dict(records[0])], metrics, rows, {**peaks, "newcom/variable": 0.9},
+                        {**sigmas, "newcom/variable": 1.0})[0]["why"]
+    assert "newcom/variable 0.9 <= 1 m/s^2" in own and "models both profiles" in own

@@ -76,7 +76,8 @@ def summarize(scenarios: dict[str, dict]) -> None:
     decided = why.explain_a(paper_a.claims(per_run, motions, spec), per_run,
                             [paper_a.row_label(r) for r in spec["rows"]],
                             {label: peak_acceleration(section) for label, section in scenarios.items()},
-                            cells.params(spec, paper_a.TABLES[0], labels[0], paper_a.PAPER)["accel_sigma_mps2"])
+                            {label: cells.params(spec, paper_a.TABLES[0], label, paper_a.PAPER)["accel_sigma_mps2"]
+                             for label in labels})
     rows += sensitivity.results_rows(paper_a.EXPERIMENT, files["sensitivity"],
                                      lambda m: paper_a.claims(m, motions, spec))
     rows += paper_a.setup_rows(estimates, spec)
