@@ -230,6 +230,33 @@ def test_negative_and_non_finite_ranges_are_quarantined_naming_the_value(generic
         8: "range_m '' is not a finite number"}
 
 
+def test_a_zero_or_negative_stamp_among_unix_times_is_quarantined_and_the_run_still_tracks(generic_dir, tmp_path, capsys):
+    """One row at t = 0 or t = -5 among Unix times stretched the run over 55 years (an epoch grid of
+    3e9 periods: `wsnloc estimate` died allocating 26 GiB); now only those rows are quarantined."""
+    lines = _log_lines(generic_dir / "ranges.csv")
+    lines = [lines[0]] + [f"{1.7e9 + float(t)},{rest}" for t, rest in (line.split(",", 1) for line in lines[1:])]
+    lines[10], lines[40] = "0,A1,5.0", "-5.0,A2,5.0"
+    (generic_dir / "ranges.csv").write_text("\n".join(lines) + "\n")
+    (generic_dir / "truth.csv").write_text(f"t,x,y\n{1.7e9},3,4\n{1.7e9 + 8},3,4\n")
+    result, _ = generic.ingest_run(generic_dir)
+    reasons = result["quarantine"].set_index("line")["reason"].to_dict()
+    assert list(reasons) == [11, 41]
+    assert reasons[11].startswith("t '0' is more than 86400 s from the median time of the file (1700000003.9")
+    assert len(result["ranges"]) == 78 and result["ranges"]["t"].min() >= 1.7e9
+    assert main(["estimate", "--format", "generic", str(generic_dir), "--out", str(tmp_path / "out"),
+                 "--max-quarantine-share", "0.5", "--max-quarantine-share-per-file", "0.5"]) == 0
+    assert "2 row(s) quarantined" in capsys.readouterr().out
+
+
+def test_relative_times_near_zero_are_kept(generic_dir):
+    """Times counted from the run's start (0, 0.1, ...) or slightly negative are not corrupt."""
+    lines = _log_lines(generic_dir / "ranges.csv")
+    lines[1] = "-5.0,A1,5.0"
+    (generic_dir / "ranges.csv").write_text("\n".join(lines) + "\n")
+    result, _ = generic.ingest_run(generic_dir)
+    assert result["quarantine"].empty and result["ranges"]["t"].min() == -5.0
+
+
 def test_duplicate_anchor_ids_are_refused(generic_dir):
     (generic_dir / "anchors.csv").write_text("anchor_id,tech,x,y\nA1,uwb,0,0\nA2,uwb,10,0\nA1,uwb,0,10\n")
     with pytest.raises(IngestError, match=r"anchors.csv: duplicate anchor id 'A1' \(lines 2, 4\)"):

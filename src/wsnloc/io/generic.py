@@ -16,7 +16,8 @@ Rows that cannot be used go to the quarantine with file, line and a reason namin
 value: CSV rows with the wrong number of fields or cut off at the end of the file
 (wsnloc.io.csvrows), missing or non-finite numbers, negative ranges, anchors missing
 from the anchors table (also counted per anchor in the inventory), a TDOA pair whose
-anchor is its own reference. The line number is
+anchor is its own reference, a time stamp more than MAX_RUN_S (a day) from the file's median
+time (a clock reset, a zero or corrupt stamp). The line number is
 the CSV line (header = line 1) or the Parquet row + 1. Rows need not be sorted: each
 table is sorted by time (stable), and the number of rows out of order is reported.
 Refused with IngestError naming the file: a missing column, an anchors, ranges, rss or
@@ -52,6 +53,7 @@ COLUMNS = {
 TEXT_COLUMNS = {"anchor_id", "ref_anchor_id", "tech"}
 NON_NEGATIVE_COLUMNS = {"range_m"}
 NEVER_EMPTY = ("anchors", "ranges", "rss", "tdoa")     # a run without their rows has nothing to localise with
+MAX_RUN_S = 86400.0    # s: a run's stamps lie within a day of its median time (a longer campaign: split it into runs)
 
 
 def run_campaign(run_dir: str | Path) -> Campaign | None:
@@ -124,6 +126,21 @@ class _Table:
             if column in NON_NEGATIVE_COLUMNS:
                 self._reject(number < 0, text, f"{column} {{value!r}} is negative")
             self.values[column] = number
+        if "t" in self.values:
+            self._far_times(self.frame["t"].str.strip())
+
+    def _far_times(self, text: pd.Series) -> None:
+        """Refuse rows whose time stamp lies more than MAX_RUN_S from the median time of the table's
+        usable rows: a clock reset, a zero or a corrupt stamp (one row at t = 0 among Unix times
+        would stretch the run over 55 years: an epoch grid of 3e9 periods)."""
+        t = self.values["t"]
+        usable = self.ok & np.isfinite(t)
+        if not usable.any():
+            return
+        centre = float(np.median(t[usable]))
+        self._reject(np.abs(t - centre) > MAX_RUN_S, text,
+                     f"t {{value!r}} is more than {MAX_RUN_S:.0f} s from the median time of the file "
+                     f"({centre:.3f} s): a clock reset or a corrupt time stamp")
 
     def _reject(self, mask, text: pd.Series, reason: str) -> None:
         """Refuse the rows of `mask` not refused yet; `reason` may name the row's {value}."""
