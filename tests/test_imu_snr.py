@@ -57,6 +57,7 @@ def test_study_scales_with_noise_and_reaches_the_noise_free_floor(campaign):
     runs = rmse_against_snr(campaign, "b_simulation", [30.0, 50.0, 140.0], runs=2, seed=5,
                             resample=RESAMPLE, static_start_s=0.0)
     assert runs["runs"].tolist() == [2, 2, 2]
+    assert runs[["ci95_low", "ci95_high"]].isna().all().all()    # 2 runs < MIN_INTERVAL_RUNS: no interval drawn
     low_snr, mid_snr, noise_free = (np.array(v) for v in runs["run_rmse_m"])
     # Same seeds, same standard-normal draws: 20 dB less SNR is 10x the noise, and the
     # noise-driven error of a linear dead reckoning grows 10x; the noise-free floor (about 1 m on

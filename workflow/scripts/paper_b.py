@@ -85,7 +85,7 @@ def summarize() -> None:
         published = next((r["paper_value"] for r in rows if r["table"] == paper_b.SNR_TABLE and r["paper_value"]), None)
         Path(sm.output.snr).write_bytes(figures.curve_with_interval(
             {f"dead reckoning, {sm.params.snr_scenario} ({sm.params.snr_curve['runs']} runs)":
-             curve.rename(columns={"snr_db": "x", "rmse_m": "value"})},
+             curve.rename(columns={"snr_db": "x", "rmse_m": "value", "run_rmse_m": "run_values"})},
             "accelerometer SNR [dB]", "dead-reckoning RMSE [m]",
             "Paper B: dead reckoning against the accelerometer SNR",
             {"paper: IMU only, simulation (60 dB)": published} if published else None, logy=True))

@@ -20,7 +20,7 @@ from wsnloc.campaign import Campaign
 from wsnloc.inertial.dead_reckoning import dead_reckon, static_bias
 from wsnloc.io.newcom import parse_imu
 from wsnloc.io.rawlines import Quarantine, raw_from_bytes
-from wsnloc.metrics.stats import error_summary, mean_ci95
+from wsnloc.metrics.stats import error_summary, mean_interval
 from wsnloc.signal.resample import resample_imu
 from wsnloc.sim import trajectory as motion
 from wsnloc.sim.logs import imu_text
@@ -69,7 +69,8 @@ def dead_reckoning_rmse(campaign: Campaign, scenario: str, snr_db: float, run: i
 def rmse_against_snr(campaign: Campaign, scenario: str, snrs_db, runs: int, seed: int,
                      resample: dict, static_start_s: float, dataset: str = "newcom") -> pd.DataFrame:
     """Dead-reckoning RMSE per SNR: columns snr_db, rmse_m (mean over runs), ci95_low,
-    ci95_high (95% Student-t interval of the mean), runs, and run_rmse_m (the per-run values,
+    ci95_high (95% interval of the mean, metrics.stats.mean_interval on the non-negative scale;
+    NaN with fewer than MIN_INTERVAL_RUNS runs), runs, and run_rmse_m (the per-run values,
     runs 1..`runs`, for paired comparisons). Each run's motion is simulated once for all SNRs."""
     if runs < 1:
         raise ValueError(f"runs must be at least 1, got {runs}")
@@ -78,7 +79,7 @@ def rmse_against_snr(campaign: Campaign, scenario: str, snrs_db, runs: int, seed
     for snr_db in snrs_db:
         values = [dead_reckoning_rmse(campaign, scenario, snr_db, run, seed, resample, static_start_s, dataset, traj)
                   for run, traj in motions.items()]
-        mean, low, high = mean_ci95(values)
+        mean, low, high = mean_interval(values, "nonnegative")
         rows.append({"snr_db": float(snr_db), "rmse_m": mean, "ci95_low": low, "ci95_high": high,
                      "runs": len(values), "run_rmse_m": values})
     return pd.DataFrame(rows)

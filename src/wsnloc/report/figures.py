@@ -490,13 +490,18 @@ def curve_with_interval(curves: dict[str, pd.DataFrame], xlabel: str, ylabel: st
                         references: dict[str, float] | None = None, logy: bool = False,
                         logx: bool = False) -> bytes:
     """One line per label through (x, value) with its 95% interval as a band (frames with
-    columns x, value, ci95_low, ci95_high), and horizontal reference lines (e.g. a paper's value)."""
+    columns x, value, ci95_low, ci95_high; no band where the interval is NaN, e.g. too few
+    runs), each run's value as a small dot where the frame has `run_values` (a list per x),
+    and horizontal reference lines (e.g. a paper's value)."""
     fig, ax = plt.subplots(figsize=(6.5, 3.8))
     for label, frame in curves.items():
         line, = ax.plot(frame["x"], frame["value"], marker="o", label=label)
         low, high = frame["ci95_low"].to_numpy(float), frame["ci95_high"].to_numpy(float)
         if np.isfinite(low).any():
             ax.fill_between(frame["x"], low, high, color=line.get_color(), alpha=0.2, lw=0)
+        if "run_values" in frame:
+            xs, ys = zip(*[(x, v) for x, values in zip(frame["x"], frame["run_values"]) for v in values])
+            ax.plot(xs, ys, ls="none", marker=".", ms=4, color=line.get_color(), alpha=0.6, label=f"{label}: each run")
     for (label, value), style in zip((references or {}).items(), ("--", ":", "-.", (0, (5, 1)))):
         ax.axhline(value, color="0.3", ls=style, lw=1.2, label=label)
     if logy:

@@ -19,7 +19,7 @@ from wsnloc.campaign import Campaign
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import calibration, cells, claims as claims_of
 from wsnloc.metrics import verdicts
-from wsnloc.metrics.stats import mean_ci95
+from wsnloc.metrics.stats import mean_interval
 from wsnloc.metrics.tracking import cell_metrics, score
 
 PAPER = "paper_a"
@@ -198,8 +198,9 @@ def static_sweep_rows(sweep: pd.DataFrame, scenario: str) -> list[dict]:
 
 
 def static_sweep_curve(sweep: pd.DataFrame) -> pd.DataFrame:
-    """Gain (m, mean and 95% interval over runs) against the mean static share, per final rest."""
-    points = [(group["static_share"].mean(), *mean_ci95(group["gain_m"])) for _, group in sweep.groupby("rest_s")]
+    """Gain (m, mean and 95% interval over runs: metrics.stats.mean_interval, none with fewer than
+    MIN_INTERVAL_RUNS runs) against the mean static share, per final rest."""
+    points = [(group["static_share"].mean(), *mean_interval(group["gain_m"])) for _, group in sweep.groupby("rest_s")]
     return pd.DataFrame(sorted(points), columns=["x", "value", "ci95_low", "ci95_high"])
 
 

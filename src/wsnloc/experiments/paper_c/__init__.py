@@ -22,7 +22,7 @@ from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments import cells, claims as claims_of
 from wsnloc.experiments.sensitivity import BASELINE
 from wsnloc.metrics import verdicts
-from wsnloc.metrics.stats import mean_ci95
+from wsnloc.metrics.stats import mean_interval
 from wsnloc.metrics.tracking import cell_metrics, score
 
 PAPER = "paper_c"
@@ -147,7 +147,8 @@ def noise_curves(grid: pd.DataFrame, spec: dict) -> dict[str, pd.DataFrame]:
     for model in MODELS:
         for sigma in (s for s in (spec.get("sensitivity") or {}).get("sigmas", []) if s.startswith(f"{model}.")):
             own = cell[(cell["model"] == model) & ((cell["setting"] == BASELINE) | (cell["sigma"] == sigma))]
-            points = [(factor, *mean_ci95(group["rmse"])) for factor, group in own.groupby("factor", sort=True)]
+            points = [(factor, *mean_interval(group["rmse"], "nonnegative"))
+                      for factor, group in own.groupby("factor", sort=True)]
             if len(points) > 1:
                 curves[f"{model} ({sigma.split('.', 1)[1]})"] = pd.DataFrame(points, columns=["x", "value", "ci95_low",
                                                                                             "ci95_high"])
