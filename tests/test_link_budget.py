@@ -109,7 +109,9 @@ def test_channel_model_reference_and_rows(campaign):
     assert stats.loc["NLOS"].iloc[-1] > stats.loc["NLOS"].iloc[0] + 0.3     # 10-20 m against 0-2 m
     assert stats.loc["LOS"].abs().max() < 0.1
     rows = pd.DataFrame(rv.single_rows(errors, rv.EXPERIMENT, "IEEE 802.15.4a model"))
-    assert set(rows["column"]) == set(rv.STATS.values()) and rows["row"].str.match(r"^(LOS|NLOS) \d").all()
+    assert set(rows["column"]) == {*rv.STATS.values(), rv.COUNT_COLUMN} and rows["row"].str.match(r"^(LOS|NLOS) \d").all()
+    counts = rows[rows["column"] == rv.COUNT_COLUMN]
+    assert counts["value"].sum() == rv.per_run(errors)["n"].sum() and (counts["metric"] == "count").all()
     figure = rv.curves(rows.assign(table=rv.TABLE))
     assert set(figure) == set(rv.STATS.values())
     assert list(figure["median error"]) == ["IEEE 802.15.4a model LOS", "IEEE 802.15.4a model NLOS"]
@@ -121,6 +123,7 @@ def test_rows_are_means_over_runs_by_bin():
     rows = pd.DataFrame(rv.rows(errors, "data", "x/y"))
     median = rows[rows["column"] == "median error"].iloc[0]
     assert median["row"] == "NLOS 2-5 m" and median["value"] == pytest.approx(2.0) and median["runs"] == 2
+    assert rows[rows["column"] == rv.COUNT_COLUMN]["value"].tolist() == [20]     # the ranges of both runs
     few = errors.iloc[:3]
     assert rv.rows(few, "data", "x/y") == []                      # fewer than MIN_SAMPLES ranges
 

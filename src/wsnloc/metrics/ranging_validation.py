@@ -7,7 +7,8 @@ The same statistics for every source, so that they can be set side by side:
 - the IEEE 802.15.4a channel models alone (CM3 LOS, CM4 NLOS through one wall) read by the
   campaign's receiver (link budget and detector of sim.newcom) at distances drawn uniformly in
   each bin: what the standard's channel statistics give without the floor's geometry.
-Per (class, bin): the median signed error (m) and the 95th percentile of |error| (m).
+Per (class, bin): the median signed error (m), the 95th percentile of |error| (m) and the number
+of ranges behind them (all runs; a bin of a few ranges of one link is one link's bias, not a law).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ DISTANCE_BINS_M = (0.0, 2.0, 5.0, 10.0, 20.0, 40.0, 80.0, float("inf"))   # true
 TABLE = "Ranging validation"
 EXPERIMENT = "ranging"            # rows of the validation job (real runs, channel model alone)
 STATS = {"median_m": "median error", "p95_abs_m": "p95 |error|"}
+COUNT_COLUMN = "ranges"           # the ranges behind a (class, bin): all runs' together
 MIN_SAMPLES = 5                   # a (run, class, bin) with fewer ranges gives no statistic
 
 
@@ -53,14 +55,17 @@ def per_run(errors: pd.DataFrame) -> pd.DataFrame:
 
 def rows(errors: pd.DataFrame, experiment: str, scenario: str) -> list[dict]:
     """results rows (table TABLE, row 'LOS 5-10 m', columns STATS, metric range_error_m): mean
-    over the runs of each per-run statistic (per_run), with its 95% interval."""
+    over the runs of each per-run statistic (per_run), with its 95% interval; and COUNT_COLUMN,
+    the ranges of those runs (metric count)."""
     out = []
     stats = per_run(errors)
     for (link, low, high), group in stats.groupby(["link", "from_m", "to_m"], sort=True):
+        row = row_label(link, low, high)
         for key, column in STATS.items():
-            out.append(results.row_over_runs(group[key], experiment=experiment, table=TABLE,
-                                             row=row_label(link, low, high), column=column, scenario=scenario,
-                                             metric="range_error_m"))
+            out.append(results.row_over_runs(group[key], experiment=experiment, table=TABLE, row=row, column=column,
+                                             scenario=scenario, metric="range_error_m"))
+        out.append(results.single_row(int(group["n"].sum()), experiment=experiment, table=TABLE, row=row,
+                                      column=COUNT_COLUMN, scenario=scenario, metric="count"))
     return out
 
 
@@ -103,12 +108,15 @@ def channel_model_errors(campaign, links_per_bin: int, rng: np.random.Generator,
 
 
 def single_rows(errors: pd.DataFrame, experiment: str, scenario: str) -> list[dict]:
-    """results rows of one pooled sample (no runs): per (link, bin) median and p95 |error|."""
+    """results rows of one pooled sample (no runs): per (link, bin) median and p95 |error|, and
+    the ranges (COUNT_COLUMN)."""
     stats = per_run(errors.assign(run="pooled"))
-    return [results.single_row(float(line[key]), experiment=experiment, table=TABLE,
+    values = {**{key: (column, "range_error_m", float) for key, column in STATS.items()},
+              "n": (COUNT_COLUMN, "count", int)}
+    return [results.single_row(kind(line[key]), experiment=experiment, table=TABLE,
                                row=row_label(line["link"], line["from_m"], line["to_m"]), column=column,
-                               scenario=scenario, metric="range_error_m")
-            for _, line in stats.iterrows() for key, column in STATS.items()]
+                               scenario=scenario, metric=metric)
+            for _, line in stats.iterrows() for key, (column, metric, kind) in values.items()]
 
 
 def real_errors(source: str, campaign_file: str) -> pd.DataFrame:

@@ -245,7 +245,7 @@ def ranging_section(results: pd.DataFrame, scenarios: list[str], figure: str, no
     """The `Ranging validation` table (metrics.ranging_validation): one line per link class and
     distance bin ('LOS 5-10 m'), per source (the simulated `scenarios` of the data stage, then
     the validation job's real runs and channel-model rows) its median error and p95 |error|
-    cells (mean over runs with the 95% interval)."""
+    cells (mean over runs with the 95% interval) and the ranges behind them (whole numbers)."""
     from wsnloc.metrics import ranging_validation as rv
 
     rows = results[(results["table"] == rv.TABLE)
@@ -254,11 +254,13 @@ def ranging_section(results: pd.DataFrame, scenarios: list[str], figure: str, no
         + [s for s in dict.fromkeys(rows["scenario"]) if s not in scenarios]
     labels = rows["row"].str.extract(r"^(?P<link>\S+) (?P<low>[0-9.]+)").assign(row=rows["row"])
     order = labels.assign(low=labels["low"].astype(float)).drop_duplicates("row").sort_values(["link", "low"])["row"]
+    columns = [*rv.STATS.values(), rv.COUNT_COLUMN]
     lines = []
     for label in order:
         cells = []
         for source in sources:
-            for column in rv.STATS.values():
-                cells.append(cell_of(rows, table=rv.TABLE, row=label, column=column, scenario=source))
+            for column in columns:
+                cells.append({**cell_of(rows, table=rv.TABLE, row=label, column=column, scenario=source),
+                              "digits": 0 if column == rv.COUNT_COLUMN else 3})
         lines.append({"label": label, "cells": cells})
-    return {"sources": sources, "stats": list(rv.STATS.values()), "lines": lines, "figure": figure, "notes": notes}
+    return {"sources": sources, "stats": columns, "lines": lines, "figure": figure, "notes": notes}
