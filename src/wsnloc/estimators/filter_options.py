@@ -41,6 +41,7 @@ from wsnloc.estimators.parameters import Param
 from wsnloc.filters.kalman import innovation_covariance
 from wsnloc.filters.measurement_models import RangeModel
 
+CALIBRATION_KEYS = {"scale": "range_scale", "offset": "range_offset_m"}    # the attrs of the self-calibration states
 STANDARD_GATE = 0.999     # the registry's gate (3.29 sigma): tracker, Kalman filters and the self-fit's passes
 LOSS_WINDOW = 10          # updates over which the gate's rejections are judged
 
@@ -119,6 +120,7 @@ class ConfiguredFilter:
         self.gated_filter = any(p[k] != off for k, off in OFF.items())
         self.mode = p["range_self_calibration"]
         self.extra = len(self_calibration.extra_states(self.mode))
+        self.calibration_keys = [CALIBRATION_KEYS[name] for name in self_calibration.extra_states(self.mode)]
         self.updater = updater or default_updater(p)
         self.per_wall = p["range_sigma_per_wall_m"]
         self.used = 0
@@ -177,8 +179,8 @@ class ConfiguredFilter:
             self.counts.offered += offered
             self.counts.gated += offered - used
         if self.extra:
-            self.counts.calibration = self.calibration()
-        self.recent.append((offered, offered - used, float(np.max(y**2 / variances, initial=0.0))))
+            self.counts.calibration = dict(zip(self.calibration_keys, self.filt.x[-self.extra:].tolist()))
+        self.recent.append((offered, offered - used, float((y**2 / variances).max(initial=0.0))))
         if len(self.recent) < LOSS_WINDOW:
             return
         if sum(r[1] for r in self.recent) > self.loss_share * sum(r[0] for r in self.recent):
@@ -220,12 +222,6 @@ class ConfiguredFilter:
             k += m
         return R
 
-    def calibration(self) -> dict[str, float]:
-        """Current self-calibration states: range_scale (1) and/or range_offset_m (m)."""
-        names = self_calibration.extra_states(self.mode)
-        n = len(self.filt.x) - len(names)
-        key = {"scale": "range_scale", "offset": "range_offset_m"}
-        return {key[name]: float(self.filt.x[n + i]) for i, name in enumerate(names)}
 
 
 OFF = {"gate_probability": 0.0, "robust_loss": "none", "range_self_calibration": "none",

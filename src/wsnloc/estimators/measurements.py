@@ -223,8 +223,44 @@ class MeasurementSource:
     @cached_property
     def group_models(self) -> list[Stacked | None]:
         """The model of every record group (Records.groups): built once per source, so the
-        sequential filters of a run that read the same measurements with the same noise share them."""
-        return self.records().models(self.model)
+        sequential filters of a run that read the same measurements with the same noise share them.
+        A group of ranges alone is `model` of its records built from views of the records' anchor
+        coordinates (_range_geometry, looked up once per measurement set: sources that differ only
+        in their noise, the self-fit's candidates, share them); other groups through `model`."""
+        records = self.records()
+        bounds = records.groups().tolist()
+        if not (records.kind == 0).any():
+            return records.models(self.model)
+        anchors, dz = self._range_geometry()
+        sigma = np.full(len(records.t), self.range_sigma_m)
+        rss_before = np.r_[0, np.cumsum(records.kind != 0)]        # RSS records before each index
+        models = []
+        for a, b in zip(bounds[:-1], bounds[1:]):
+            if rss_before[b] > rss_before[a]:
+                models.append(self.model(*records.split(a, b)))
+            else:
+                models.append(Stacked([RangeModel(anchors[a:b], sigma[a:b], None if dz is None else dz[a:b])],
+                                      records.value[a:b]))
+        return models
+
+    def _range_geometry(self) -> tuple[np.ndarray, np.ndarray | None]:
+        """Per record of records(): the range model's anchor coordinates (N, 2), or (N, 3) with a 3-D
+        state, and height differences dz (N,) (None where `model` passes none: a 3-D state, or no
+        anchor off the tag height); NaN on RSS rows. Cached per run and measurement set."""
+        def build():
+            records = self.records()
+            ranges = records.kind == 0
+            ids = records.anchor[ranges]
+            spatial, three_d = self.dimensions == 3, self.data.three_d
+            xy = self.data.positions_3d(ids) if spatial else self.data.positions(ids)
+            anchors = np.full((len(records.t), xy.shape[1]), np.nan)
+            anchors[ranges] = xy
+            if spatial or not three_d:
+                return anchors, None
+            dz = np.full(len(records.t), np.nan)
+            dz[ranges] = self.data.height_offsets(ids)
+            return anchors, dz
+        return self.data.cached(("range_geometry", self._data_key, self.dimensions), build)
 
     def window_fix(self, t: float, window: float, axes: int = 2) -> np.ndarray | None:
         """Multilateration (fix, or fix_3d with axes 3) on the per-anchor means of the records in

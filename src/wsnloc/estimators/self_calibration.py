@@ -17,12 +17,13 @@ import numpy as np
 
 from wsnloc.filters.measurement_models import RangeModel
 
-MODES = ("none", "scale", "offset", "scale_offset")
+EXTRA_STATES = {"none": (), "scale": ("scale",), "offset": ("offset",), "scale_offset": ("scale", "offset")}
+MODES = tuple(EXTRA_STATES)
 
 
 def extra_states(mode: str) -> tuple[str, ...]:
     """Names of the calibration states a mode adds, in state order."""
-    return {"none": (), "scale": ("scale",), "offset": ("offset",), "scale_offset": ("scale", "offset")}[mode]
+    return EXTRA_STATES[mode]
 
 
 def augment_prior(x0: np.ndarray, P0: np.ndarray, mode: str, scale_sigma: float,
@@ -62,22 +63,27 @@ def linearise(model, x: np.ndarray, mode: str) -> tuple[np.ndarray, np.ndarray]:
     """(h(x), H) of a measurement model (filters.measurement_models) at the augmented state x."""
     if mode == "none":
         return model.linearise(x)
-    names = extra_states(mode)
     n, scale, offset = _calibration(x, mode)
-    hs, Hs = [], []
-    for part in getattr(model, "parts", [model]):
-        h, J = part.linearise(x[:n])
-        H = np.zeros((len(h), len(x)))
-        if isinstance(part, RangeModel):
-            H[:, :n] = scale * J
-            for k, name in enumerate(names):
-                H[:, n + k] = h if name == "scale" else 1.0
-            h = scale * h + offset
-        else:
-            H[:, :n] = J
-        hs.append(h)
-        Hs.append(H)
+    rows = [_augmented_rows(part, x, n, scale, offset, extra_states(mode)) for part in getattr(model, "parts", [model])]
+    if len(rows) == 1:
+        return rows[0]
+    hs, Hs = zip(*rows)
     return np.concatenate(hs), np.vstack(Hs)
+
+
+def _augmented_rows(part, x: np.ndarray, n: int, scale, offset, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """(h, H) of one model part at the augmented state x (n motion states, then `names`): a range
+    part's s d_i + b with the columns s dd_i/dx, d_i (scale), 1 (offset); another part's own h, H
+    with zero calibration columns."""
+    h, J = part.linearise(x[:n])
+    H = np.zeros((len(h), len(x)))
+    if not isinstance(part, RangeModel):
+        H[:, :n] = J
+        return h, H
+    H[:, :n] = scale * J
+    for k, name in enumerate(names):
+        H[:, n + k] = h if name == "scale" else 1.0
+    return scale * h + offset, H
 
 
 def h_many(model, X: np.ndarray, mode: str) -> np.ndarray:
