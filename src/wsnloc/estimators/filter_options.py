@@ -214,11 +214,13 @@ class ConfiguredFilter:
         R = np.array(model.R(), dtype=float)
         k = 0
         for part in getattr(model, "parts", [model]):
-            m = len(part.R())
             if isinstance(part, RangeModel):
+                m = len(part.anchors)
                 walls = np.array([self.campaign.walls_between(self.filt.x[None, :2], a)[0] for a in part.anchors])
-                sigma = np.broadcast_to(part.sigma_m, m) + walls * self.per_wall
+                sigma = part.sigma_m + walls * self.per_wall          # (m,): sigma_m (m,) or one for all
                 R[k:k + m, k:k + m] = np.diag(sigma**2)
+            else:
+                m = len(part.R())
             k += m
         return R
 
