@@ -37,6 +37,7 @@ import numpy as np
 
 from wsnloc.errors import ConfigError
 from wsnloc.estimators import robust, self_calibration
+from wsnloc.estimators.motion import STEP_CACHE
 from wsnloc.estimators.parameters import Param
 from wsnloc.filters.kalman import innovation_covariance
 from wsnloc.filters.measurement_models import RangeModel
@@ -124,7 +125,7 @@ class ConfiguredFilter:
         self.updater = updater or default_updater(p)
         self.per_wall = p["range_sigma_per_wall_m"]
         self.used = 0
-        self._augmented: tuple = (None, None, None, None)   # the last (F, Q, B) and their augmentation
+        self._augmented: dict = {}      # id of (F, Q, B) -> ((F, Q, B), their augmentation)
 
     # -- the interface the filter loops use --
     @property
@@ -145,13 +146,17 @@ class ConfiguredFilter:
         self.filt.predict(F, Q, u=u, B=B)
 
     def _augment(self, F, Q, B) -> tuple:
-        """self_calibration.augment_motion of (F, Q, B), kept for the next step with the same
-        matrices (motion.MotionModel.matrices shares them per step length)."""
-        last_F, last_Q, last_B, augmented = self._augmented
-        if F is not last_F or Q is not last_Q or B is not last_B:
-            augmented = self_calibration.augment_motion(F, Q, B, self.extra)
-            self._augmented = (F, Q, B, augmented)
-        return augmented
+        """self_calibration.augment_motion of (F, Q, B), kept for the next steps with the same
+        matrices (motion.MotionModel.matrices shares them per step length: a sequential filter
+        meets the few intervals of its anchors' schedule again and again). Keyed by the matrices'
+        identity; each entry holds the matrices themselves, so no other arrays can take their
+        ids while it is kept; at most motion.STEP_CACHE entries."""
+        key = (id(F), id(Q), id(B))
+        if key not in self._augmented:
+            if len(self._augmented) >= STEP_CACHE:
+                self._augmented.clear()
+            self._augmented[key] = ((F, Q, B), self_calibration.augment_motion(F, Q, B, self.extra))
+        return self._augmented[key][1]
 
     def update_model(self, model) -> None:
         """Linearise at the prior (calibration states applied), set the per-link noise, then
