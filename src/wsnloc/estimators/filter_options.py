@@ -82,7 +82,11 @@ class UpdateCounts:
     track_losses: int = 0
     widenings: int = 0
     calibration: dict = field(default_factory=dict)
-    innovations: list = field(default_factory=list)     # per update: (y, S_ii) arrays, gated ones included
+    # per update, gated ones included: the innovations y and their variances S_ii, one array each (two
+    # lists of arrays rather than a list of pairs: a pass keeps no object per update for the garbage
+    # collector to scan)
+    innovation_y: list = field(default_factory=list)
+    innovation_S: list = field(default_factory=list)
 
     def attrs(self) -> dict:
         """Counters for the estimates' attrs: gated, offered, gated_share, gate_widenings,
@@ -93,10 +97,9 @@ class UpdateCounts:
 
     def innovation_arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """(y, S_ii) of every measurement offered over the run (m or dB, and its square)."""
-        if not self.innovations:
+        if not self.innovation_y:
             return np.zeros(0), np.zeros(0)
-        y, S = zip(*self.innovations)
-        return np.concatenate(y), np.concatenate(S)
+        return np.concatenate(self.innovation_y), np.concatenate(self.innovation_S)
 
 
 def default_updater(p: dict) -> Callable:
@@ -174,7 +177,8 @@ class ConfiguredFilter:
         y = model.z - hx
         S = innovation_covariance(self.filt.P, H, R)
         variances = np.diag(S)
-        self.counts.innovations.append((y, variances))
+        self.counts.innovation_y.append(y)
+        self.counts.innovation_S.append(variances)
         keep = self.updater(self.filt, model.z, H, R, hx, S=S)
         if self.bounds is not None:         # estimate projection onto the site box
             self.filt.x[:2] = np.clip(self.filt.x[:2], self.bounds[0], self.bounds[1])

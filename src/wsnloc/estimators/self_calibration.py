@@ -74,16 +74,15 @@ def linearise(model, x: np.ndarray, mode: str) -> tuple[np.ndarray, np.ndarray]:
 def _augmented_rows(part, x: np.ndarray, n: int, scale, offset, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
     """(h, H) of one model part at the augmented state x (n motion states, then `names`): a range
     part's s d_i + b with the columns s dd_i/dx, d_i (scale), 1 (offset); another part's own h, H
-    with zero calibration columns."""
-    h, J = part.linearise(x[:n])
-    H = np.zeros((len(h), len(x)))
-    if not isinstance(part, RangeModel):
-        H[:, :n] = J
-        return h, H
-    H[:, :n] = scale * J
-    for k, name in enumerate(names):
-        H[:, n + k] = h if name == "scale" else 1.0
-    return scale * h + offset, H
+    with zero calibration columns. The part linearised at x itself gives H with a column per state
+    entry, zero beyond the position (filters.measurement_models: h reads the position only)."""
+    h, H = part.linearise(x)
+    if isinstance(part, RangeModel):
+        H[:, :n] *= scale
+        for k, name in enumerate(names):
+            H[:, n + k] = h if name == "scale" else 1.0
+        h = scale * h + offset
+    return h, H
 
 
 def h_many(model, X: np.ndarray, mode: str) -> np.ndarray:
