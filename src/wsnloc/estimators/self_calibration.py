@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from wsnloc.filters.kalman import identity
 from wsnloc.filters.measurement_models import RangeModel
 
 EXTRA_STATES = {"none": (), "scale": ("scale",), "offset": ("offset",), "scale_offset": ("scale", "offset")}
@@ -43,7 +44,7 @@ def augment_prior(x0: np.ndarray, P0: np.ndarray, mode: str, scale_sigma: float,
 def augment_motion(F: np.ndarray, Q: np.ndarray, B: np.ndarray | None, extra: int):
     """F, Q, B of the augmented state: identity on the calibration states, no process noise."""
     n = len(F)
-    Fa, Qa = np.eye(n + extra), np.zeros((n + extra, n + extra))
+    Fa, Qa = identity(n + extra).copy(), np.zeros((n + extra, n + extra))
     Fa[:n, :n], Qa[:n, :n] = F, Q
     Ba = None if B is None else np.vstack([B, np.zeros((extra, B.shape[1]))])
     return Fa, Qa, Ba
@@ -64,10 +65,10 @@ def linearise(model, x: np.ndarray, mode: str) -> tuple[np.ndarray, np.ndarray]:
     if mode == "none":
         return model.linearise(x)
     n, scale, offset = _calibration(x, mode)
-    rows = [_augmented_rows(part, x, n, scale, offset, extra_states(mode)) for part in getattr(model, "parts", [model])]
-    if len(rows) == 1:
-        return rows[0]
-    hs, Hs = zip(*rows)
+    names, parts = extra_states(mode), getattr(model, "parts", [model])
+    if len(parts) == 1:
+        return _augmented_rows(parts[0], x, n, scale, offset, names)
+    hs, Hs = zip(*(_augmented_rows(part, x, n, scale, offset, names) for part in parts))
     return np.concatenate(hs), np.vstack(Hs)
 
 
