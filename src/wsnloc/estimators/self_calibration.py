@@ -72,7 +72,8 @@ def linearise(model, x: np.ndarray, mode: str) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(hs), np.vstack(Hs)
 
 
-def _augmented_rows(part, x: np.ndarray, n: int, scale, offset, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+def _augmented_rows(part, x: np.ndarray, n: int, scale, offset,
+                    names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
     """(h, H) of one model part at the augmented state x (n motion states, then `names`): a range
     part's s d_i + b with the columns s dd_i/dx, d_i (scale), 1 (offset); another part's own h, H
     with zero calibration columns. The part linearised at x itself gives H with a column per state
