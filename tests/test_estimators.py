@@ -281,3 +281,16 @@ def test_coded_sources_equal_their_frames_epochs_and_records(kinds):
     fix = source.window_fix(grid[5], 1.0)
     assert fix is not None and noisier.window_fix(grid[5], 1.0) is fix
     assert noisier.epoch_models(grid, 0.5) is not source.epoch_models(grid, 0.5)
+    # record-group models (GroupModels on a source with ranges: built when read) equal `model` of each
+    # group's records exactly, with RSS in some groups (hybrid) too
+    bounds, models = records.groups().tolist(), source.group_models
+    assert len(models) == len(bounds) - 1
+    x = np.array([7.0, 9.0, 0.5, -0.2])
+    for model, a, b in zip(models, bounds[:-1], bounds[1:]):
+        want = source.model(*records.split(a, b))
+        np.testing.assert_array_equal(model.z, want.z)
+        np.testing.assert_array_equal(model.R(), want.R())
+        for got, expected in zip(model.linearise(x), want.linearise(x)):
+            np.testing.assert_array_equal(got, expected)
+    if kinds != "rss":          # the anchor coordinates are looked up once for sources differing in their noise
+        assert noisier.group_models.anchors is models.anchors and noisier.group_models.sigma[0] == 0.6

@@ -37,10 +37,12 @@ import numpy as np
 
 from wsnloc.errors import ConfigError
 from wsnloc.estimators import robust, self_calibration
+from wsnloc.estimators.motion import STEP_CACHE
 from wsnloc.estimators.parameters import Param
 from wsnloc.filters.kalman import innovation_covariance
 from wsnloc.filters.measurement_models import RangeModel
 
+CALIBRATION_KEYS = {"scale": "range_scale", "offset": "range_offset_m"}    # the attrs of the self-calibration states
 STANDARD_GATE = 0.999     # the registry's gate (3.29 sigma): tracker, Kalman filters and the self-fit's passes
 LOSS_WINDOW = 10          # updates over which the gate's rejections are judged
 
@@ -80,7 +82,11 @@ class UpdateCounts:
     track_losses: int = 0
     widenings: int = 0
     calibration: dict = field(default_factory=dict)
-    innovations: list = field(default_factory=list)     # per update: (y, S_ii) arrays, gated ones included
+    # per update, gated ones included: the innovations y and their variances S_ii, one array each (two
+    # lists of arrays rather than a list of pairs: a pass keeps no object per update for the garbage
+    # collector to scan)
+    innovation_y: list = field(default_factory=list)
+    innovation_S: list = field(default_factory=list)
 
     def attrs(self) -> dict:
         """Counters for the estimates' attrs: gated, offered, gated_share, gate_widenings,
@@ -91,10 +97,9 @@ class UpdateCounts:
 
     def innovation_arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """(y, S_ii) of every measurement offered over the run (m or dB, and its square)."""
-        if not self.innovations:
+        if not self.innovation_y:
             return np.zeros(0), np.zeros(0)
-        y, S = zip(*self.innovations)
-        return np.concatenate(y), np.concatenate(S)
+        return np.concatenate(self.innovation_y), np.concatenate(self.innovation_S)
 
 
 def default_updater(p: dict) -> Callable:
@@ -119,10 +124,11 @@ class ConfiguredFilter:
         self.gated_filter = any(p[k] != off for k, off in OFF.items())
         self.mode = p["range_self_calibration"]
         self.extra = len(self_calibration.extra_states(self.mode))
+        self.calibration_keys = [CALIBRATION_KEYS[name] for name in self_calibration.extra_states(self.mode)]
         self.updater = updater or default_updater(p)
         self.per_wall = p["range_sigma_per_wall_m"]
         self.used = 0
-        self._augmented: tuple = (None, None, None, None)   # the last (F, Q, B) and their augmentation
+        self._augmented: dict = {}      # id of (F, Q, B) -> ((F, Q, B), their augmentation)
 
     # -- the interface the filter loops use --
     @property
@@ -143,13 +149,17 @@ class ConfiguredFilter:
         self.filt.predict(F, Q, u=u, B=B)
 
     def _augment(self, F, Q, B) -> tuple:
-        """self_calibration.augment_motion of (F, Q, B), kept for the next step with the same
-        matrices (motion.MotionModel.matrices shares them per step length)."""
-        last_F, last_Q, last_B, augmented = self._augmented
-        if F is not last_F or Q is not last_Q or B is not last_B:
-            augmented = self_calibration.augment_motion(F, Q, B, self.extra)
-            self._augmented = (F, Q, B, augmented)
-        return augmented
+        """self_calibration.augment_motion of (F, Q, B), kept for the next steps with the same
+        matrices (motion.MotionModel.matrices shares them per step length: a sequential filter
+        meets the few intervals of its anchors' schedule again and again). Keyed by the matrices'
+        identity; each entry holds the matrices themselves, so no other arrays can take their
+        ids while it is kept; at most motion.STEP_CACHE entries."""
+        key = (id(F), id(Q), id(B))
+        if key not in self._augmented:
+            if len(self._augmented) >= STEP_CACHE:
+                self._augmented.clear()
+            self._augmented[key] = ((F, Q, B), self_calibration.augment_motion(F, Q, B, self.extra))
+        return self._augmented[key][1]
 
     def update_model(self, model) -> None:
         """Linearise at the prior (calibration states applied), set the per-link noise, then
@@ -167,7 +177,8 @@ class ConfiguredFilter:
         y = model.z - hx
         S = innovation_covariance(self.filt.P, H, R)
         variances = np.diag(S)
-        self.counts.innovations.append((y, variances))
+        self.counts.innovation_y.append(y)
+        self.counts.innovation_S.append(variances)
         keep = self.updater(self.filt, model.z, H, R, hx, S=S)
         if self.bounds is not None:         # estimate projection onto the site box
             self.filt.x[:2] = np.clip(self.filt.x[:2], self.bounds[0], self.bounds[1])
@@ -177,8 +188,8 @@ class ConfiguredFilter:
             self.counts.offered += offered
             self.counts.gated += offered - used
         if self.extra:
-            self.counts.calibration = self.calibration()
-        self.recent.append((offered, offered - used, float(np.max(y**2 / variances, initial=0.0))))
+            self.counts.calibration = dict(zip(self.calibration_keys, self.filt.x[-self.extra:].tolist()))
+        self.recent.append((offered, offered - used, float((y**2 / variances).max(initial=0.0))))
         if len(self.recent) < LOSS_WINDOW:
             return
         if sum(r[1] for r in self.recent) > self.loss_share * sum(r[0] for r in self.recent):
@@ -212,20 +223,16 @@ class ConfiguredFilter:
         R = np.array(model.R(), dtype=float)
         k = 0
         for part in getattr(model, "parts", [model]):
-            m = len(part.R())
             if isinstance(part, RangeModel):
+                m = len(part.anchors)
                 walls = np.array([self.campaign.walls_between(self.filt.x[None, :2], a)[0] for a in part.anchors])
-                sigma = np.broadcast_to(part.sigma_m, m) + walls * self.per_wall
+                sigma = part.sigma_m + walls * self.per_wall          # (m,): sigma_m (m,) or one for all
                 R[k:k + m, k:k + m] = np.diag(sigma**2)
+            else:
+                m = len(part.R())
             k += m
         return R
 
-    def calibration(self) -> dict[str, float]:
-        """Current self-calibration states: range_scale (1) and/or range_offset_m (m)."""
-        names = self_calibration.extra_states(self.mode)
-        n = len(self.filt.x) - len(names)
-        key = {"scale": "range_scale", "offset": "range_offset_m"}
-        return {key[name]: float(self.filt.x[n + i]) for i, name in enumerate(names)}
 
 
 OFF = {"gate_probability": 0.0, "robust_loss": "none", "range_self_calibration": "none",

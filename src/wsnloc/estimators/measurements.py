@@ -13,6 +13,7 @@ from the state (h = ||p - a_i||); initiator fixes are then 3-D (lateration.multi
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -221,10 +222,35 @@ class MeasurementSource:
             *[(self._coded(kind), self._rows(kind)) for kind in ("ranges", "rss")]))
 
     @cached_property
-    def group_models(self) -> list[Stacked | None]:
-        """The model of every record group (Records.groups): built once per source, so the
-        sequential filters of a run that read the same measurements with the same noise share them."""
-        return self.records().models(self.model)
+    def group_models(self) -> "GroupModels | list[Stacked | None]":
+        """The model of every record group (Records.groups), shared by the sequential filters of a run
+        that read the same measurements with the same noise: GroupModels on a source with ranges (a
+        group of ranges alone built when read, from views of the records' anchor coordinates that
+        sources differing only in their noise share: the self-fit's candidates), else a list built
+        once."""
+        records = self.records()
+        if not (records.kind == 0).any():
+            return records.models(self.model)
+        return GroupModels(self, records, *self._range_geometry())
+
+    def _range_geometry(self) -> tuple[np.ndarray, np.ndarray | None]:
+        """Per record of records(): the range model's anchor coordinates (N, 2), or (N, 3) with a 3-D
+        state, and height differences dz (N,) (None where `model` passes none: a 3-D state, or no
+        anchor off the tag height); NaN on RSS rows. Cached per run and measurement set."""
+        def build():
+            records = self.records()
+            ranges = records.kind == 0
+            ids = records.anchor[ranges]
+            spatial, three_d = self.dimensions == 3, self.data.three_d
+            xy = self.data.positions_3d(ids) if spatial else self.data.positions(ids)
+            anchors = np.full((len(records.t), xy.shape[1]), np.nan)
+            anchors[ranges] = xy
+            if spatial or not three_d:
+                return anchors, None
+            dz = np.full(len(records.t), np.nan)
+            dz[ranges] = self.data.height_offsets(ids)
+            return anchors, dz
+        return self.data.cached(("range_geometry", self._data_key, self.dimensions), build)
 
     def window_fix(self, t: float, window: float, axes: int = 2) -> np.ndarray | None:
         """Multilateration (fix, or fix_3d with axes 3) on the per-anchor means of the records in
@@ -244,6 +270,35 @@ class MeasurementSource:
                 return fix if fix is None or axes == 2 else np.append(fix, self.data.tag_height_m)
             return self.fix_3d(*means) if axes == 3 else self.fix(*means)
         return self.data.cached(("window_fix", self._data_key, self.rss_params, t, window, axes), build)
+
+
+class GroupModels(Sequence):
+    """The measurement models of a source's record groups (Records.groups), models[g] the g-th's:
+    MeasurementSource.model of its records. A group of ranges alone is built when read, from views
+    of the records' values and of their anchor coordinates and height differences (per record, NaN
+    on RSS rows; MeasurementSource._range_geometry), with the source's range sigma: a few
+    microseconds, so none is kept and a pass leaves no object per group behind for the garbage
+    collector to scan again and again. A group with RSS is built once, on construction."""
+
+    def __init__(self, source: MeasurementSource, records: "Records", anchors: np.ndarray, dz: np.ndarray | None):
+        self.records, self.anchors, self.dz = records, anchors, dz
+        self.bounds = records.groups().tolist()
+        self.sigma = np.full(len(records.t), source.range_sigma_m)
+        rss_before = np.r_[0, np.cumsum(records.kind != 0)][self.bounds]      # RSS records before each group
+        self.with_rss = {g: source.model(*records.split(self.bounds[g], self.bounds[g + 1]))
+                         for g in np.flatnonzero(np.diff(rss_before) > 0).tolist()}
+
+    def __len__(self) -> int:
+        return len(self.bounds) - 1
+
+    def __getitem__(self, g: int) -> Stacked:
+        if not 0 <= g < len(self):
+            raise IndexError(g)
+        if g in self.with_rss:
+            return self.with_rss[g]
+        a, b = self.bounds[g], self.bounds[g + 1]
+        return Stacked([RangeModel(self.anchors[a:b], self.sigma[a:b], None if self.dz is None else self.dz[a:b])],
+                       self.records.value[a:b])
 
 
 @dataclass

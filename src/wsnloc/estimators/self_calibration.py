@@ -15,14 +15,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from wsnloc.filters.kalman import identity
 from wsnloc.filters.measurement_models import RangeModel
 
-MODES = ("none", "scale", "offset", "scale_offset")
+EXTRA_STATES = {"none": (), "scale": ("scale",), "offset": ("offset",), "scale_offset": ("scale", "offset")}
+MODES = tuple(EXTRA_STATES)
 
 
 def extra_states(mode: str) -> tuple[str, ...]:
     """Names of the calibration states a mode adds, in state order."""
-    return {"none": (), "scale": ("scale",), "offset": ("offset",), "scale_offset": ("scale", "offset")}[mode]
+    return EXTRA_STATES[mode]
 
 
 def augment_prior(x0: np.ndarray, P0: np.ndarray, mode: str, scale_sigma: float,
@@ -42,7 +44,7 @@ def augment_prior(x0: np.ndarray, P0: np.ndarray, mode: str, scale_sigma: float,
 def augment_motion(F: np.ndarray, Q: np.ndarray, B: np.ndarray | None, extra: int):
     """F, Q, B of the augmented state: identity on the calibration states, no process noise."""
     n = len(F)
-    Fa, Qa = np.eye(n + extra), np.zeros((n + extra, n + extra))
+    Fa, Qa = identity(n + extra).copy(), np.zeros((n + extra, n + extra))
     Fa[:n, :n], Qa[:n, :n] = F, Q
     Ba = None if B is None else np.vstack([B, np.zeros((extra, B.shape[1]))])
     return Fa, Qa, Ba
@@ -62,22 +64,27 @@ def linearise(model, x: np.ndarray, mode: str) -> tuple[np.ndarray, np.ndarray]:
     """(h(x), H) of a measurement model (filters.measurement_models) at the augmented state x."""
     if mode == "none":
         return model.linearise(x)
-    names = extra_states(mode)
     n, scale, offset = _calibration(x, mode)
-    hs, Hs = [], []
-    for part in getattr(model, "parts", [model]):
-        h, J = part.linearise(x[:n])
-        H = np.zeros((len(h), len(x)))
-        if isinstance(part, RangeModel):
-            H[:, :n] = scale * J
-            for k, name in enumerate(names):
-                H[:, n + k] = h if name == "scale" else 1.0
-            h = scale * h + offset
-        else:
-            H[:, :n] = J
-        hs.append(h)
-        Hs.append(H)
+    names, parts = extra_states(mode), getattr(model, "parts", [model])
+    if len(parts) == 1:
+        return _augmented_rows(parts[0], x, n, scale, offset, names)
+    hs, Hs = zip(*(_augmented_rows(part, x, n, scale, offset, names) for part in parts))
     return np.concatenate(hs), np.vstack(Hs)
+
+
+def _augmented_rows(part, x: np.ndarray, n: int, scale, offset,
+                    names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """(h, H) of one model part at the augmented state x (n motion states, then `names`): a range
+    part's s d_i + b with the columns s dd_i/dx, d_i (scale), 1 (offset); another part's own h, H
+    with zero calibration columns. The part linearised at x itself gives H with a column per state
+    entry, zero beyond the position (filters.measurement_models: h reads the position only)."""
+    h, H = part.linearise(x)
+    if isinstance(part, RangeModel):
+        H[:, :n] *= scale
+        for k, name in enumerate(names):
+            H[:, n + k] = h if name == "scale" else 1.0
+        h = scale * h + offset
+    return h, H
 
 
 def h_many(model, X: np.ndarray, mode: str) -> np.ndarray:

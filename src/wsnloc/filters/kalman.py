@@ -17,6 +17,7 @@ a degenerate geometry, a non-finite model) is skipped, the prior kept, and count
 
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
@@ -40,6 +41,14 @@ def inverse(S: np.ndarray) -> np.ndarray:
             except np.linalg.LinAlgError:
                 pass                              # singular: NaN
         return out
+
+
+@lru_cache(maxsize=None)
+def identity(n: int) -> np.ndarray:
+    """The n x n identity, built once per size (read-only): the Joseph form's I - K H of every update."""
+    eye = np.eye(n)
+    eye.flags.writeable = False
+    return eye
 
 
 def predict(x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray, Bu: np.ndarray | None = None):
@@ -85,12 +94,12 @@ def joseph_update(x: np.ndarray, P: np.ndarray, y: np.ndarray, H: np.ndarray, R:
     S_inv = inverse(S)
     K = PHt @ S_inv
     x_new = x + (K @ y[..., None])[..., 0]
-    joseph = np.eye(x.shape[-1]) - K @ H
+    joseph = identity(x.shape[-1]) - K @ H
     P_new = joseph @ P @ joseph.swapaxes(-1, -2) + K @ R @ K.swapaxes(-1, -2)
     # finite where x and P are: a NaN or an infinity makes their sum so (finite entries overflow it
     # only beyond 1e308, a result no filter keeps); one test instead of one per array
     ok = np.isfinite(x_new.sum(axis=-1) + P_new.sum(axis=(-2, -1)))
-    if not np.all(ok):
+    if not ok.all():
         x_new = np.where(ok[..., None], x_new, x)
         P_new = np.where(ok[..., None, None], P_new, P)
     return Update(x_new, P_new, S, S_inv, K, ok)
