@@ -206,3 +206,12 @@ def test_paper_a_speed_mechanism_reads_the_campaign_accelerations_and_the_model_
     own = why.explain_a([dict(records[0])], metrics, rows, {**peaks, "newcom/variable": 0.9},
                         {**sigmas, "newcom/variable": 1.0})[0]["why"]
     assert "newcom/variable 0.9 <= 1 m/s^2" in own and "models both profiles" in own
+
+
+@pytest.mark.parametrize("rho", [np.exp(-0.01 / 0.3), 0.5, 0.999])
+def test_slope_recursion_gives_the_floats_of_lfilter(rho):
+    """The floor slope's AR(1) recursion (imu._ar1, numpy only) and scipy.signal.lfilter: same floats."""
+    from scipy.signal import lfilter
+
+    shocks = np.random.default_rng(4).normal(0.0, 0.004, 5000)
+    assert np.array_equal(imu._ar1(shocks, rho), lfilter([1.0], [1.0, -rho], shocks))

@@ -169,8 +169,9 @@ def _published(case: Path, quarantine: list) -> dict[str, pd.DataFrame]:
     return out
 
 
-def convert_cucudasluv(src: str | Path, out: str | Path) -> list[Converted]:
-    """Convert every dynamic case; returns the runs written."""
+def convert_cucudasluv(src: str | Path, out: str | Path, ranges_only: bool = False) -> list[Converted]:
+    """Convert every dynamic case; returns the runs written. ranges_only: the anchors, ranges and
+    truth tables alone (no rss table, no published baselines), all that range errors read."""
     src, out = Path(src), Path(out)
     written = []
     for scenario, run, case in _case_dirs(src):
@@ -197,10 +198,10 @@ def convert_cucudasluv(src: str | Path, out: str | Path) -> list[Converted]:
         source.check()
         tables = {"anchors": pd.DataFrame(anchors, columns=["anchor_id", "tech", "x", "y", "z"]),
                   "ranges": pd.concat(ranges).sort_values("t", kind="stable"),
-                  "rss": pd.concat(rss).sort_values("t", kind="stable"),
                   "truth": pd.DataFrame({"t": truth["timestamp"].astype("int64") * NS, "x": truth["x"],
                                          "y": truth["y"]})}
-        tables.update(_published(case, quarantine))
+        if not ranges_only:
+            tables.update(rss=pd.concat(rss).sort_values("t", kind="stable"), **_published(case, quarantine))
         written.append(_write_run(out / scenario / run, tables, CUCUDASLUV_TAG_HEIGHT_M, "cucudasluv/UWB-dataset",
                                   quarantine))
     if not written:

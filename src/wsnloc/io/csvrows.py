@@ -56,6 +56,16 @@ def read_csv_rows(path: Path) -> CsvRows:
     repeated = sorted({name for name in header if header.count(name) > 1})
     if repeated:
         raise IngestError(f"{path}:1: column(s) {repeated} appear more than once in the header")
+    columns = _clean_rows(raw_lines, ends_with_newline, len(header))
+    if columns is not None:
+        frame = pd.DataFrame(dict(zip(header, columns)), columns=header, dtype=str)
+        count = len(raw_lines) - 1
+        return CsvRows(frame, np.arange(2, count + 2, dtype=np.int64), [], len(raw_lines), count)
+    return _row_by_row(raw_lines, ends_with_newline, header)
+
+
+def _row_by_row(raw_lines: list[bytes], ends_with_newline: bool, header: list[str]) -> CsvRows:
+    """The data lines (raw_lines[1:]) one at a time: each damaged line refused alone, with its line number."""
     rows, lines, refused, n_records = [], [], [], 0
     for number, raw in enumerate(raw_lines[1:], start=2):
         try:
@@ -78,3 +88,29 @@ def read_csv_rows(path: Path) -> CsvRows:
         lines.append(number)
     frame = pd.DataFrame(rows, columns=header, dtype=str) if rows else pd.DataFrame(columns=header, dtype=str)
     return CsvRows(frame, np.array(lines, dtype=np.int64), refused, len(raw_lines), n_records)
+
+
+def _clean_rows(raw_lines: list[bytes], ends_with_newline: bool, width: int) -> list[list[str]] | None:
+    """The columns (one list of str per header field) of a file whose data lines are all usable
+    as they are: UTF-8, no quote, no carriage return but one ending every line or none, none
+    blank, each with `width` fields, the last one ended. Split at once: the rows _row_by_row
+    gives (none refused) at a fraction of its CPU; None for any other file, read by _row_by_row."""
+    data = raw_lines[1:]
+    if width < 2 or not data or not ends_with_newline:
+        return None
+    try:
+        text = b"\n".join(data).decode("utf-8")
+    except UnicodeDecodeError:
+        return None
+    if "\r" in text:        # Windows line ends: one carriage return ending each line, what rstrip("\r") removes
+        if text.count("\r") != len(data) or text.count("\r\n") != len(data) - 1 or not text.endswith("\r"):
+            return None
+        text = text.replace("\r", "")
+    if '"' in text:
+        return None
+    lines = text.split("\n")
+    if any(line.count(",") != width - 1 for line in lines):     # also every blank line (no comma)
+        return None
+    fields = ",".join(lines).split(",")
+    return [fields[k::width] for k in range(width)]
+

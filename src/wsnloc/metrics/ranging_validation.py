@@ -122,7 +122,8 @@ def single_rows(errors: pd.DataFrame, experiment: str, scenario: str) -> list[di
 def real_errors(source: str, campaign_file: str) -> pd.DataFrame:
     """Range errors of the real cucudasluv cases (columns run 'los/<case>', link LOS / NLOS from
     the case's folder, true_distance_m 3-D with the campaign's tag height, error_m): the source
-    converted by `wsnloc convert cucudasluv` into a scratch folder and ingested like any run."""
+    converted by `wsnloc convert cucudasluv` (its ranges alone) into a scratch folder and
+    ingested like any run."""
     import tempfile
     from pathlib import Path
 
@@ -134,7 +135,7 @@ def real_errors(source: str, campaign_file: str) -> pd.DataFrame:
     campaign = Campaign.load(campaign_file)
     frames = []
     with tempfile.TemporaryDirectory() as scratch:
-        for run in convert_cucudasluv(source, scratch):
+        for run in convert_cucudasluv(source, scratch, ranges_only=True):
             tables, _ = generic.ingest_run(run.run_dir, campaign)
             case = Path(run.run_dir)
             errors = range_errors(tables["ranges"], tables["truth"], campaign, tables["anchors"])

@@ -114,11 +114,9 @@ def tilt_angles(s, spec: dict, rng: np.random.Generator) -> tuple[np.ndarray, np
     angle(s) = mount + slope(s): mount ~ N(0, mount_tilt_sigma) once per run; slope a Gaussian
     process along the path with autocorrelation sigma^2 exp(-|ds| / ell) (floor_slope_sigma_deg,
     floor_slope_correlation_m), drawn on a 1 cm grid of the path as the exact AR(1) recursion
-    x_k = rho x_{k-1} + sqrt(1 - rho^2) sigma e_k, rho = exp(-0.01 / ell) (scipy.signal.lfilter)
-    and interpolated at s; independent for pitch and roll. Zero angles without the keys.
+    x_k = rho x_{k-1} + sqrt(1 - rho^2) sigma e_k, rho = exp(-0.01 / ell) (_ar1) and
+    interpolated at s; independent for pitch and roll. Zero angles without the keys.
     """
-    from scipy.signal import lfilter
-
     s = np.asarray(s, dtype=float)
     mount_sigma = np.deg2rad(spec.get("mount_tilt_sigma_deg", 0.0))
     slope_sigma = np.deg2rad(spec.get("floor_slope_sigma_deg", 0.0))
@@ -130,8 +128,19 @@ def tilt_angles(s, spec: dict, rng: np.random.Generator) -> tuple[np.ndarray, np
     rho = np.exp(-grid_step / spec["floor_slope_correlation_m"])
     shocks = rng.normal(0.0, slope_sigma, (2, len(grid)))
     shocks[:, 1:] *= np.sqrt(1.0 - rho**2)
-    slope = lfilter([1.0], [1.0, -rho], shocks, axis=1)         # x_0 = e_0 (stationary start)
+    slope = [_ar1(row, rho) for row in shocks]                   # x_0 = e_0 (stationary start)
     return mount[0] + np.interp(s, grid, slope[0]), mount[1] + np.interp(s, grid, slope[1])
+
+
+def _ar1(shocks: np.ndarray, rho: float) -> np.ndarray:
+    """x_k = shocks_k + rho x_{k-1}, x_{-1} = 0, in sequence: the floats
+    scipy.signal.lfilter([1], [1, -rho], shocks) gives (importing scipy.signal costs a
+    simulation job about 0.6 s of CPU, the recursion a few ms per run)."""
+    out, previous, rho = [], 0.0, float(rho)
+    for shock in shocks.tolist():
+        previous = shock + rho * previous
+        out.append(previous)
+    return np.array(out)
 
 
 def tilt_leakage(force: np.ndarray, pitch: np.ndarray, roll: np.ndarray, gravity: float) -> np.ndarray:
