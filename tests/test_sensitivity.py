@@ -112,14 +112,30 @@ def test_paper_a_setup_counts_the_measurements_its_filters_used_and_says_so():
     their labels say so (the logs' anchors per round are another count: pl0_sensitivity)."""
     from wsnloc.experiments import paper_a
 
-    spec = {"rows": [{"measurements": "toa", "anchors": "UWB=12"}, {"measurements": "rss", "anchors": "ZigBee=21"}]}
+    from wsnloc.experiments.paper_a import report as paper_a_report
+
+    spec = {"rows": [{"measurements": "toa", "anchors": "UWB=12"}, {"measurements": "toa", "anchors": "UWB=9"},
+                     {"measurements": "rss", "anchors": "ZigBee=21"}, {"measurements": "rss", "anchors": "ZigBee=17"}]}
     t = np.arange(0.0, 5.0, 0.5)
     est = pd.concat([pd.DataFrame({"table": "Table I", "row": paper_a.row_label(row), "run": "run-01", "t": t,
                                    "true_x": 0.3 * t, "true_y": 0.0, "n_meas": n})
-                     for row, n in zip(spec["rows"], (9.0, 17.0))], ignore_index=True)
-    facts = results.frame(paper_a.setup_rows({"newcom/constant": est}, spec)).set_index("row")["value"]
-    assert facts[paper_a.MEASUREMENTS_USED["toa"]] == 9.0 and facts[paper_a.MEASUREMENTS_USED["rss"]] == 17.0
+                     for row, n in zip(spec["rows"], (9.0, 7.0, 17.0, 14.0))], ignore_index=True)
+    frame = results.frame(paper_a.setup_rows({"newcom/constant": est}, spec))
+    facts = frame.set_index("row")["value"]
+    toa, rss = paper_a.MEASUREMENTS_USED["toa"], paper_a.MEASUREMENTS_USED["rss"]
+    assert facts[toa] == 9.0 and facts[rss] == 17.0
     assert all("used per epoch" in label for label in paper_a.MEASUREMENTS_USED.values())
+    # per anchor subset: each row's own count, quoted for the cells of that subset only
+    assert facts[f"{toa} (UWB=9)"] == 7.0 and facts[f"{rss} (ZigBee=17)"] == 14.0 and facts[f"{toa} (UWB=12)"] == 9.0
+    numbers = explanations.Numbers(frame, {})
+    fewer = explanations.cell_mechanism(numbers, "A", "newcom/constant", "Table I", "hybrid | UWB=9, ZigBee=17", "c")
+    assert f"{toa} (UWB=9) 7.0" in fewer and f"{rss} (ZigBee=17) 14.0" in fewer and "9.0" not in fewer
+    rss_only = explanations.cell_mechanism(numbers, "A", "newcom/constant", "Table I", "RSS (ZigBee) | ZigBee=21", "c")
+    assert f"{rss} (ZigBee=21) 17.0" in rss_only and "UWB" not in rss_only and "14.0" not in rss_only
+    config = {"datasets": {"newcom": {"campaign": "config/campaigns/newcom.yaml"}}}
+    [line] = [line for line in paper_a_report.why(numbers, config, ["newcom/constant"], spec, 0.5) if "per 0.5 s" in line]
+    assert ("9.0 UWB ranges with UWB=12, 7.0 UWB ranges with UWB=9, 17.0 ZigBee RSS values with ZigBee=21, "
+            "14.0 ZigBee RSS values with ZigBee=17") in line
 
 
 def test_explanations_cite_the_computed_numbers_and_skip_missing_ones():

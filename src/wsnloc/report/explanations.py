@@ -130,12 +130,16 @@ def _words(*labels: str) -> set[str]:
     return {w for label in labels for w in re.findall(r"[a-z0-9]+(?:-[a-z0-9]+)*", label.lower())}
 
 
+SUBSET_FACT = re.compile(r"^(.*) \(([A-Za-z]+=[0-9]+)\)$")   # a set-up fact of one anchor subset: "<fact> (UWB=9)"
+
+
 def cell_mechanism(n: Numbers, experiment: str, scenario: str, *labels: str) -> str:
     """The measured error sources behind one cell of `scenario`, chosen by the cell's kind (the
     words of its table title, row and column `labels`): the UWB / ultrasound ranging (NLOS share
     of the ranges, their median NLOS excess and LOS median error, m) for range-based cells, the
     RSS path-loss fit (exponent, residual spread in dB) for RSS cells, and the scenario's set-up
-    facts (static share of epochs, anchors heard per epoch) for every cell; "" when the build has
+    facts (static share of epochs, anchors heard per epoch) for every cell, those of one anchor
+    subset ("<fact> (UWB=9)") only for the cells that name it, in place of the unqualified one; "" when the build has
     none of these numbers for the scenario."""
     words = _words(*labels)
     parts = []
@@ -151,7 +155,12 @@ def cell_mechanism(n: Numbers, experiment: str, scenario: str, *labels: str) -> 
                      f"residual spread (wall losses outside the RSS model)")
     facts = n.results[(n.results["experiment"] == experiment) & (n.results["table"] == SETUP_TABLE)
                       & (n.results["column"] == scenario)]
+    subsets = set(re.findall(r"[A-Za-z]+=[0-9]+", " ".join(labels)))      # the cell's anchor subsets ("UWB=9")
+    qualified = {m.group(1) for m in map(SUBSET_FACT.match, facts["row"]) if m}
     for fact, value in zip(facts["row"], facts["value"]):
+        subset = SUBSET_FACT.match(fact)
+        if (subset.group(2) not in subsets) if subset else (fact in qualified and subsets):
+            continue        # a fact of another subset, or the first subset's where the cell names its own
         if pd.notna(value):
             shown = f"{value:.0%}" if "share" in fact else f"{value:.1f}"
             at_rest = "static" in fact and value < STILL_SHARE and words & set(DRIFT_WORDS) \
