@@ -411,6 +411,16 @@ def test_the_gap_account_is_computed_from_the_builds_numbers_and_its_arithmetic_
     bare = explanations.Numbers(frame, {}, None)
     [line] = explanations.cell_whys(bare, "B", [table_b])
     assert "No mechanism quantified for this cell: the gap +23.780 m is not accounted for" in line
+    # a run with rests whose dead reckoning measures no bias in them (BIAS_CALIBRATION 0 s) drifts
+    # as one without rests; a calibration at rest removes the term
+    for calibration, drifts in ((0.0, True), (5.0, False)):
+        rested = explanations.Numbers(results.frame(rows[:3] + [
+            setup_facts.fact_row("B", "static share of epochs", "newcom/b_real", pd.Series([0.1, 0.1]), "share"),
+            setup_facts.fact_row("B", setup_facts.BIAS_CALIBRATION, "newcom/b_real",
+                                 pd.Series([calibration] * 2), "seconds")]), summaries, config)
+        [line] = explanations.cell_whys(rested, "B", [table_b])
+        assert ("T = 61.0 s: " in line and "the biases are not measured" in line) is drifts
+        assert ("No mechanism quantified" in line) is not drifts
     # a max error of dead reckoning without a rest: the bias drift at the run's end, |b| T^2 / 2
     [line] = explanations.cell_whys(numbers, "B", [dict(table_b, title="Max error [m]")])
     assert f"T = 61.0 s: {math.sqrt(2) * sigma * 61.0**2 / 2:+.3f} m" in line and "No mechanism quantified" not in line

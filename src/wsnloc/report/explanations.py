@@ -17,7 +17,7 @@ import re
 
 import pandas as pd
 
-from wsnloc.analysis.setup_facts import SETUP_TABLE
+from wsnloc.analysis.setup_facts import BIAS_CALIBRATION, SETUP_TABLE
 from wsnloc.campaign import Campaign
 from wsnloc.experiments import claims as claims_of
 from wsnloc.sim.imu import ACCEL_BIAS, bias_sigma
@@ -133,6 +133,14 @@ def _words(*labels: str) -> set[str]:
 SUBSET_FACT = re.compile(r"^(.*) \(([A-Za-z]+=[0-9]+)\)$")   # a set-up fact of one anchor subset: "<fact> (UWB=9)"
 
 
+def bias_unmeasured(n: Numbers, experiment: str, scenario: str) -> bool:
+    """Whether the dead reckoning of `scenario` has no measurement of its IMU biases: its run has
+    no rest (static share below STILL_SHARE) or its estimator measures none (set-up fact
+    BIAS_CALIBRATION = 0 s, whatever rests the run has)."""
+    static, calibration = (n.fact(experiment, fact, scenario) for fact in ("static share of epochs", BIAS_CALIBRATION))
+    return (finite(static) and static < STILL_SHARE) or calibration == 0.0
+
+
 def cell_mechanism(n: Numbers, experiment: str, scenario: str, *labels: str) -> str:
     """The measured error sources behind one cell of `scenario`, chosen by the cell's kind (the
     words of its table title, row and column `labels`): the UWB / ultrasound ranging (NLOS share
@@ -161,12 +169,14 @@ def cell_mechanism(n: Numbers, experiment: str, scenario: str, *labels: str) -> 
         subset = SUBSET_FACT.match(fact)
         if (subset.group(2) not in subsets) if subset else (fact in qualified and subsets):
             continue        # a fact of another subset, or the first subset's where the cell names its own
+        drift = words & set(DRIFT_WORDS) and n.imu_bias_sigma(scenario, ACCEL_BIAS) != 0.0   # no bias: nothing to measure
+        if fact == BIAS_CALIBRATION and not drift:
+            continue
         if pd.notna(value):
             shown = f"{value:.0%}" if "share" in fact else f"{value:.1f}"
-            at_rest = "static" in fact and value < STILL_SHARE and words & set(DRIFT_WORDS) \
-                and n.imu_bias_sigma(scenario, ACCEL_BIAS) != 0.0     # a simulated IMU without bias: nothing to measure
-            parts.append(f"{fact} {shown}" + (" (no rest to measure the IMU biases in: dead reckoning integrates them)"
-                                              if at_rest else ""))
+            note = ("no rest to measure the IMU biases in" if "static" in fact and value < STILL_SHARE else
+                    "the biases are not measured" if fact == BIAS_CALIBRATION and value == 0.0 else "")
+            parts.append(f"{fact} {shown}" + (f" ({note}: dead reckoning integrates them)" if drift and note else ""))
     return "; ".join(parts)
 
 
@@ -188,7 +198,7 @@ def contributions(n: Numbers, experiment: str, scenario: str, table: dict, row: 
       1 - eps_LOS / eps_all of a ranging-limited RMSE to the wall losses: RMSE (1 - eps_LOS / eps_all);
     - rests (cells whose results hold a moving-epoch RMSE, `<table> detail` / rmse_moving): the
       static epochs change our RMSE by RMSE - RMSE over the moving epochs (negative: rests help);
-    - uncalibrated accelerometer bias (dead reckoning alone, no rest to measure it in): a
+    - uncalibrated accelerometer bias (dead reckoning alone, its bias not measured: bias_unmeasured): a
       horizontal bias of RMS |b| = sqrt(2) sigma_b (sigma_b per axis, campaign) integrates to
       |b| t^2 / 2, whose RMS over a run of T s is |b| T^2 / (2 sqrt 5) and whose value at the
       run's end (a max error) is |b| T^2 / 2.
@@ -205,47 +215,48 @@ def contributions(n: Numbers, experiment: str, scenario: str, table: dict, row: 
     fit = n.rss_fit(scenario)
     if (words & set(RSS_WORDS) and not words & set(RANGING_WORDS)
             and finite(fit["fit_all_n"], fit["fit_all_sigma_dB"], fit["fit_los_n"], fit["fit_los_sigma_dB"])):
-        eps_all, eps_los = (math.log(10.0) * fit[f"fit_{k}_sigma_dB"] / (10.0 * fit[f"fit_{k}_n"]) for k in ("all", "los"))
+        eps_all, eps_los = (math.log(10.0) * fit[f"fit_{k}_sigma_dB"] / (10.0 * fit[f"fit_{k}_n"])
+                            for k in ("all", "los"))
         walls = value * (1.0 - eps_los / eps_all)
-        out.append((f"RSS wall losses: ln(10) sigma / (10 n) = {eps_all:.3f} over all links ({fit['fit_all_sigma_dB']:.2f} dB, "
-                    f"n = {fit['fit_all_n']:.2f}) against {eps_los:.3f} on LOS links ({fit['fit_los_sigma_dB']:.2f} dB, "
+        out.append((f"RSS wall losses: ln(10) sigma / (10 n) = {eps_all:.3f} over all links "
+                    f"({fit['fit_all_sigma_dB']:.2f} dB, n = {fit['fit_all_n']:.2f}) against {eps_los:.3f} "
+                    f"on LOS links ({fit['fit_los_sigma_dB']:.2f} dB, "
                     f"n = {fit['fit_los_n']:.2f}), RMSE x (1 - {eps_los:.3f} / {eps_all:.3f}) = {walls:+.3f} m", walls))
     moving = n.value(experiment, f"{table['table']} detail", row, "rmse_moving", scenario=scenario) \
         if table.get("table") else math.nan
     if finite(moving):
         out.append((f"rests: RMSE - moving-epoch RMSE = {value:.3f} - {moving:.3f} = {value - moving:+.3f} m",
                     value - moving))
-    static = n.fact(experiment, "static share of epochs", scenario)
     sigma_b, duration = n.imu_bias_sigma(scenario, ACCEL_BIAS), n.duration_s(scenario)
-    if (words & set(DEAD_RECKONING_WORDS) and not words & set(FUSION_WORDS) and finite(static, sigma_b, duration)
-            and static < STILL_SHARE and sigma_b > 0):
+    if (words & set(DEAD_RECKONING_WORDS) and not words & set(FUSION_WORDS) and finite(sigma_b, duration)
+            and sigma_b > 0 and bias_unmeasured(n, experiment, scenario)):
         if "max" in words:
             drift = math.sqrt(2.0) * sigma_b * duration**2 / 2.0
-            out.append((f"accelerometer bias without a rest to measure it, at the run's end: |b| T^2 / 2 with |b| = "
+            out.append((f"accelerometer bias not measured at rest, at the run's end: |b| T^2 / 2 with |b| = "
                         f"sqrt(2) x {sigma_b:g} m/s^2, T = {duration:.1f} s: {drift:+.3f} m", drift))
         else:
             drift = math.sqrt(2.0) * sigma_b * duration**2 / (2.0 * math.sqrt(5.0))
-            out.append((f"accelerometer bias without a rest to measure it: |b| T^2 / (2 sqrt 5) with |b| = sqrt(2) x "
+            out.append((f"accelerometer bias not measured at rest: |b| T^2 / (2 sqrt 5) with |b| = sqrt(2) x "
                         f"{sigma_b:g} m/s^2, T = {duration:.1f} s: {drift:+.3f} m", drift))
     return out
 
 
 def drift_counterfactual(n: Numbers, experiment: str, scenario: str, value: float, others: dict[str, float],
                          *labels: str) -> list[tuple[str, float]]:
-    """The IMU bias drift of a fused cell (its `labels` name a fusion) on a scenario without a rest
-    to measure the biases in: our value minus the same row's value on a scenario (`others`:
+    """The IMU bias drift of a fused cell (its `labels` name a fusion) on a scenario whose IMU
+    biases are not measured (bias_unmeasured): our value minus the same row's value on a scenario (`others`:
     scenario -> our value there) whose simulated IMU has no bias (the counterfactual without the
     drift), in m; [] without such a scenario."""
     words = _words(*labels)
-    static, sigma_b = n.fact(experiment, "static share of epochs", scenario), n.imu_bias_sigma(scenario, ACCEL_BIAS)
-    if not (words & set(FUSION_WORDS) and words & set(GAP_WORDS) and finite(static, sigma_b)
-            and static < STILL_SHARE and sigma_b > 0):
+    sigma_b = n.imu_bias_sigma(scenario, ACCEL_BIAS)
+    if not (words & set(FUSION_WORDS) and words & set(GAP_WORDS) and finite(sigma_b) and sigma_b > 0
+            and bias_unmeasured(n, experiment, scenario)):
         return []
     clean = next(((sc, v) for sc, v in others.items() if n.imu_bias_sigma(sc, ACCEL_BIAS) == 0.0 and finite(v)), None)
     if clean is None:
         return []
     sc, v = clean
-    return [(f"IMU bias drift (no rest to measure the {sigma_b:g} m/s^2 turn-on bias in; the same fusion on {sc}, "
+    return [(f"IMU bias drift (the {sigma_b:g} m/s^2 turn-on bias not measured at rest; the same fusion on {sc}, "
              f"whose IMU has no bias, gives {v:.3f} m): {value:.3f} - {v:.3f} = {value - v:+.3f} m", value - v)]
 
 
@@ -281,7 +292,8 @@ def gap_account(gap: float, parts: list[tuple[str, float]], needed: str = "") ->
             "errors ours lack, can close it): " if gap < 0 else "Account of the gap: ")
     terms = "; ".join(text for text, _ in parts)
     account = (f"{terms}; predicted {total:+.3f} m against the gap {gap:+.3f} m: {gap - total:+.3f} m unexplained"
-               if parts else f"no computed term {'lowers' if gap < 0 else 'raises'} ours: the gap {gap:+.3f} m is unexplained")
+               if parts else
+               f"no computed term {'lowers' if gap < 0 else 'raises'} ours: the gap {gap:+.3f} m is unexplained")
     return head + account + (f"; {needed}." if needed else ".")
 
 
@@ -299,8 +311,8 @@ def cell_whys(n: Numbers, experiment: str, tables: list[dict], paper_terms=None)
     the gap (gap_account) from the computed contributions (contributions; for a fused cell
     without rests, drift_counterfactual in place of the ranging terms), the paper's own
     `paper_terms(table, row, column, cell)` (a list of (text, contribution in m), e.g. a model's
-    part of the gap; contribution None: what the paper's side needs, a statement) and, below the paper on range-based cells, what the paper's ranging needs
-    for the rest (ranging_needed)."""
+    part of the gap; contribution None: what the paper's side needs, a statement) and, below
+    the paper on range-based cells, what the paper's ranging needs for the rest (ranging_needed)."""
     out = []
     for table, row, column, cell in outside_cells(tables):
         scenario = cell.get("scenario") or table.get("scenario", "")

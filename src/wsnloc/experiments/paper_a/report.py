@@ -55,8 +55,8 @@ def why(n: Numbers, config: dict, scenarios: list[str], spec: dict, epoch_s: flo
         if used and finite(*used.values()):
             per_subset = ", ".join(f"{used[s]:.1f} {'UWB ranges' if s in subsets['toa'] else 'ZigBee RSS values'} "
                                    f"with {s}" for s in used)
-            out.append(f"{sc}: per {epoch_s:g} s epoch the filters use {per_subset} (links that close in the campaign's "
-                       f"link budget: UWB 802.15.4a path loss and shadowing against the receiver's sensitivity, "
+            out.append(f"{sc}: per {epoch_s:g} s epoch the filters use {per_subset} (links that close in the "
+                       f"campaign's link budget: UWB 802.15.4a path loss and shadowing against the receiver's sensitivity, "
                        f"ZigBee RSS against the CC2420 sensitivity); the paper: \"only few UWB and few ZigBee anchor "
                        f"nodes\" (paper A, §V).")
         r, fit = n.ranging(sc), n.rss_fit(sc)

@@ -69,15 +69,16 @@ def paper_terms(n: Numbers, row: str, column: str, cell: dict) -> list[tuple[str
         rmse = curve["value"].to_numpy(float)
         paper, at = cell["paper"], float(column.removesuffix(" dB"))
         # dead reckoning error falls with the SNR: the neighbours of the paper's value on our curve
-        pairs = [(i, i + 1) for i in range(len(snr) - 1) if min(rmse[i], rmse[i + 1]) <= paper <= max(rmse[i], rmse[i + 1])]
+        pairs = [(i, i + 1) for i in range(len(snr) - 1)
+                 if min(rmse[i], rmse[i + 1]) <= paper <= max(rmse[i], rmse[i + 1])]
         if pairs:
             i, j = pairs[0]
             meet = snr[i] + (snr[j] - snr[i]) * (rmse[i] - paper) / (rmse[i] - rmse[j])
             return [(f"our SNR curve meets the paper's {paper:.3f} m at {snr[i]:g} + {snr[j] - snr[i]:g} x "
                      f"({rmse[i]:.3f} - {paper:.3f}) / ({rmse[i]:.3f} - {rmse[j]:.3f}) = {meet:.1f} dB: the paper's "
-                     f"{at:g} dB carries accelerometer noise 10^(-{meet - at:.1f}/20) = {10 ** (-(meet - at) / 20):.2f} "
-                     f"times the amplitude of ours at {at:g} dB (the SNR's signal power read differently, e.g. over "
-                     f"the 500 Hz rather than the 5 Hz band)", None)]
+                     f"{at:g} dB carries accelerometer noise 10^(-{meet - at:.1f}/20) = "
+                     f"{10 ** (-(meet - at) / 20):.2f} times the amplitude of ours at {at:g} dB (the paper's SNR "
+                     f"referred to another signal power than ours)", None)]
     return []
 
 

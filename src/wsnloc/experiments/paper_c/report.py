@@ -71,8 +71,8 @@ def model_part(n: Numbers, table: str, row: str, column: str, period_s: float, p
             leak = GRAVITY_MPS2 * math.sin(math.radians(tilt_deg))
             text += (f"; an acceleration error a left in the prediction over T = {period_s:g} s adds a T^2 / 2, so the "
                      f"paper's {dp:.3f} m needs a = 2 x {dp:.3f} / {period_s:g}^2 = {a:.2f} m/s^2 that its bias states "
-                     f"did not absorb, {a / leak:.1f} times the tilt leakage g sin({tilt_deg:g} deg) = {leak:.3f} m/s^2 "
-                     f"of our assumed IMU (absorbed here)" if leak > 0 else "")
+                     f"did not absorb, {a / leak:.1f} times the tilt leakage g sin({tilt_deg:g} deg) = "
+                     f"{leak:.3f} m/s^2 of our assumed IMU (absorbed here)" if leak > 0 else "")
         else:
             text += (f"; a motion the model does not follow adds a T^2 / 2 over T = {period_s:g} s, so the paper's "
                      f"{dp:.3f} m needs a = 2 x {dp:.3f} / {period_s:g}^2 = {a:.2f} m/s^2 of unmodelled acceleration, "
