@@ -165,6 +165,7 @@ def cell_mechanism(n: Numbers, experiment: str, scenario: str, *labels: str) -> 
                       & (n.results["column"] == scenario)]
     subsets = set(re.findall(r"[A-Za-z]+=[0-9]+", " ".join(labels)))      # the cell's anchor subsets ("UWB=9")
     qualified = {m.group(1) for m in map(SUBSET_FACT.match, facts["row"]) if m}
+    still = n.fact(experiment, "static share of epochs", scenario) < STILL_SHARE   # its note says it already
     for fact, value in zip(facts["row"], facts["value"]):
         subset = SUBSET_FACT.match(fact)
         if (subset.group(2) not in subsets) if subset else (fact in qualified and subsets):
@@ -175,7 +176,7 @@ def cell_mechanism(n: Numbers, experiment: str, scenario: str, *labels: str) -> 
         if pd.notna(value):
             shown = f"{value:.0%}" if "share" in fact else f"{value:.1f}"
             note = ("no rest to measure the IMU biases in" if "static" in fact and value < STILL_SHARE else
-                    "the biases are not measured" if fact == BIAS_CALIBRATION and value == 0.0 else "")
+                    "the biases are not measured" if fact == BIAS_CALIBRATION and value == 0.0 and not still else "")
             parts.append(f"{fact} {shown}" + (f" ({note}: dead reckoning integrates them)" if drift and note else ""))
     return "; ".join(parts)
 
