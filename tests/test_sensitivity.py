@@ -112,14 +112,30 @@ def test_paper_a_setup_counts_the_measurements_its_filters_used_and_says_so():
     their labels say so (the logs' anchors per round are another count: pl0_sensitivity)."""
     from wsnloc.experiments import paper_a
 
-    spec = {"rows": [{"measurements": "toa", "anchors": "UWB=12"}, {"measurements": "rss", "anchors": "ZigBee=21"}]}
+    from wsnloc.experiments.paper_a import report as paper_a_report
+
+    spec = {"rows": [{"measurements": "toa", "anchors": "UWB=12"}, {"measurements": "toa", "anchors": "UWB=9"},
+                     {"measurements": "rss", "anchors": "ZigBee=21"}, {"measurements": "rss", "anchors": "ZigBee=17"}]}
     t = np.arange(0.0, 5.0, 0.5)
     est = pd.concat([pd.DataFrame({"table": "Table I", "row": paper_a.row_label(row), "run": "run-01", "t": t,
                                    "true_x": 0.3 * t, "true_y": 0.0, "n_meas": n})
-                     for row, n in zip(spec["rows"], (9.0, 17.0))], ignore_index=True)
-    facts = results.frame(paper_a.setup_rows({"newcom/constant": est}, spec)).set_index("row")["value"]
-    assert facts[paper_a.MEASUREMENTS_USED["toa"]] == 9.0 and facts[paper_a.MEASUREMENTS_USED["rss"]] == 17.0
+                     for row, n in zip(spec["rows"], (9.0, 7.0, 17.0, 14.0))], ignore_index=True)
+    frame = results.frame(paper_a.setup_rows({"newcom/constant": est}, spec))
+    facts = frame.set_index("row")["value"]
+    toa, rss = paper_a.MEASUREMENTS_USED["toa"], paper_a.MEASUREMENTS_USED["rss"]
+    assert facts[toa] == 9.0 and facts[rss] == 17.0
     assert all("used per epoch" in label for label in paper_a.MEASUREMENTS_USED.values())
+    # per anchor subset: each row's own count, quoted for the cells of that subset only
+    assert facts[f"{toa} (UWB=9)"] == 7.0 and facts[f"{rss} (ZigBee=17)"] == 14.0 and facts[f"{toa} (UWB=12)"] == 9.0
+    numbers = explanations.Numbers(frame, {})
+    fewer = explanations.cell_mechanism(numbers, "A", "newcom/constant", "Table I", "hybrid | UWB=9, ZigBee=17", "c")
+    assert f"{toa} (UWB=9) 7.0" in fewer and f"{rss} (ZigBee=17) 14.0" in fewer and "9.0" not in fewer
+    rss_only = explanations.cell_mechanism(numbers, "A", "newcom/constant", "Table I", "RSS (ZigBee) | ZigBee=21", "c")
+    assert f"{rss} (ZigBee=21) 17.0" in rss_only and "UWB" not in rss_only and "14.0" not in rss_only
+    config = {"datasets": {"newcom": {"campaign": "config/campaigns/newcom.yaml"}}}
+    [line] = [line for line in paper_a_report.why(numbers, config, ["newcom/constant"], spec, 0.5) if "per 0.5 s" in line]
+    assert ("9.0 UWB ranges with UWB=12, 7.0 UWB ranges with UWB=9, 17.0 ZigBee RSS values with ZigBee=21, "
+            "14.0 ZigBee RSS values with ZigBee=17") in line
 
 
 def test_explanations_cite_the_computed_numbers_and_skip_missing_ones():
@@ -301,7 +317,8 @@ def test_every_cell_outside_our_interval_gets_a_computed_mechanism():
         line = next(line for line in section["why"] if line.startswith(f"RMSE [m], {row['label']} / {column}:"))
         assert f"ours {cell['value']:.3f}" in line and "paper's 3.250" in line
         assert "40% of the ranges are NLOS (median excess 0.50 m" in line and "static share of epochs 2%" in line
-        assert "Account of the gap: NLOS bias sqrt(x b^2) = sqrt(0.400 x 0.500^2) = +0.316 m" in line
+        # below the paper: our NLOS bias raises ours, so it is not counted; the paper's ranging need is
+        assert "NLOS bias sqrt" not in line and f"3.250 / 0.850 = {3.25 / 0.85:.2f} times less accurate" in line
     assert section["why"][0] == "a paper sentence" and len(section["why"]) == 2   # none for the inside cell
     # the mechanism follows the data: other numbers, other sentence
     other = explanations.Numbers(frame, {"d/s": {"range_error_pooled": {"LOS": {"n": 90, "median": 0.02},
@@ -394,9 +411,122 @@ def test_the_gap_account_is_computed_from_the_builds_numbers_and_its_arithmetic_
     bare = explanations.Numbers(frame, {}, None)
     [line] = explanations.cell_whys(bare, "B", [table_b])
     assert "No mechanism quantified for this cell: the gap +23.780 m is not accounted for" in line
-    # no account for cells that are not RMSE (a max error is not a sum of RMS contributions)
+    # a run with rests whose dead reckoning measures no bias in them (BIAS_CALIBRATION 0 s) drifts
+    # as one without rests; a calibration at rest removes the term
+    for calibration, drifts in ((0.0, True), (5.0, False)):
+        rested = explanations.Numbers(results.frame(rows[:3] + [
+            setup_facts.fact_row("B", "static share of epochs", "newcom/b_real", pd.Series([0.1, 0.1]), "share"),
+            setup_facts.fact_row("B", setup_facts.BIAS_CALIBRATION, "newcom/b_real",
+                                 pd.Series([calibration] * 2), "seconds")]), summaries, config)
+        [line] = explanations.cell_whys(rested, "B", [table_b])
+        assert ("T = 61.0 s: " in line and "the biases are not measured" in line) is drifts
+        assert ("No mechanism quantified" in line) is not drifts
+    # a max error of dead reckoning without a rest: the bias drift at the run's end, |b| T^2 / 2
     [line] = explanations.cell_whys(numbers, "B", [dict(table_b, title="Max error [m]")])
+    assert f"T = 61.0 s: {math.sqrt(2) * sigma * 61.0**2 / 2:+.3f} m" in line and "No mechanism quantified" not in line
+    # no account for cells that are neither RMSE nor max errors
+    [line] = explanations.cell_whys(numbers, "B", [dict(table_b, title="Availability")])
     assert "ours 25.000" in line and "Account of the gap" not in line and "No mechanism quantified" not in line
+
+
+def test_rss_cells_get_the_wall_losses_relative_range_error():
+    """An RSS cell above the paper: eps = ln(10) sigma / (10 n) over all links against LOS links,
+    RMSE (1 - eps_LOS / eps_all); other fits, other term; none without the LOS fit."""
+    rows = [results.row_over_runs([0.9, 1.1, 1.0] * 4, experiment="A", table="Table I", row="RSS (ZigBee) | ZigBee=21",
+                                  column="constant", scenario="d/s", metric="rmse_m", paper_value=0.691)]
+    frame = results.frame(rows)
+    table = grid_table(frame, experiment="A", table="Table I", rows=["RSS (ZigBee) | ZigBee=21"], columns=["constant"],
+                       metric="rmse_m", title="Table I: RMSE [m] (plain EKF)", scenario="d/s")
+    run = {"fit_all_n": 3.0, "fit_all_sigma_dB": 6.0, "fit_los_n": 3.0, "fit_los_sigma_dB": 4.5}
+    [line] = explanations.cell_whys(explanations.Numbers(frame, {"d/s": {"per_run": [run]}}), "A", [table])
+    eps_all, eps_los = math.log(10) * 6.0 / 30.0, math.log(10) * 4.5 / 30.0
+    assert f"= {eps_all:.3f} over all links" in line and f"against {eps_los:.3f} on LOS links" in line
+    assert f"RMSE x (1 - {eps_los:.3f} / {eps_all:.3f}) = {1.0 * (1 - 4.5 / 6.0):+.3f} m" in line
+    assert f"against the gap {1.0 - 0.691:+.3f} m: {1.0 - 0.691 - 0.25:+.3f} m unexplained" in line
+    [line] = explanations.cell_whys(explanations.Numbers(frame, {"d/s": {"per_run": [dict(run, fit_los_sigma_dB=6.0)]}}),
+                                    "A", [table])
+    assert "RMSE x (1 - 0.461 / 0.461) = +0.000 m" in line
+    [line] = explanations.cell_whys(explanations.Numbers(frame, {"d/s": {"per_run": [dict(run, fit_los_n=None)]}}),
+                                    "A", [table])
+    assert "No mechanism quantified" in line
+
+
+def test_below_the_paper_only_terms_that_lower_ours_count_and_the_ranging_need_is_computed():
+    """A range-based cell below the paper: our NLOS term (it raises ours) is left out of the sum;
+    a term of the paper (paper_terms) is counted; the rest is what the paper's ranging needs,
+    k = (paper + explained) / ours, sqrt(k^2 - 1) x our median range error."""
+    rows = [results.row_over_runs([0.19, 0.21, 0.20] * 4, experiment="C", table="Table I", row="PVA", column="20 cm/s",
+                                  scenario="c/s", metric="rmse_m", paper_value=0.5)]
+    frame = results.frame(rows)
+    summaries = {"c/s": {"range_error_pooled": {"LOS": {"n": 90, "median": 0.02}, "NLOS": {"n": 10, "bias": 0.3}}}}
+    numbers = explanations.Numbers(frame, summaries)
+    table = grid_table(frame, experiment="C", table="Table I", rows=["PVA"], columns=["20 cm/s"], metric="rmse_m",
+                       title="Table I: RMSE [m], beacons 6", scenario="c/s")
+    [line] = explanations.cell_whys(numbers, "C", [table])
+    assert "NLOS bias sqrt" not in line and "no computed term lowers ours: the gap -0.300 m is unexplained" in line
+    k = 0.5 / 0.2
+    assert f"{k:.2f} times less accurate ranges" in line and f"= {math.sqrt(k * k - 1) * 0.02:.3f} m (median)" in line
+    [line] = explanations.cell_whys(numbers, "C", [table], lambda *_: [("model part", -0.1)])
+    assert "model part; predicted -0.100 m against the gap -0.300 m: -0.200 m unexplained" in line
+    assert f"0.400 / 0.200 = {0.4 / 0.2:.2f} times" in line
+    # above the paper the same NLOS term counts
+    [line] = explanations.cell_whys(numbers, "C", [dict(table, rows=[dict(table["rows"][0], cells=[
+        dict(table["rows"][0]["cells"][0], paper=0.1, delta=0.1)])])])
+    assert f"= {math.sqrt(0.1) * 0.3:+.3f} m; predicted" in line and "less accurate ranges" not in line
+
+
+def test_a_fused_cell_without_rests_gets_the_drift_of_the_counterfactual_without_bias():
+    """Paper B's fusion on a scenario with a biased IMU and no rest: ours minus the same row on the
+    scenario whose IMU has no bias (b_simulation), in place of the NLOS term."""
+    method = paper_b.METHODS["sskf"]
+    rows = [results.row_over_runs([6.0, 8.0, 7.0] * 4, experiment="B", table="RMSE", row=method,
+                                  column="newcom/b_real", scenario="newcom/b_real", metric="rmse_m", paper_value=0.88),
+            results.row_over_runs([0.6, 0.7, 0.65] * 4, experiment="B", table="RMSE", row=method,
+                                  column="newcom/b_simulation", scenario="newcom/b_simulation", metric="rmse_m",
+                                  paper_value=0.62),
+            setup_facts.fact_row("B", "static share of epochs", "newcom/b_real", pd.Series([0.0, 0.0]), "share")]
+    frame = results.frame(rows)
+    config = {"datasets": {"newcom": {"campaign": "config/campaigns/newcom.yaml"}}}
+    summaries = {"newcom/b_real": {"range_error_pooled": {"LOS": {"n": 60, "median": 0.05},
+                                                          "NLOS": {"n": 40, "bias": 1.2}}}}
+    table = grid_table(frame, experiment="B", table="RMSE", rows=[method], columns=["newcom/b_simulation", "newcom/b_real"],
+                       metric="rmse_m", title="RMSE [m]")
+    [line] = [line for line in explanations.cell_whys(explanations.Numbers(frame, summaries, config), "B", [table])
+              if "b_real:" in line]
+    assert "gives 0.650 m): 7.000 - 0.650 = +6.350 m; predicted +6.350 m against the gap +6.120 m" in line
+    assert "NLOS bias sqrt" not in line.split("Account of the gap")[1]
+
+
+def test_paper_terms_of_papers_b_and_c_carry_their_arithmetic():
+    """Paper C: a model's own part (ours_M - ours_P) - (paper_M - paper_P) and the acceleration
+    2 dp / T^2 it needs; paper B: the era of UWB ranging from the severity sweep (negative, below
+    the paper) and the SNR at which our curve meets the paper's value."""
+    from wsnloc.analysis.nlos_severity import TABLE
+    from wsnloc.experiments.paper_c import report as paper_c_report
+
+    rows = [results.row_over_runs([v] * 3, experiment="C", table="Table I", row=m, column="20 cm/s", scenario="c/s",
+                                  metric="rmse_m", paper_value=p) for m, v, p in (("P", 0.2, 0.35), ("PVA", 0.25, 0.5))]
+    numbers = explanations.Numbers(results.frame(rows), {})
+    [(text, value)] = paper_c_report.model_part(numbers, "Table I", "PVA", "20 cm/s", 0.5, 0.3, 1.0)
+    assert value == pytest.approx(0.05 - 0.15) and "+0.050 - (+0.150) = -0.100 m" in text
+    leak = 9.80665 * math.sin(math.radians(1.0))
+    assert f"a = 2 x 0.150 / 0.5^2 = {0.3 / 0.25:.2f} m/s^2" in text and f"{1.2 / leak:.1f} times the tilt" in text
+    assert paper_c_report.model_part(numbers, "Table I", "P", "20 cm/s", 0.5, 0.3, 1.0) == []
+    rows = [results.row_over_runs([v] * 2, experiment="B", table=TABLE, row="uwb", column=level, scenario="d/s",
+                                  metric="rmse_m") for level, v in (("spec", 1.4), ("era", 1.6))]
+    rows += [results.row_over_runs([v] * 2, experiment="B", table=paper_b.SNR_TABLE, row=paper_b.METHODS["imu"],
+                                   column=f"{snr} dB", scenario="d/sim", metric="rmse_m")
+             for snr, v in ((50, 2.6), (60, 1.5), (70, 1.3))]
+    numbers = explanations.Numbers(results.frame(rows), {})
+    [(text, value)] = paper_b_report.paper_terms(numbers, paper_b.METHODS["uwb"], "d/s",
+                                                 {"scenario": "d/s", "delta": -1.9, "paper": 3.25})
+    assert value == pytest.approx(-0.2) and "1.400 - 1.600 = -0.200 m" in text
+    assert paper_b_report.paper_terms(numbers, paper_b.METHODS["uwb"], "d/s",
+                                      {"scenario": "d/s", "delta": 0.5, "paper": 1.0}) == []
+    [(text, value)] = paper_b_report.paper_terms(numbers, paper_b.METHODS["imu"], "60 dB",
+                                                 {"scenario": "d/sim", "delta": 0.08, "paper": 1.42})
+    meet = 60 + 10 * (1.5 - 1.42) / (1.5 - 1.3)
+    assert value is None and f"= {meet:.1f} dB" in text and f"= {10 ** (-(meet - 60) / 20):.2f} times" in text
 
 
 def test_the_papers_per_scenario_calibration_refuses_other_run():

@@ -96,6 +96,7 @@ def test_verdicts_sensitivity_and_explanations_reach_results_and_report(workdir)
     paper_c = (workdir / "reports" / "pages" / "paper-C.html").read_text()
     assert "not run in this build" in paper_c and "experiments.paper_c.sensitivity.runs" in paper_c   # opt-in, named
     assert "paper: —" not in html
+    assert "No mechanism quantified" not in html      # every cell outside our interval has a computed account
     cricket = (workdir / "reports" / "pages" / "data-cricket.html").read_text()
     assert "ZigBee" not in cricket and "status 0" not in cricket
 

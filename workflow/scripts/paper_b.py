@@ -77,7 +77,7 @@ def summarize() -> None:
         lambda campaign, tables: paper_b.evaluate_runs(tables, campaign, spec, nlos.get("scenario"), sm.params.resample),
         paper_b.claims, sm.input.nlos_tables)
     rows += sensitivity.results_rows(paper_b.EXPERIMENT, grids, paper_b.claims)
-    rows += paper_b.setup_rows(estimates)
+    rows += paper_b.setup_rows(estimates, spec)
     claims_of.write_outputs(paper_b.EXPERIMENT, rows, decided, sm.output.results, sm.output.claims)
 
     Path(sm.output.tracks).write_bytes(figures.trajectories(paper_b.trajectory_panels(estimates)))

@@ -18,6 +18,7 @@ from wsnloc import results
 from wsnloc.metrics.tracking import moving_mask
 
 SETUP_TABLE = "Set-up"
+BIAS_CALIBRATION = "IMU bias measured at rest over (s)"   # a dead reckoning's bias calibration (0: none)
 
 
 def static_share(cell: pd.DataFrame) -> pd.Series:

@@ -17,7 +17,7 @@ import re
 
 import pandas as pd
 
-from wsnloc.analysis.setup_facts import SETUP_TABLE
+from wsnloc.analysis.setup_facts import BIAS_CALIBRATION, SETUP_TABLE
 from wsnloc.campaign import Campaign
 from wsnloc.experiments import claims as claims_of
 from wsnloc.sim.imu import ACCEL_BIAS, bias_sigma
@@ -69,9 +69,11 @@ class Numbers:
         return bias_sigma(campaign, name, key)
 
     def rss_fit(self, scenario: str) -> dict[str, float]:
-        """Path-loss fit over all links (mean over runs): exponent n and residual sigma (dB)."""
+        """Path-loss fits over all links and over LOS links (mean over runs): exponent n and
+        residual sigma (dB)."""
         runs = self.summaries.get(scenario, {}).get("per_run", [])
-        values = {key: [_number(r.get(key)) for r in runs] for key in ("fit_all_n", "fit_all_sigma_dB")}
+        values = {key: [_number(r.get(key)) for r in runs]
+                  for key in ("fit_all_n", "fit_all_sigma_dB", "fit_los_n", "fit_los_sigma_dB")}
         return {key: _mean(v) for key, v in values.items()}
 
 
@@ -128,12 +130,24 @@ def _words(*labels: str) -> set[str]:
     return {w for label in labels for w in re.findall(r"[a-z0-9]+(?:-[a-z0-9]+)*", label.lower())}
 
 
+SUBSET_FACT = re.compile(r"^(.*) \(([A-Za-z]+=[0-9]+)\)$")   # a set-up fact of one anchor subset: "<fact> (UWB=9)"
+
+
+def bias_unmeasured(n: Numbers, experiment: str, scenario: str) -> bool:
+    """Whether the dead reckoning of `scenario` has no measurement of its IMU biases: its run has
+    no rest (static share below STILL_SHARE) or its estimator measures none (set-up fact
+    BIAS_CALIBRATION = 0 s, whatever rests the run has)."""
+    static, calibration = (n.fact(experiment, fact, scenario) for fact in ("static share of epochs", BIAS_CALIBRATION))
+    return (finite(static) and static < STILL_SHARE) or calibration == 0.0
+
+
 def cell_mechanism(n: Numbers, experiment: str, scenario: str, *labels: str) -> str:
     """The measured error sources behind one cell of `scenario`, chosen by the cell's kind (the
     words of its table title, row and column `labels`): the UWB / ultrasound ranging (NLOS share
     of the ranges, their median NLOS excess and LOS median error, m) for range-based cells, the
     RSS path-loss fit (exponent, residual spread in dB) for RSS cells, and the scenario's set-up
-    facts (static share of epochs, anchors heard per epoch) for every cell; "" when the build has
+    facts (static share of epochs, anchors heard per epoch) for every cell, those of one anchor
+    subset ("<fact> (UWB=9)") only for the cells that name it, in place of the unqualified one; "" when the build has
     none of these numbers for the scenario."""
     words = _words(*labels)
     parts = []
@@ -149,18 +163,27 @@ def cell_mechanism(n: Numbers, experiment: str, scenario: str, *labels: str) -> 
                      f"residual spread (wall losses outside the RSS model)")
     facts = n.results[(n.results["experiment"] == experiment) & (n.results["table"] == SETUP_TABLE)
                       & (n.results["column"] == scenario)]
+    subsets = set(re.findall(r"[A-Za-z]+=[0-9]+", " ".join(labels)))      # the cell's anchor subsets ("UWB=9")
+    qualified = {m.group(1) for m in map(SUBSET_FACT.match, facts["row"]) if m}
+    still = n.fact(experiment, "static share of epochs", scenario) < STILL_SHARE   # its note says it already
     for fact, value in zip(facts["row"], facts["value"]):
+        subset = SUBSET_FACT.match(fact)
+        if (subset.group(2) not in subsets) if subset else (fact in qualified and subsets):
+            continue        # a fact of another subset, or the first subset's where the cell names its own
+        drift = words & set(DRIFT_WORDS) and n.imu_bias_sigma(scenario, ACCEL_BIAS) != 0.0   # no bias: nothing to measure
+        if fact == BIAS_CALIBRATION and not drift:
+            continue
         if pd.notna(value):
             shown = f"{value:.0%}" if "share" in fact else f"{value:.1f}"
-            at_rest = "static" in fact and value < STILL_SHARE and words & set(DRIFT_WORDS) \
-                and n.imu_bias_sigma(scenario, ACCEL_BIAS) != 0.0     # a simulated IMU without bias: nothing to measure
-            parts.append(f"{fact} {shown}" + (" (no rest to measure the IMU biases in: dead reckoning integrates them)"
-                                              if at_rest else ""))
+            note = ("no rest to measure the IMU biases in" if "static" in fact and value < STILL_SHARE else
+                    "the biases are not measured" if fact == BIAS_CALIBRATION and value == 0.0 and not still else "")
+            parts.append(f"{fact} {shown}" + (f" ({note}: dead reckoning integrates them)" if drift and note else ""))
     return "; ".join(parts)
 
 
 DEAD_RECKONING_WORDS = ("dead", "reckoning")
 FUSION_WORDS = ("fusion", "fused", "kf", "sskf", "mix", "hybrid")
+GAP_WORDS = ("rmse", "max")     # tables whose cells get an account of their gap (m)
 
 
 def contributions(n: Numbers, experiment: str, scenario: str, table: dict, row: str, value: float,
@@ -170,14 +193,19 @@ def contributions(n: Numbers, experiment: str, scenario: str, table: dict, row: 
 
     - NLOS bias (range-based cells): a bias b (the NLOS ranges' median excess, m) on the share x
       of the ranges that are NLOS adds sqrt(x b^2) = sqrt(x) b (m) of RMS range error;
+    - RSS wall losses (RSS cells): the log-normal model turns a spread of sigma dB around a
+      path-loss exponent n into a relative range error eps = ln(10) sigma / (10 n); the links
+      through walls (the fit over all links) against the LOS links' fit leave the share
+      1 - eps_LOS / eps_all of a ranging-limited RMSE to the wall losses: RMSE (1 - eps_LOS / eps_all);
     - rests (cells whose results hold a moving-epoch RMSE, `<table> detail` / rmse_moving): the
       static epochs change our RMSE by RMSE - RMSE over the moving epochs (negative: rests help);
-    - uncalibrated accelerometer bias (dead reckoning alone, no rest to measure it in): a
+    - uncalibrated accelerometer bias (dead reckoning alone, its bias not measured: bias_unmeasured): a
       horizontal bias of RMS |b| = sqrt(2) sigma_b (sigma_b per axis, campaign) integrates to
-      |b| t^2 / 2, whose RMS over a run of T s is |b| T^2 / (2 sqrt 5).
-    None for other tables than RMSE ones."""
+      |b| t^2 / 2, whose RMS over a run of T s is |b| T^2 / (2 sqrt 5) and whose value at the
+      run's end (a max error) is |b| T^2 / 2.
+    None for other tables than RMSE and max-error ones."""
     words = _words(*labels)
-    if "rmse" not in words:
+    if not words & set(GAP_WORDS):
         return []
     out = []
     r = n.ranging(scenario)
@@ -185,32 +213,89 @@ def contributions(n: Numbers, experiment: str, scenario: str, table: dict, row: 
         x, b = r["nlos_share"], r["nlos_bias_m"]
         out.append((f"NLOS bias sqrt(x b^2) = sqrt({x:.3f} x {b:.3f}^2) = {math.sqrt(x) * b:+.3f} m",
                     math.sqrt(x) * b))
+    fit = n.rss_fit(scenario)
+    if (words & set(RSS_WORDS) and not words & set(RANGING_WORDS)
+            and finite(fit["fit_all_n"], fit["fit_all_sigma_dB"], fit["fit_los_n"], fit["fit_los_sigma_dB"])):
+        eps_all, eps_los = (math.log(10.0) * fit[f"fit_{k}_sigma_dB"] / (10.0 * fit[f"fit_{k}_n"])
+                            for k in ("all", "los"))
+        walls = value * (1.0 - eps_los / eps_all)
+        out.append((f"RSS wall losses: ln(10) sigma / (10 n) = {eps_all:.3f} over all links "
+                    f"({fit['fit_all_sigma_dB']:.2f} dB, n = {fit['fit_all_n']:.2f}) against {eps_los:.3f} "
+                    f"on LOS links ({fit['fit_los_sigma_dB']:.2f} dB, "
+                    f"n = {fit['fit_los_n']:.2f}), RMSE x (1 - {eps_los:.3f} / {eps_all:.3f}) = {walls:+.3f} m", walls))
     moving = n.value(experiment, f"{table['table']} detail", row, "rmse_moving", scenario=scenario) \
         if table.get("table") else math.nan
     if finite(moving):
         out.append((f"rests: RMSE - moving-epoch RMSE = {value:.3f} - {moving:.3f} = {value - moving:+.3f} m",
                     value - moving))
-    static = n.fact(experiment, "static share of epochs", scenario)
     sigma_b, duration = n.imu_bias_sigma(scenario, ACCEL_BIAS), n.duration_s(scenario)
-    if (words & set(DEAD_RECKONING_WORDS) and not words & set(FUSION_WORDS) and finite(static, sigma_b, duration)
-            and static < STILL_SHARE and sigma_b > 0):
-        drift = math.sqrt(2.0) * sigma_b * duration**2 / (2.0 * math.sqrt(5.0))
-        out.append((f"accelerometer bias without a rest to measure it: |b| T^2 / (2 sqrt 5) with |b| = sqrt(2) x "
-                    f"{sigma_b:g} m/s^2, T = {duration:.1f} s: {drift:+.3f} m", drift))
+    if (words & set(DEAD_RECKONING_WORDS) and not words & set(FUSION_WORDS) and finite(sigma_b, duration)
+            and sigma_b > 0 and bias_unmeasured(n, experiment, scenario)):
+        if "max" in words:
+            drift = math.sqrt(2.0) * sigma_b * duration**2 / 2.0
+            out.append((f"accelerometer bias not measured at rest, at the run's end: |b| T^2 / 2 with |b| = "
+                        f"sqrt(2) x {sigma_b:g} m/s^2, T = {duration:.1f} s: {drift:+.3f} m", drift))
+        else:
+            drift = math.sqrt(2.0) * sigma_b * duration**2 / (2.0 * math.sqrt(5.0))
+            out.append((f"accelerometer bias not measured at rest: |b| T^2 / (2 sqrt 5) with |b| = sqrt(2) x "
+                        f"{sigma_b:g} m/s^2, T = {duration:.1f} s: {drift:+.3f} m", drift))
     return out
 
 
-def gap_account(gap: float, parts: list[tuple[str, float]]) -> str:
+def drift_counterfactual(n: Numbers, experiment: str, scenario: str, value: float, others: dict[str, float],
+                         *labels: str) -> list[tuple[str, float]]:
+    """The IMU bias drift of a fused cell (its `labels` name a fusion) on a scenario whose IMU
+    biases are not measured (bias_unmeasured): our value minus the same row's value on a scenario (`others`:
+    scenario -> our value there) whose simulated IMU has no bias (the counterfactual without the
+    drift), in m; [] without such a scenario."""
+    words = _words(*labels)
+    sigma_b = n.imu_bias_sigma(scenario, ACCEL_BIAS)
+    if not (words & set(FUSION_WORDS) and words & set(GAP_WORDS) and finite(sigma_b) and sigma_b > 0
+            and bias_unmeasured(n, experiment, scenario)):
+        return []
+    clean = next(((sc, v) for sc, v in others.items() if n.imu_bias_sigma(sc, ACCEL_BIAS) == 0.0 and finite(v)), None)
+    if clean is None:
+        return []
+    sc, v = clean
+    return [(f"IMU bias drift (the {sigma_b:g} m/s^2 turn-on bias not measured at rest; the same fusion on {sc}, "
+             f"whose IMU has no bias, gives {v:.3f} m): {value:.3f} - {v:.3f} = {value - v:+.3f} m", value - v)]
+
+
+def ranging_needed(ours: float, paper: float, explained: float, median_m: float) -> str:
+    """Where we are below the paper and the rest of the gap is the paper's side: a ranging-limited
+    position error scales with the range error, so the paper's value less the terms already
+    explained (`explained`, m) needs ranges k = (paper + explained) / ours times less accurate
+    than ours (median range error `median_m`): an extra independent error of
+    sqrt(k^2 - 1) x median_m (m, median) that our data lack."""
+    k = (paper + explained) / ours
+    if not finite(k, median_m) or k <= 1.0:
+        return ""
+    return (f"the paper's side can close it: a ranging-limited error scales with the range error, so "
+            f"{paper + explained:.3f} / {ours:.3f} = {k:.2f} times less accurate ranges than ours (median error "
+            f"{k * median_m:.3f} m against our {median_m:.3f} m), i.e. an independent error of sqrt({k:.2f}^2 - 1) x "
+            f"{median_m:.3f} = {math.sqrt(k * k - 1.0) * median_m:.3f} m (median) that our data lack")
+
+
+def gap_account(gap: float, parts: list[tuple[str, float]], needed: str = "") -> str:
     """The gap (ours - paper, m) against the mechanisms' predicted contributions (contributions):
     their sum, linear, and the unexplained rest, gap - sum (negative: the mechanisms predict more
     than the gap, i.e. the paper's data carry part of them too). The sum is an order of magnitude,
     not a bound: the NLOS term is a range RMS taken for a position error (no geometry factor),
-    a rests term can be negative, and independent errors add in quadrature."""
-    if not parts:
+    a rests term can be negative, and independent errors add in quadrature. Below the paper
+    (gap < 0) only terms that lower ours against the paper's count (errors the paper's data carry
+    and ours lack, negative); `needed`: what the paper's side needs for the rest (ranging_needed)."""
+    if gap < 0:
+        parts = [(text, value) for text, value in parts if value < 0]
+    if not parts and not needed:
         return f"No mechanism quantified for this cell: the gap {gap:+.3f} m is not accounted for by a computed contribution."
     total = sum(value for _, value in parts)
-    return ("Account of the gap: " + "; ".join(text for text, _ in parts)
-            + f"; predicted {total:+.3f} m against the gap {gap:+.3f} m: {gap - total:+.3f} m unexplained.")
+    head = ("Account of the gap (we are below the paper: only errors the paper's data carry and ours lack, or "
+            "errors ours lack, can close it): " if gap < 0 else "Account of the gap: ")
+    terms = "; ".join(text for text, _ in parts)
+    account = (f"{terms}; predicted {total:+.3f} m against the gap {gap:+.3f} m: {gap - total:+.3f} m unexplained"
+               if parts else
+               f"no computed term {'lowers' if gap < 0 else 'raises'} ours: the gap {gap:+.3f} m is unexplained")
+    return head + account + (f"; {needed}." if needed else ".")
 
 
 def outside_cells(tables: list[dict]) -> list[tuple[dict, dict, str, dict]]:
@@ -220,27 +305,42 @@ def outside_cells(tables: list[dict]) -> list[tuple[dict, dict, str, dict]]:
             if cell["paper"] is not None and cell["value"] is not None and not cell["inside"]]
 
 
-def cell_whys(n: Numbers, experiment: str, tables: list[dict]) -> list[str]:
+def cell_whys(n: Numbers, experiment: str, tables: list[dict], paper_terms=None) -> list[str]:
     """One sentence per table cell whose paper value lies outside our interval: our value with
     the interval it was compared with, the paper's, the cell's measured error sources
-    (cell_mechanism of the cell's scenario) and, for RMSE cells, the account of the gap
-    (contributions, gap_account)."""
+    (cell_mechanism of the cell's scenario) and, for RMSE and max-error cells, the account of
+    the gap (gap_account) from the computed contributions (contributions; for a fused cell
+    without rests, drift_counterfactual in place of the ranging terms), the paper's own
+    `paper_terms(table, row, column, cell)` (a list of (text, contribution in m), e.g. a model's
+    part of the gap; contribution None: what the paper's side needs, a statement) and, below
+    the paper on range-based cells, what the paper's ranging needs for the rest (ranging_needed)."""
     out = []
     for table, row, column, cell in outside_cells(tables):
         scenario = cell.get("scenario") or table.get("scenario", "")
         low, high = ((cell["band_low"], cell["band_high"]) if cell["basis"] == "run" else (cell["low"], cell["high"]))
         interval = (f"{cell['basis']} interval [{low:.3f}, {high:.3f}]" if low is not None and high is not None
                     else "no interval")
-        mechanism = cell_mechanism(n, experiment, scenario, table["title"], row["label"], column)
+        labels = (table["title"], row["label"], column)
+        mechanism = cell_mechanism(n, experiment, scenario, *labels)
         side = "below" if cell["value"] < cell["paper"] else "above"
         name = table["title"].split(":")[0].split(" (")[0]
         where = f"{column} ({scenario})" if scenario and scenario != column else column
-        parts = contributions(n, experiment, scenario, table, row["label"], cell["value"], table["title"],
-                              row["label"], column)
+        parts = contributions(n, experiment, scenario, table, row["label"], cell["value"], *labels)
+        others = {c.get("scenario") or col: c["value"] for col, c in zip(table["columns"], row["cells"])
+                  if col != column and c["value"] is not None}
+        drift = drift_counterfactual(n, experiment, scenario, cell["value"], others, *labels)
+        if drift:
+            parts = drift + [p for p in parts if p[0].startswith("rests")]
+        own = paper_terms(table, row, column, cell) if paper_terms else []
+        parts += [(text, value) for text, value in own if value is not None]
+        needed = ""
+        if cell["delta"] < 0 and _words(*labels) & set(RANGING_WORDS):
+            explained = sum(value for _, value in parts if value < 0)
+            needed = ranging_needed(cell["value"], cell["paper"], explained, n.ranging(scenario)["los_median_m"])
+        needed = "; ".join(filter(None, [needed, *(text for text, value in own if value is None)]))
         out.append(f"{name}, {row['label']} / {where}: ours {cell['value']:.3f} "
                    f"({interval}) is {side} the paper's {cell['paper']:.3f} by {abs(cell['delta']):.3f}; "
                    + (f"measured here: {mechanism}." if mechanism else
                       "no data-quality figures for this scenario in the build.")
-                   + (f" {gap_account(cell['delta'], parts)}" if "rmse" in _words(table["title"], row["label"],
-                                                                                       column) else ""))
+                   + (f" {gap_account(cell['delta'], parts, needed)}" if _words(*labels) & set(GAP_WORDS) else ""))
     return out

@@ -67,16 +67,18 @@ def detail_table(results: pd.DataFrame, *, experiment: str, table: str, scenario
 
 
 def paper_section(experiment: str, paper: dict, spec: dict, claims: dict, figures: dict[str, str],
-                  numbers=None, **parts) -> dict:
+                  numbers=None, paper_terms=None, **parts) -> dict:
     """The context every paper section has (paper.html.j2): id, title and citation (config/papers.yaml),
     whether its tables are published, its config `spec`, claims and figures, its set-up note's
     template (section.html.j2 of its package) and `parts`: tables, details, bounds, cost, why,
     setup (the resolved parameters its note shows). With `numbers` (explanations.Numbers), "why"
-    gets one computed sentence per table cell outside our interval (explanations.cell_whys)."""
+    gets one computed sentence per table cell outside our interval (explanations.cell_whys, with
+    the paper's own `paper_terms`)."""
     if numbers is not None:
         from wsnloc.report.explanations import cell_whys
 
-        parts["why"] = [*parts.get("why", []), *cell_whys(numbers, experiment, parts.get("tables", []))]
+        parts["why"] = [*parts.get("why", []), *cell_whys(numbers, experiment, parts.get("tables", []),
+                                                                   paper_terms)]
     return {"id": experiment, "title": paper["title"], "citation": paper["citation"],
             "published": bool(paper.get("tables_published", True)), "spec": spec, "claims": claims["claims"],
             "figures": figures, "partial": f"paper_{experiment.lower()}/section.html.j2",

@@ -163,7 +163,9 @@ MEASUREMENTS_USED = {"toa": "UWB ranges the TOA filter used per epoch", "rss": "
 
 def setup_rows(estimates: dict[str, pd.DataFrame], spec: dict) -> list[dict]:
     """Set-up facts per scenario (analysis.setup_facts) on Table I's first TOA and RSS rows:
-    the static share of epochs and the measurements used per epoch (MEASUREMENTS_USED)."""
+    the static share of epochs and the measurements used per epoch (MEASUREMENTS_USED); then
+    the measurements used per epoch of every TOA and RSS row, named with its anchor subset
+    (subset_fact: "<fact> (UWB=9)")."""
     first = {kind: next((row_label(r) for r in spec["rows"] if r["measurements"] == kind), None)
              for kind in ("toa", "rss")}
     rows = []
@@ -177,7 +179,17 @@ def setup_rows(estimates: dict[str, pd.DataFrame], spec: dict) -> list[dict]:
             if kind in cells:
                 rows.append(setup_facts.fact_row(EXPERIMENT, name, label,
                                                  setup_facts.measurements_per_epoch(cells[kind]), "count"))
+        for r in spec["rows"]:
+            if r["measurements"] in MEASUREMENTS_USED:
+                rows.append(setup_facts.fact_row(
+                    EXPERIMENT, subset_fact(MEASUREMENTS_USED[r["measurements"]], r["anchors"]), label,
+                    setup_facts.measurements_per_epoch(plain[plain["row"] == row_label(r)]), "count"))
     return rows
+
+
+def subset_fact(fact: str, subset: str) -> str:
+    """The name of a set-up fact measured on one anchor subset ("UWB=9"): "<fact> (<subset>)"."""
+    return f"{fact} ({subset})"
 
 
 STATIC_TABLE = "Table II gain against static share"

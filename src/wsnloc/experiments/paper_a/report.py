@@ -6,7 +6,7 @@ from __future__ import annotations
 import pandas as pd
 
 from wsnloc.experiments.paper_a import (DETAIL_METRICS, EXPERIMENT as A, MEASUREMENTS_USED, STATIC_TABLE, TABLES,
-                                        cell_params, row_label)
+                                        cell_params, row_label, subset_fact)
 from wsnloc.report.explanations import Numbers, campaign_of, finite
 from wsnloc.report.sections import cell_of, columns_of, bound_line, grid_table, paper_section
 
@@ -38,6 +38,7 @@ def why(n: Numbers, config: dict, scenarios: list[str], spec: dict, epoch_s: flo
     """Static share, anchors heard, UWB NLOS ranging, RSS model, the static-share sweep; the
     first hybrid row's Table II gain is compared with the paper's."""
     hybrid = next((row_label(r) for r in spec["rows"] if r["measurements"] == "hybrid"), None)
+    subsets = {kind: [r["anchors"] for r in spec["rows"] if r["measurements"] == kind] for kind in ("toa", "rss")}
     out = []
     for sc in scenarios:
         motion = campaign_of(config, sc).section("scenarios", sc.split("/", 1)[1])["motion"]
@@ -49,12 +50,15 @@ def why(n: Numbers, config: dict, scenarios: list[str], spec: dict, epoch_s: flo
             out.append(f"{sc}: motion detection can only help while the cart stands still, {static:.0%} of the epochs "
                        f"here (the paper does not state its share); Table II changes the {hybrid} RMSE by "
                        f"{ours:+.3f} m, the paper's by {paper:+.3f} m.")
-        uwb, zigbee = (n.fact(A, MEASUREMENTS_USED[kind], sc) for kind in ("toa", "rss"))
-        if finite(uwb, zigbee):
-            out.append(f"{sc}: the filters use {uwb:.1f} UWB ranges and {zigbee:.1f} ZigBee RSS values per {epoch_s:g} s "
-                       f"epoch (links that close in the campaign's link budget: UWB 802.15.4a path loss and "
-                       f"shadowing against the receiver's sensitivity, ZigBee RSS against the CC2420 sensitivity); "
-                       f"the paper: \"only few UWB and few ZigBee anchor nodes\" (paper A, §V).")
+        used = {subset: n.fact(A, subset_fact(MEASUREMENTS_USED[kind], subset), sc)
+                for kind in ("toa", "rss") for subset in subsets[kind]}
+        if used and finite(*used.values()):
+            per_subset = ", ".join(f"{used[s]:.1f} {'UWB ranges' if s in subsets['toa'] else 'ZigBee RSS values'} "
+                                   f"with {s}" for s in used)
+            out.append(f"{sc}: per {epoch_s:g} s epoch the filters use {per_subset} (links that close in the "
+                       f"campaign's link budget: UWB 802.15.4a path loss and shadowing against the receiver's sensitivity, "
+                       f"ZigBee RSS against the CC2420 sensitivity); the paper: \"only few UWB and few ZigBee anchor "
+                       f"nodes\" (paper A, §V).")
         r, fit = n.ranging(sc), n.rss_fit(sc)
         if finite(r["nlos_share"], r["nlos_bias_m"], r["los_median_m"]):
             out.append(f"{sc}: {r['nlos_share']:.0%} of the UWB ranges cross a wall, with a median excess of "

@@ -91,11 +91,19 @@ def claims(metrics: dict[str, pd.DataFrame]) -> list[dict]:
             claims_of.record("The classical KF is somewhat better than the steady-state KF", verdicts.claim(classical))]
 
 
-def setup_rows(estimates: dict[str, pd.DataFrame]) -> list[dict]:
-    """Set-up facts per scenario (analysis.setup_facts): the static share of the 5 Hz epochs."""
-    return [setup_facts.fact_row(EXPERIMENT, "static share of epochs", label,
-                                 setup_facts.static_share(est[est["method"] == "sskf"]), "share")
-            for label, est in estimates.items()]
+def setup_rows(estimates: dict[str, pd.DataFrame], spec: dict) -> list[dict]:
+    """Set-up facts per scenario (analysis.setup_facts): the static share of the 5 Hz epochs and
+    the rest (s) the dead reckoning measures its IMU biases over (BIAS_CALIBRATION; 0: none,
+    whatever rests the scenario has)."""
+    rows = []
+    for label, est in estimates.items():
+        cell = est[est["method"] == "sskf"]
+        rows.append(setup_facts.fact_row(EXPERIMENT, "static share of epochs", label, setup_facts.static_share(cell),
+                                         "share"))
+        calibration = float(cells.params(spec, "imu", label, PAPER)["static_start_s"])
+        rows.append(setup_facts.fact_row(EXPERIMENT, setup_facts.BIAS_CALIBRATION, label,
+                                         pd.Series(calibration, index=sorted(set(cell["run"]))), "seconds"))
+    return rows
 
 
 SNR_TABLE = "Dead reckoning RMSE against accelerometer SNR"

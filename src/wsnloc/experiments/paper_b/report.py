@@ -40,7 +40,46 @@ def section(results: pd.DataFrame, claims: dict, figures: dict[str, str], paper:
     setup = cells.params(spec, "sskf", (measured or labels)[0], PAPER)
     simulation_setup = cells.params(spec, "sskf", simulated[0], PAPER) if simulated else setup
     return paper_section(B, paper, spec, claims, figures, numbers=numbers, tables=tables, details=details, setup=setup,
-                         simulation_setup=simulation_setup, why=why(numbers, measured, simulated))
+                         simulation_setup=simulation_setup, why=why(numbers, measured, simulated),
+                         paper_terms=lambda table, row, column, cell: paper_terms(numbers, row["label"], column, cell))
+
+
+def paper_terms(n: Numbers, row: str, column: str, cell: dict) -> list[tuple[str, float | None]]:
+    """Paper B's own terms of a cell's gap (explanations.cell_whys): below the paper on Min-Max
+    UWB, the era of the paper's ranging hardware from the UWB ranging severity sweep (our
+    Min-Max RMSE with 2009-era IEEE 802.15.4a ranging minus that with the spec's DW1000-class
+    ranging, on the sweep's scenario: an error the paper's data carry and ours lack, counted
+    negative); on the SNR curve's cell, the SNR at which our curve meets the paper's value
+    (log-linear between the two SNRs around it) and the noise amplitude ratio 10^(-dSNR/20)
+    it implies (a statement: the reading of the paper's SNR)."""
+    from wsnloc.analysis.nlos_severity import TABLE
+
+    scenario = cell.get("scenario") or column
+    if row == METHODS["uwb"] and cell["delta"] < 0:
+        sweep = n.results[(n.results["experiment"] == B) & (n.results["table"] == TABLE)
+                          & (n.results["row"] == "uwb") & (n.results["scenario"] == scenario)]
+        if len(sweep) >= 2:
+            (spec_level, spec_rmse), (era_level, era_rmse) = (sweep[["column", "value"]].iloc[i] for i in (0, -1))
+            return [(f"the paper's era of UWB ranging ({era_level}: our Min-Max {era_rmse:.3f} m against "
+                     f"{spec_rmse:.3f} m with {spec_level}): {spec_rmse:.3f} - {era_rmse:.3f} = "
+                     f"{spec_rmse - era_rmse:+.3f} m", spec_rmse - era_rmse)]
+    if row == METHODS["imu"] and column.endswith(" dB"):
+        curve = n.results[(n.results["experiment"] == B) & (n.results["table"] == SNR_TABLE)]
+        snr = curve["column"].str.removesuffix(" dB").astype(float).to_numpy()
+        rmse = curve["value"].to_numpy(float)
+        paper, at = cell["paper"], float(column.removesuffix(" dB"))
+        # dead reckoning error falls with the SNR: the neighbours of the paper's value on our curve
+        pairs = [(i, i + 1) for i in range(len(snr) - 1)
+                 if min(rmse[i], rmse[i + 1]) <= paper <= max(rmse[i], rmse[i + 1])]
+        if pairs:
+            i, j = pairs[0]
+            meet = snr[i] + (snr[j] - snr[i]) * (rmse[i] - paper) / (rmse[i] - rmse[j])
+            return [(f"our SNR curve meets the paper's {paper:.3f} m at {snr[i]:g} + {snr[j] - snr[i]:g} x "
+                     f"({rmse[i]:.3f} - {paper:.3f}) / ({rmse[i]:.3f} - {rmse[j]:.3f}) = {meet:.1f} dB: the paper's "
+                     f"{at:g} dB carries accelerometer noise 10^(-{meet - at:.1f}/20) = "
+                     f"{10 ** (-(meet - at) / 20):.2f} times the amplitude of ours at {at:g} dB (the paper's SNR "
+                     f"referred to another signal power than ours)", None)]
+    return []
 
 
 def why(n: Numbers, scenarios: list[str], simulated: list[str]) -> list[str]:
