@@ -436,12 +436,12 @@ def trajectories(panels: dict[str, tuple[pd.DataFrame, dict[str, pd.DataFrame]]]
 
 @gc_paused
 def error_over_time(panels: dict[str, dict[str, pd.DataFrame]]) -> bytes:
-    """Position error (m) against time (s from the start), one panel per title."""
+    """Position error (m) against time t (s, the run's clock: the time origin of the sqrt(PCRB)
+    and ANEES plots of the same run), one panel per title."""
     fig, axes = plt.subplots(len(panels), 1, figsize=(9, 2.8 * len(panels)), squeeze=False)
     for ax, (title, curves) in zip(axes[:, 0], panels.items()):
-        start = min(c["t"].min() for c in curves.values() if len(c))
         for label, curve in curves.items():
-            ax.plot(curve["t"] - start, curve["error_m"], lw=1.0, label=label)
+            ax.plot(curve["t"], curve["error_m"], lw=1.0, label=label)
         ax.set_xlabel("t [s]")
         ax.set_ylabel("error [m]")
         ax.set_title(title, fontsize=10)
