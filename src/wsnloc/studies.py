@@ -284,10 +284,11 @@ def results_rows(study: str, cell: str, label: str, metrics: pd.DataFrame) -> li
 
 
 
-def study_panels(estimates: dict[tuple[str, str], pd.DataFrame]) -> tuple[dict, dict, dict]:
+def study_panels(estimates: dict[tuple[str, str], pd.DataFrame]) -> tuple[dict, dict, dict, dict]:
     """Figure panels per scenario: error CDFs over all runs (one curve per cell and subset),
-    and, on the first run and subset, the error over time and the tracks beside the truth."""
-    cdf, errors, tracks = {}, {}, {}
+    and, on the first run and subset, the error over time, the tracks beside the truth and, for
+    cells with a height estimate and a true height (3-D), z over time beside the true z."""
+    cdf, errors, tracks, heights = {}, {}, {}, {}
     for (label, cell), est in estimates.items():
         subsets = list(dict.fromkeys(est["subset"]))
         for subset in subsets:
@@ -298,7 +299,10 @@ def study_panels(estimates: dict[tuple[str, str], pd.DataFrame]) -> tuple[dict, 
         errors.setdefault(title, {})[cell] = first[["t", "error_m"]]
         truth = first[["true_x", "true_y"]].rename(columns={"true_x": "x", "true_y": "y"})
         tracks.setdefault(title, (truth, {}))[1][cell] = first
-    return cdf, errors, tracks
+        if {"z", "true_z"} <= set(first.columns):
+            true_z = first[["t", "true_z"]].rename(columns={"true_z": "z"}).dropna()
+            heights.setdefault(title, (true_z, {}))[1][cell] = first[["t", "z"]]
+    return cdf, errors, tracks, heights
 
 
 def estimator_panels(rows: list[dict], stats) -> dict:

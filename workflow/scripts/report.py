@@ -54,7 +54,8 @@ if sm.input.ranging:    # the ranging validation (rule ranging_validation): tabl
                                          figure(ranging["ranging_validation.png"].read_bytes()), note["notes"])
 papers = read_yaml(sm.input.papers)
 for study, spec in sm.params.studies.items():
-    pngs = [Path(p) for p in sm.input.studies if p.endswith(".png") and Path(p).parts[3] == study]
+    pngs = [Path(p) for p in sm.input.studies if p.endswith(".png") and Path(p).parts[3] == study
+            and Path(p).stat().st_size]          # an empty PNG: the figure does not apply (no 3-D cell)
     context["studies"].append(study_section(final_results, study, spec, {path.stem: figure(path.read_bytes())
                                                                          for path in pngs},
                                             config["report"]["cell_stats"]))

@@ -451,6 +451,23 @@ def error_over_time(panels: dict[str, dict[str, pd.DataFrame]]) -> bytes:
 
 
 @gc_paused
+def height_over_time(panels: dict[str, tuple[pd.DataFrame, dict[str, pd.DataFrame]]]) -> bytes:
+    """Height z (m) against time t (s, the run's clock) per title: the truth (t, z) and each
+    cell's estimate (t, z)."""
+    fig, axes = plt.subplots(len(panels), 1, figsize=(9, 2.6 * len(panels)), squeeze=False)
+    for ax, (title, (truth, curves)) in zip(axes[:, 0], panels.items()):
+        ax.plot(truth["t"], truth["z"], color="k", lw=1.8, label="truth")
+        for label, curve in curves.items():
+            ax.plot(curve["t"], curve["z"], lw=1.0, label=f"{label} estimate")
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel("z [m]")
+        ax.set_title(title, fontsize=10)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    return fitted_png(fig)
+
+
+@gc_paused
 def rmse_vs_anchors(curves: dict[str, tuple[list[int], list[float]]], title: str) -> bytes:
     """RMSE (m) against the number of anchors, one line per label."""
     fig, ax = plt.subplots(figsize=(6.5, 3.8))
