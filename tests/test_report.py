@@ -153,3 +153,25 @@ def test_error_and_bound_plots_share_the_runs_time_origin(monkeypatch):
     figures.error_over_time({"run": {"tracker": pd.DataFrame({"t": t, "error_m": np.ones_like(t)})}})
     bound_figures.pcrb_vs_rmse(t, {"tracker": np.ones_like(t)}, 0.5 * np.ones_like(t), "PV", "run")
     assert drawn and all(x[0] == t[0] and x[-1] == t[-1] for x in drawn), [(x[0], x[-1]) for x in drawn]
+
+
+def test_study_says_why_rmse_exceeds_the_bound_from_the_scenarios_data():
+    """The sentence under a study's table: the ratio, the ANEES verdict and the NLOS share and
+    excess of that scenario's data summary (not typed numbers); no sentence for a cell at its bound."""
+    import pandas as pd
+
+    from wsnloc.report.explanations import Numbers, study_bound_whys
+
+    def cell(ratio, anees):
+        return {"efficiency": {"value": ratio}, "gated": {"value": 0.15},
+                "anees": {"value": anees, "band_low": 1.5, "band_high": 2.6,
+                          "verdict": "optimistic" if anees > 2.6 else "consistent"}}
+
+    study = {"tables": [{"scenarios": ["newcom/tdoa", "newcom/flight"],
+                         "rows": [{"label": "tracker", "cells": [cell(2.23, 7.2), cell(1.0, 2.0)]}]}]}
+    pooled = {"LOS": {"n": 300, "median": 0.07, "bias": 0.01}, "NLOS": {"n": 100, "bias": 1.31, "p95": 5.6}}
+    summaries = {label: {"range_error_pooled": pooled} for label in ("newcom/tdoa", "newcom/flight")}
+    whys = study_bound_whys(Numbers(pd.DataFrame(), summaries), study)
+    assert len(whys) == 1 and whys[0].startswith("newcom/tdoa, tracker: RMSE / sqrt(PCRB) 2.23, ANEES 7.20 (optimistic")
+    assert "25% of the valid ranges are NLOS" in whys[0] and "median excess of 1.31 m" in whys[0]
+    assert "range differences" in whys[0] and "test_3d_flight_rmse_is_within_1_5_of_the_pcrb" in whys[0]
