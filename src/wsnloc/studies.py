@@ -8,6 +8,7 @@
         estimators:                           # cell name: parameter overrides
           tracker: {}                         #   the registry entry of the same name
           ekf_slow: {estimator: ekf, accel_sigma_mps2: 0.2}   # or the one named by `estimator`
+          tracker_odometry: {estimator: tracker, motion: odometry, scenarios: [mysite/cart]}   # on these only
         overrides:                            # per dataset or dataset/scenario (the more specific wins):
           mysite: {max_range_m: 60}           #   a parameter, for every cell that has it
           mysite/walk: {ekf_slow: {epoch_s: 1.0}}   # or a cell's own parameters
@@ -55,9 +56,19 @@ UNIT = {"diag_nis_mean": "per_dof", "diag_nis_high": "per_dof", "diag_range_scal
 # marginal cost in the study, not its cost alone (benchmarks/ measures that)
 
 
+CELL_KEYS = ("estimator", "scenarios")     # a cell's keys that are not estimator parameters
+
+
+def runs_on(spec: dict, cell: str, label: str) -> bool:
+    """Whether the cell runs on the dataset/scenario `label`: every scenario of the study unless
+    the cell's own `scenarios` names some (e.g. a cell reading odometry only where runs have it)."""
+    return label in ((spec["estimators"][cell] or {}).get("scenarios") or spec["scenarios"])
+
+
 def study_cells(config: dict) -> dict[str, list[tuple[str, str, str]]]:
-    """{study: [(dataset, scenario, cell)]}: the jobs of every study."""
-    return {study: [(*label.split("/", 1), cell) for label in spec["scenarios"] for cell in spec["estimators"]]
+    """{study: [(dataset, scenario, cell)]}: the jobs of every study (runs_on)."""
+    return {study: [(*label.split("/", 1), cell) for label in spec["scenarios"] for cell in spec["estimators"]
+                    if runs_on(spec, cell, label)]
             for study, spec in (config.get("studies") or {}).items()}
 
 
@@ -72,7 +83,7 @@ def cell_params(spec: dict, cell: str, dataset: str, scenario: str, where: str, 
     estimator = registry.get(estimator_of(spec, cell), f"{where}.estimators.{cell}.estimator")
     names = {p.name for p in estimator.params}
     merged = {k: v for k, v in (spec.get("parameters") or {}).items() if k in names}
-    merged.update({k: v for k, v in (spec["estimators"][cell] or {}).items() if k != "estimator"})
+    merged.update({k: v for k, v in (spec["estimators"][cell] or {}).items() if k not in CELL_KEYS})
     for key in (dataset, f"{dataset}/{scenario}"):
         layer = (spec.get("overrides") or {}).get(key) or {}
         merged.update({k: v for k, v in layer.items() if k in names and k not in spec["estimators"]})
@@ -114,10 +125,16 @@ def validate_studies(config: dict) -> None:
                 if name not in known:
                     raise ConfigError(f"config key '{where}.overrides.{key}.{name}': neither an estimator cell of "
                                       f"this study nor a parameter of its estimators{did_you_mean(name, known)}")
+        for cell, entry in spec["estimators"].items():
+            for label in (entry or {}).get("scenarios") or []:
+                if label not in spec["scenarios"]:
+                    raise ConfigError(f"config key '{where}.estimators.{cell}.scenarios': {label!r} is not a "
+                                      f"scenario of this study{did_you_mean(label, set(spec['scenarios']))}")
         for label in spec["scenarios"]:
             dataset, scenario = label.split("/", 1)
             for cell in spec["estimators"]:
-                cell_params(spec, cell, dataset, scenario, where)
+                if runs_on(spec, cell, label):
+                    cell_params(spec, cell, dataset, scenario, where)
             path = config["datasets"][dataset]["campaign"]
             campaign = campaigns.setdefault(path, Campaign.load(path))
             subsets = campaign.spec.get("subsets", {})

@@ -158,7 +158,7 @@ def study_section(results: pd.DataFrame, study: str, spec: dict, figures: dict[s
     best cell of each headline column marked (`best`: lowest error, highest availability), and
     every statistic (for the detail); the figures. A study with a 3-D cell adds its 3-D RMSE
     (x, y, z) to the headline; the others are errors in the plane."""
-    from wsnloc.studies import EXPERIMENT_PREFIX, estimator_of
+    from wsnloc.studies import EXPERIMENT_PREFIX, estimator_of, runs_on
 
     sel = results[results["experiment"] == EXPERIMENT_PREFIX + study]
     scenarios, cells = list(spec["scenarios"]), list(spec["estimators"])
@@ -177,7 +177,8 @@ def study_section(results: pd.DataFrame, study: str, spec: dict, figures: dict[s
                     r["cells"][k][stat]["best"] = best is not None and v == best
         tables.append({"subset": subset, "scenarios": scenarios, "rows": rows})
     estimators = [{"cell": c, "estimator": estimator_of(spec, c),
-                   "settings": [cell_settings(spec, c, sc) for sc in scenarios]} for c in cells]
+                   "settings": [cell_settings(spec, c, sc) if runs_on(spec, c, sc) else None
+                                for sc in scenarios]} for c in cells]
     runs = sel.loc[sel["column"] == "rmse", "runs"].dropna()
     return {"id": study, "tables": tables, "estimators": estimators, "scenarios": scenarios,
             "headline": list(headline), "runs": int(runs.min()) if len(runs) else None, "figures": figures}
