@@ -171,7 +171,10 @@ def test_study_says_why_rmse_exceeds_the_bound_from_the_scenarios_data():
                          "rows": [{"label": "tracker", "cells": [cell(2.23, 7.2), cell(1.0, 2.0)]}]}]}
     pooled = {"LOS": {"n": 300, "median": 0.07, "bias": 0.01}, "NLOS": {"n": 100, "bias": 1.31, "p95": 5.6}}
     summaries = {label: {"range_error_pooled": pooled} for label in ("newcom/tdoa", "newcom/flight")}
+    study["tables"][0]["subset"] = "all"
     whys = study_bound_whys(Numbers(pd.DataFrame(), summaries), study)
-    assert len(whys) == 1 and whys[0].startswith("newcom/tdoa, tracker: RMSE / sqrt(PCRB) 2.23, ANEES 7.20 (optimistic")
+    assert len(whys) == 2, whys          # the tdoa scenario, then where the own-model ratio is shown
+    assert whys[0].startswith("newcom/tdoa (subset all): RMSE / sqrt(PCRB) tracker 2.23, ANEES 7.20 optimistic "
+                              "(band [1.50, 2.60]), gate rejected 15%")
     assert "25% of the valid ranges are NLOS" in whys[0] and "median excess of 1.31 m" in whys[0]
-    assert "range differences" in whys[0] and "test_3d_flight_rmse_is_within_1_5_of_the_pcrb" in whys[0]
+    assert "range differences" in whys[0] and "test_3d_flight_rmse_is_within_1_5_of_the_pcrb" in whys[1]
