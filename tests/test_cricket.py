@@ -155,3 +155,47 @@ def test_simulated_run_is_deterministic_and_ingests(cricket, tmp_path):
     share = inventory["listener.log"]["quarantined"] / inventory["listener.log"]["data_lines"]
     assert len(result["ranges"]) > 300 and share < 0.03
     assert set(result["ranges"]["anchor_id"]) == {"B1", "B2", "B3", "B4", "B5", "B6"}
+
+
+def test_simulated_wheel_odometry_follows_the_encoder_physics(cricket, tmp_path):
+    """odometry.log of a simulated run: each wheel's integrated travel (v -/+ w b / 2) is the
+    path's length -/+ b / 2 x the path's total turn, within its diameter scale (+-4 sigma), and
+    the speed steps are the encoder quantum over a sample period averaged over two wheels."""
+    import numpy as np
+
+    run = simulate_run(cricket, "speed_40", run_seed_sequence(3, "cricket", "speed_40", 1), tmp_path / "r")
+    tables, inventory = ingest_run(run, cricket)
+    odometry, spec = tables["odometry"], cricket.spec["odometry"]
+    assert inventory["odometry.log"]["quarantined"] == 0 and len(odometry) > 1000
+    dt, half = 1.0 / spec["rate_hz"], spec["wheelbase_m"] / 2
+    assert np.allclose(np.diff(odometry["t"]), dt)
+    heading = np.unwrap(cricket.path.evaluate(np.linspace(0.0, cricket.path.length, 20001))["heading"])
+    turned = heading[-1] - heading[0]
+    assert turned == pytest.approx(7 * np.pi / 2, abs=1e-6)          # two laps of the rectangle, 7 corners
+    for sign in (-1.0, 1.0):                                          # left, right wheel
+        travel = float(((odometry["v_mps"] + sign * half * odometry["yaw_rate_rps"]) * dt).sum())
+        assert abs(travel / (cricket.path.length + sign * half * turned) - 1.0) < 4 * spec["diameter_sigma"] + 0.002
+    quantum = np.pi * spec["wheel_diameter_m"] / spec["encoder_counts_per_rev"] / dt / 2   # m/s, v = mean of 2 wheels
+    cruising = odometry.loc[odometry["yaw_rate_rps"].abs() < 1e-9, "v_mps"]
+    steps = (cruising - cruising.median()) / quantum
+    assert cruising.nunique() > 1 and np.all(np.abs(steps - np.round(steps)) < 0.2)
+
+
+def test_odometry_log_is_ingested_with_its_damaged_lines_quarantined(cricket, tmp_path):
+    run = simulate_run(cricket, "speed_20", run_seed_sequence(3, "cricket", "speed_20", 1), tmp_path / "r")
+    (run / "odometry.log").write_text("# cricket-odometry v1\n# t_ms v_mmps yaw_mradps\n"
+                                      "10040 200 0\n10080 201\n10120 20x 0\n10160 9000 0\n10160 199 12\n"
+                                      "10200 198 -30000\n10240 202 -5\n")
+    tables, inventory = ingest_run(run, cricket)
+    odometry = tables["odometry"]
+    assert odometry[["t", "v_mps", "yaw_rate_rps", "line"]].values.tolist() == [
+        [10.04, 0.2, 0.0, 3], [10.16, 0.199, 0.012, 7], [10.24, 0.202, -0.005, 9]]
+    q = tables["quarantine"]
+    reasons = dict(zip(q.loc[q["file"] == "odometry.log", "line"], q.loc[q["file"] == "odometry.log", "reason"]))
+    assert reasons == {4: "expected 3 fields 't_ms v_mmps yaw_mradps', found 2",
+                       5: "v_mmps='20x' is not a number", 6: "speed 9 m/s beyond 5 m/s",
+                       8: "yaw rate -30 rad/s beyond 10 rad/s"}
+    assert inventory["odometry.log"]["quarantined"] == 4
+    (run / "odometry.log").write_text("# cricket-imu v1\n10040 200 0\n")
+    with pytest.raises(Exception, match="odometry"):
+        ingest_run(run, cricket)

@@ -2,6 +2,8 @@
 labels and sections; study cells show their settings; the browser check catches problems."""
 
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -66,7 +68,11 @@ def test_data_page_shows_imu_rss_and_walls_only_where_the_dataset_has_them(campa
     config = {"runs": 1, "seed": 1, "report": {"title": "t"},
               "datasets": {"newcom": {"format": "newcom", "campaign": str(bare), "source": "logs", "kind": "synthetic",
                                       "scenarios": ["constant"], "raw_dir": "r"}}}
-    context = build_context(config, [summary], results.frame(rows), {}, {})
+    written = []
+    figures = {"newcom/constant": {"rss_distance": b"rss", "imu_resampling": b"imu", "range_error": b"range"}}
+    no_rss = results.frame(rows).query("table != 'RSS path-loss fit'")
+    context = build_context(config, [summary], no_rss, figures, {}, lambda png: written.append(png) or "f.png")
+    assert written == [b"range"]       # no figure is written that the page does not show (orphan placeholders)
     assert context["datasets"][0]["has"] == {"imu": False, "rss": False, "walls": False}
     page = render_pages(TEMPLATES, context)["pages/data-newcom.html"]
     assert "IMU resampling" not in page and "IMU samples" not in page and "RSS samples" not in page
@@ -121,3 +127,54 @@ def test_trajectory_panels_frame_the_truth_not_a_diverged_estimate():
     assert trajectory_frame(truth) == (-5.0, 15.0, -5.0, 9.0)      # half of the larger side (10 m) each way
     diverged = pd.DataFrame({"t": [0.0, 1.0], "x": [1.0, 3.0e4], "y": [1.0, -3.0e4]})
     assert trajectories({"run": (truth, {"pf": diverged})})[:4] == b"\x89PNG"
+
+
+def test_counts_agree_with_their_noun():
+    """'1 cell' / '1 run', never '1 cells'; no template prints a bare count before a plural noun."""
+    from wsnloc.report.render import counted
+    assert (counted(1, "cell"), counted(2, "run"), counted(0, "run")) == ("1 cell", "2 runs", "0 runs")
+    templates = Path(__file__).parents[1] / "workflow" / "templates"
+    bare = [(f.name, line) for f in templates.glob("*.j2") for line in f.read_text().splitlines()
+            if re.search(r"(length|runs) }} (runs|cells)\b", line)]
+    assert not bare, bare
+
+
+def test_error_and_bound_plots_share_the_runs_time_origin(monkeypatch):
+    """The error over time and sqrt(PCRB) of one run are drawn on the same clock (the run's t, s)."""
+    import matplotlib.axes
+    import pandas as pd
+
+    from wsnloc.report import bound_figures, figures
+    drawn = []
+    plot = matplotlib.axes.Axes.plot
+    monkeypatch.setattr(matplotlib.axes.Axes, "plot",
+                        lambda self, x, *a, **k: drawn.append(np.asarray(x, dtype=float)) or plot(self, x, *a, **k))
+    t = np.arange(10.0, 105.0, 0.5)
+    figures.error_over_time({"run": {"tracker": pd.DataFrame({"t": t, "error_m": np.ones_like(t)})}})
+    bound_figures.pcrb_vs_rmse(t, {"tracker": np.ones_like(t)}, 0.5 * np.ones_like(t), "PV", "run")
+    assert drawn and all(x[0] == t[0] and x[-1] == t[-1] for x in drawn), [(x[0], x[-1]) for x in drawn]
+
+
+def test_study_says_why_rmse_exceeds_the_bound_from_the_scenarios_data():
+    """The sentence under a study's table: the ratio, the ANEES verdict and the NLOS share and
+    excess of that scenario's data summary (not typed numbers); no sentence for a cell at its bound."""
+    import pandas as pd
+
+    from wsnloc.report.explanations import Numbers, study_bound_whys
+
+    def cell(ratio, anees):
+        return {"efficiency": {"value": ratio}, "gated": {"value": 0.15},
+                "anees": {"value": anees, "band_low": 1.5, "band_high": 2.6,
+                          "verdict": "optimistic" if anees > 2.6 else "consistent"}}
+
+    study = {"tables": [{"scenarios": ["newcom/tdoa", "newcom/flight"],
+                         "rows": [{"label": "tracker", "cells": [cell(2.23, 7.2), cell(1.0, 2.0)]}]}]}
+    pooled = {"LOS": {"n": 300, "median": 0.07, "bias": 0.01}, "NLOS": {"n": 100, "bias": 1.31, "p95": 5.6}}
+    summaries = {label: {"range_error_pooled": pooled} for label in ("newcom/tdoa", "newcom/flight")}
+    study["tables"][0]["subset"] = "all"
+    whys = study_bound_whys(Numbers(pd.DataFrame(), summaries), study)
+    assert len(whys) == 2, whys          # the tdoa scenario, then where the own-model ratio is shown
+    assert whys[0].startswith("newcom/tdoa (subset all): RMSE / sqrt(PCRB) tracker 2.23, ANEES 7.20 optimistic "
+                              "(band [1.50, 2.60]), gate rejected 15%")
+    assert "25% of the valid ranges are NLOS" in whys[0] and "median excess of 1.31 m" in whys[0]
+    assert "range differences" in whys[0] and "test_3d_flight_rmse_is_within_1_5_of_the_pcrb" in whys[1]

@@ -229,3 +229,30 @@ def test_tracker_follows_the_simulated_flight_in_3d(campaign, tmp_path):
     z_error = np.sqrt(np.nanmean((scored["z"] - scored["true_z"]) ** 2))
     assert metrics["availability"] > 0.95 and z_error < 1.0 and metrics["rmse"] < 1.0
     assert metrics["rmse"] < metrics["rmse_3d"] == pytest.approx(np.sqrt(metrics["rmse"] ** 2 + z_error**2), rel=1e-6)
+
+
+def test_study_page_shows_the_3d_rmse_and_the_height_over_time_of_a_3d_cell():
+    from wsnloc import results
+    from wsnloc.report.sections import study_section
+    from wsnloc.studies import results_rows, study_panels
+
+    t = np.arange(0.0, 10.0, 0.1)
+    truth = pd.DataFrame({"t": t, "x": t, "y": 0.0 * t, "z": 1.0 + 0.1 * t})
+    flat = score(pd.DataFrame({"t": t, "x": t + 0.1, "y": 0.0 * t}), truth.drop(columns="z"))
+    flight = score(pd.DataFrame({"t": t, "x": t + 0.1, "y": 0.0 * t, "z": 1.3 + 0.1 * t}), truth)
+    estimates = {("s/plane", "tracker"): flat.assign(run="r1", subset="all"),
+                 ("s/flight", "tracker"): flight.assign(run="r1", subset="all")}
+    *_, heights = study_panels(estimates)
+    assert list(heights) == ["s/flight, r1, subset all"]                 # the 3-D cell only
+    true_z, curves = heights["s/flight, r1, subset all"]
+    assert np.allclose(true_z["z"], truth["z"]) and np.allclose(curves["tracker"]["z"] - true_z["z"], 0.3)
+    rows = []
+    for label, est in (("s/plane", flat), ("s/flight", flight)):
+        metrics = pd.DataFrame([{**run_metrics(est, truth), "resets": 0, "gated": 0.0, "time_per_step": 1.0,
+                                 "run": "r1", "subset": "all"}])
+        rows += results_rows("x", "tracker", label, metrics)
+    spec = {"scenarios": ["s/plane", "s/flight"], "estimators": {"tracker": {}}}
+    section = study_section(results.frame(rows), "x", spec, {})
+    assert section["headline"][-1] == "rmse_3d"
+    cells = section["tables"][0]["rows"][0]["cells"]
+    assert cells[0]["rmse_3d"]["value"] is None and cells[1]["rmse_3d"]["value"] == pytest.approx(np.hypot(0.1, 0.3))

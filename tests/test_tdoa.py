@@ -392,7 +392,7 @@ def test_ranges_to_tdoa_pairs_by_interpolation_within_the_window():
     assert got == {(0.1, "B"): round(6.18 - 5.0, 9), (0.2, "B"): round(6.38 - 5.5, 9)}, got
 
 
-def test_convert_tdoa_cli_writes_a_tdoa_run_that_estimate_tracks(tmp_path):
+def test_convert_tdoa_cli_writes_a_tdoa_run_that_estimate_tracks(tmp_path, capsys):
     data = tdoa_run(seconds=20.0)
     times = np.arange(0.1, 20.0, 0.1)
     ids = np.tile(np.array(list(SQUARE), dtype=object), len(times))
@@ -416,6 +416,14 @@ def test_convert_tdoa_cli_writes_a_tdoa_run_that_estimate_tracks(tmp_path):
     assert main(["estimate", "--format", "generic", str(converted), "--out", str(tmp_path / "est")]) == 0
     metrics = json.loads((tmp_path / "est" / "metrics.json").read_text())
     assert metrics["availability"] > 0.9 and metrics["median_m"] < 0.3, metrics
+    capsys.readouterr()
+    (run / "tdoa.csv").write_bytes((converted / "tdoa.csv").read_bytes())   # ranges and range differences
+    assert main(["estimate", "--format", "generic", str(run), "--out", str(tmp_path / "both")]) == 0
+    printed = capsys.readouterr().out
+    assert "range differences (tdoa.csv), not used" in printed and "--set measurements=tdoa" in printed, printed
+    assert main(["estimate", "--format", "generic", str(run), "--out", str(tmp_path / "picked"),
+                 "--set", "measurements=tdoa"]) == 0
+    assert "not used" not in capsys.readouterr().out
 
 
 EIGHT = {**SQUARE, "A5": (10.0, 0.0), "A6": (20.0, 10.0), "A7": (10.0, 20.0), "A8": (0.0, 10.0)}

@@ -203,7 +203,11 @@ def parser() -> argparse.ArgumentParser:
     run.add_argument("--out", required=True, help="output folder: estimates.parquet, metrics.json, tables/")
     run.add_argument("--estimator", default="tracker",
                      help="registry name (default: %(default)s, the recommended tracker; see `wsnloc estimators`)")
-    run.add_argument("--set", action="append", metavar="KEY=VALUE", help="parameter override (repeatable)")
+    run.add_argument("--set", action="append", metavar="KEY=VALUE",
+                     help="parameter override (repeatable). The measurement kind follows the run: a run with "
+                          "two-way ranges is tracked on them (they carry more information) even when it has "
+                          "tdoa.csv too (a note says so; --set measurements=tdoa reads the range differences); "
+                          "a run with range differences only is tracked on them")
     run.add_argument("--campaign", help="campaign file (default: config/campaigns/<format>.yaml; optional for "
                                         "generic runs: no walls, 3-D ranges only where anchors have z)")
     run.add_argument("--calibration", help="a donor run directory with truth, same format and site: the RSS "

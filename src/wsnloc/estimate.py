@@ -20,7 +20,7 @@ from wsnloc.campaign import Campaign
 from wsnloc.errors import WsnlocError
 from wsnloc.diagnosis import diagnose_run, metrics_of as diagnosis_metrics, report as diagnosis_report
 from wsnloc.estimators import registry
-from wsnloc.estimators.auto import dimensions_for, measurements_for, motion_for
+from wsnloc.estimators.auto import CHOICE_KEYS, dimensions_for, measurements_for, motion_for
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments.calibration import calibrate_ranges, calibrate_tdoa, donor_model_for
 from wsnloc.io import tables
@@ -102,6 +102,18 @@ def donor_models(fmt: str, donor_dir: Path, campaign: Campaign | None, out_dir: 
     return rss, ranges
 
 
+def unused_tdoa_notes(data: RunData, p: dict, explicit: set[str], choices: dict) -> list[str]:
+    """A note per measurement key left on the ranges of a run that also has range differences
+    (tdoa.csv) the estimator could read: ranges stay the default there (a two-way range fixes
+    one distance; a range difference is the difference of two, each with its own noise, and
+    N anchors give N ranges but N - 1 independent differences), and the note says how to pick them."""
+    if not len(data.usable_tdoa()):
+        return []
+    return [f"the run has range differences (tdoa.csv), not used: {k}={p[k]} reads the two-way ranges, which "
+            f"carry more information; --set {k}=tdoa reads the range differences instead"
+            for k in CHOICE_KEYS if p.get(k) == "toa" and k not in explicit and "tdoa" in (choices.get(k) or ())]
+
+
 def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, name: str, overrides: dict,
                  calibration_dir: Path | None = None, limits: QuarantineLimits = QuarantineLimits()) -> dict:
     """Run `name` on the raw run; writes estimates.parquet (and metrics.json with truth); returns the
@@ -123,6 +135,8 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
                               {param.name: param.choices for param in estimator.params})
     notes += [f"{k}={v}: the run has {'range differences' if v == 'tdoa' else 'RSS'} and no usable range"
               for k, v in chosen.items() if p[k] != v]
+    notes += unused_tdoa_notes(RunData(run_tables, campaign, None, str(run_dir)), chosen, set(overrides),
+                               {param.name: param.choices for param in estimator.params})
     p, chosen = chosen, motion_for(run_tables, chosen, set(overrides))
     notes += [f"{k}={v}: the run has odometry" for k, v in chosen.items() if p[k] != v]
     p, chosen = chosen, dimensions_for(campaign, chosen, set(overrides))

@@ -8,6 +8,7 @@
         estimators:                           # cell name: parameter overrides
           tracker: {}                         #   the registry entry of the same name
           ekf_slow: {estimator: ekf, accel_sigma_mps2: 0.2}   # or the one named by `estimator`
+          tracker_odometry: {estimator: tracker, motion: odometry, scenarios: [mysite/cart]}   # on these only
         overrides:                            # per dataset or dataset/scenario (the more specific wins):
           mysite: {max_range_m: 60}           #   a parameter, for every cell that has it
           mysite/walk: {ekf_slow: {epoch_s: 1.0}}   # or a cell's own parameters
@@ -55,9 +56,19 @@ UNIT = {"diag_nis_mean": "per_dof", "diag_nis_high": "per_dof", "diag_range_scal
 # marginal cost in the study, not its cost alone (benchmarks/ measures that)
 
 
+CELL_KEYS = ("estimator", "scenarios")     # a cell's keys that are not estimator parameters
+
+
+def runs_on(spec: dict, cell: str, label: str) -> bool:
+    """Whether the cell runs on the dataset/scenario `label`: every scenario of the study unless
+    the cell's own `scenarios` names some (e.g. a cell reading odometry only where runs have it)."""
+    return label in ((spec["estimators"][cell] or {}).get("scenarios") or spec["scenarios"])
+
+
 def study_cells(config: dict) -> dict[str, list[tuple[str, str, str]]]:
-    """{study: [(dataset, scenario, cell)]}: the jobs of every study."""
-    return {study: [(*label.split("/", 1), cell) for label in spec["scenarios"] for cell in spec["estimators"]]
+    """{study: [(dataset, scenario, cell)]}: the jobs of every study (runs_on)."""
+    return {study: [(*label.split("/", 1), cell) for label in spec["scenarios"] for cell in spec["estimators"]
+                    if runs_on(spec, cell, label)]
             for study, spec in (config.get("studies") or {}).items()}
 
 
@@ -72,7 +83,7 @@ def cell_params(spec: dict, cell: str, dataset: str, scenario: str, where: str, 
     estimator = registry.get(estimator_of(spec, cell), f"{where}.estimators.{cell}.estimator")
     names = {p.name for p in estimator.params}
     merged = {k: v for k, v in (spec.get("parameters") or {}).items() if k in names}
-    merged.update({k: v for k, v in (spec["estimators"][cell] or {}).items() if k != "estimator"})
+    merged.update({k: v for k, v in (spec["estimators"][cell] or {}).items() if k not in CELL_KEYS})
     for key in (dataset, f"{dataset}/{scenario}"):
         layer = (spec.get("overrides") or {}).get(key) or {}
         merged.update({k: v for k, v in layer.items() if k in names and k not in spec["estimators"]})
@@ -114,10 +125,16 @@ def validate_studies(config: dict) -> None:
                 if name not in known:
                     raise ConfigError(f"config key '{where}.overrides.{key}.{name}': neither an estimator cell of "
                                       f"this study nor a parameter of its estimators{did_you_mean(name, known)}")
+        for cell, entry in spec["estimators"].items():
+            for label in (entry or {}).get("scenarios") or []:
+                if label not in spec["scenarios"]:
+                    raise ConfigError(f"config key '{where}.estimators.{cell}.scenarios': {label!r} is not a "
+                                      f"scenario of this study{did_you_mean(label, set(spec['scenarios']))}")
         for label in spec["scenarios"]:
             dataset, scenario = label.split("/", 1)
             for cell in spec["estimators"]:
-                cell_params(spec, cell, dataset, scenario, where)
+                if runs_on(spec, cell, label):
+                    cell_params(spec, cell, dataset, scenario, where)
             path = config["datasets"][dataset]["campaign"]
             campaign = campaigns.setdefault(path, Campaign.load(path))
             subsets = campaign.spec.get("subsets", {})
@@ -228,12 +245,14 @@ def run_cell(label: str, cell: str, name: str, p: dict, subsets: list[str], runs
              shared: dict | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(estimates, metrics) of one cell over every run and subset; raises when any yields nothing.
 
-    For a Bayesian filter the estimates also carry pcrb_m2 and nees, and the metrics sqrt_pcrb
-    and efficiency (analysis.filter_quality). `shared`: RunData of earlier cells of the same
+    For a Bayesian filter (but the odometry model) the estimates also carry pcrb_m2 and nees, and
+    the metrics sqrt_pcrb and efficiency (analysis.filter_quality). `shared`: RunData of earlier cells of the same
     runs (run_cells), reused when the tables and calibration models are the same."""
     models = donor_models(runs, donors or {}, campaign, name, p, reads_rss(name, p))
     range_models = range_donor_models(runs, donors or {}, campaign, p)
-    bayesian = is_bayesian(registry.get(name).function)
+    # no PCRB for the odometry model: its transitions depend on the odometry inputs and the heading
+    # along the path, which analysis.filter_bounds does not take (it would bound a random walk instead)
+    bayesian = is_bayesian(registry.get(name).function) and p.get("motion") != "odometry"
     shared = {} if shared is None else shared
     estimates, metrics = [], []
     for run, run_tables in runs.items():
@@ -284,10 +303,11 @@ def results_rows(study: str, cell: str, label: str, metrics: pd.DataFrame) -> li
 
 
 
-def study_panels(estimates: dict[tuple[str, str], pd.DataFrame]) -> tuple[dict, dict, dict]:
+def study_panels(estimates: dict[tuple[str, str], pd.DataFrame]) -> tuple[dict, dict, dict, dict]:
     """Figure panels per scenario: error CDFs over all runs (one curve per cell and subset),
-    and, on the first run and subset, the error over time and the tracks beside the truth."""
-    cdf, errors, tracks = {}, {}, {}
+    and, on the first run and subset, the error over time, the tracks beside the truth and, for
+    cells with a height estimate and a true height (3-D), z over time beside the true z."""
+    cdf, errors, tracks, heights = {}, {}, {}, {}
     for (label, cell), est in estimates.items():
         subsets = list(dict.fromkeys(est["subset"]))
         for subset in subsets:
@@ -298,7 +318,10 @@ def study_panels(estimates: dict[tuple[str, str], pd.DataFrame]) -> tuple[dict, 
         errors.setdefault(title, {})[cell] = first[["t", "error_m"]]
         truth = first[["true_x", "true_y"]].rename(columns={"true_x": "x", "true_y": "y"})
         tracks.setdefault(title, (truth, {}))[1][cell] = first
-    return cdf, errors, tracks
+        if {"z", "true_z"} <= set(first.columns):
+            true_z = first[["t", "true_z"]].rename(columns={"true_z": "z"}).dropna()
+            heights.setdefault(title, (true_z, {}))[1][cell] = first[["t", "z"]]
+    return cdf, errors, tracks, heights
 
 
 def estimator_panels(rows: list[dict], stats) -> dict:

@@ -4,7 +4,7 @@ from pathlib import Path
 
 from wsnloc.estimators import registry as _registry
 from wsnloc.io.convert import RUN_FILES
-from wsnloc.studies import cell_params, estimator_of, reads_rss, study_cells
+from wsnloc.studies import cell_params, estimator_of, reads_rss, runs_on, study_cells
 from wsnloc.workflow import (
     dataset_runs,
     processed_dirs,
@@ -164,7 +164,7 @@ def study_scenario_cells(w):
     spec = STUDIES[w.study]
     return [{"cell": cell, "estimator": estimator_of(spec, cell),
              "parameters": cell_params(spec, cell, w.dataset, w.scenario, f"studies.{w.study}")}
-            for cell in spec["estimators"]]
+            for cell in spec["estimators"] if runs_on(spec, cell, f"{w.dataset}/{w.scenario}")]
 
 
 def study_scenario_inputs(w):

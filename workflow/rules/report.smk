@@ -13,7 +13,7 @@ EXPERIMENTS_DIR = os.path.relpath(Path(_experiments.__file__).parent)   # src/ws
 PAPERS = ("paper_a", "paper_b", "paper_c", "paper_d")   # the papers' rules (their sections in this order)
 
 STUDY_OUTPUTS = ["results.csv", "figures/error_cdf.png", "figures/error_over_time.png", "figures/trajectories.png",
-                 "figures/pcrb_vs_rmse.png", "figures/consistency.png", "figures/estimators.png"]
+                 "figures/height_over_time.png", "figures/pcrb_vs_rmse.png", "figures/consistency.png", "figures/estimators.png"]
 
 
 rule report:

@@ -37,6 +37,7 @@ rule study_summary:
         cdf="data/processed/studies/{study}/figures/error_cdf.png",
         errors="data/processed/studies/{study}/figures/error_over_time.png",
         tracks="data/processed/studies/{study}/figures/trajectories.png",
+        heights="data/processed/studies/{study}/figures/height_over_time.png",
         bounds="data/processed/studies/{study}/figures/pcrb_vs_rmse.png",
         consistency="data/processed/studies/{study}/figures/consistency.png",
         bars="data/processed/studies/{study}/figures/estimators.png",

@@ -53,13 +53,14 @@ if sm.input.ranging:    # the ranging validation (rule ranging_validation): tabl
     context["ranging"] = ranging_section(final_results, note["scenarios"],
                                          figure(ranging["ranging_validation.png"].read_bytes()), note["notes"])
 papers = read_yaml(sm.input.papers)
+numbers = explanations.Numbers(final_results, {summary["label"]: summary for summary in summaries}, config)
 for study, spec in sm.params.studies.items():
-    pngs = [Path(p) for p in sm.input.studies if p.endswith(".png") and Path(p).parts[3] == study]
+    pngs = [Path(p) for p in sm.input.studies if p.endswith(".png") and Path(p).parts[3] == study
+            and Path(p).stat().st_size]          # an empty PNG: the figure does not apply (no 3-D cell)
     context["studies"].append(study_section(final_results, study, spec, {path.stem: figure(path.read_bytes())
                                                                          for path in pngs},
                                             config["report"]["cell_stats"]))
-
-numbers = explanations.Numbers(final_results, {summary["label"]: summary for summary in summaries}, config)
+    context["studies"][-1]["bound_whys"] = explanations.study_bound_whys(numbers, context["studies"][-1])
 for paper, labels in sm.params.papers.items():   # each paper's section: wsnloc.experiments.<paper>.report
     spec = config["experiments"][paper]
     outputs = {Path(p).name: Path(p) for p in sm.input.paper_files if Path(p).parts[2] == paper}

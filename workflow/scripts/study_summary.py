@@ -41,9 +41,11 @@ pcrb_png, anees_png = bound_figures.bound_and_anees_figures(bound_panels, consis
                                                             none="no Bayesian filter cell in this study")
 Path(sm.output.bounds).write_bytes(pcrb_png)
 Path(sm.output.consistency).write_bytes(anees_png)
-cdf, errors, tracks = study_panels(estimates)
+cdf, errors, tracks, heights = study_panels(estimates)
 Path(sm.output.cdf).write_bytes(figures.error_cdf(cdf, xmax=None))
 Path(sm.output.errors).write_bytes(figures.error_over_time(errors))
 Path(sm.output.tracks).write_bytes(figures.trajectories(tracks))
+# empty where no cell estimates a height: the report shows (and writes) no figure for it
+Path(sm.output.heights).write_bytes(figures.height_over_time(heights) if heights else b"")
 Path(sm.output.bars).write_bytes(figures.estimator_bars(estimator_panels(rows, sm.params.bar_stats)))
 log.info("study %s: %d cells, %d results rows", study, len(estimates), len(rows))

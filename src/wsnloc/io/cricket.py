@@ -21,6 +21,14 @@ records run together, empty values, absurd values, time out of order
 (wsnloc.io.timeorder). Stray spaces are tolerated. RF-only records are valid but carry
 no range; they are counted, not tabled. A run needs only listener.log: a listener capture
 has no imu.log or truth.log, whose tables are then empty.
+
+odometry.log (optional, the cart controller's wheel odometry; docs/raw-formats.md):
+  # cricket-odometry v1
+  <t_ms> <v_mmps> <yaw_mradps>   host ms, forward speed (mm/s, body frame, negative reversing)
+                                 and yaw rate (mrad/s, counter-clockwise), integers
+-> the odometry table (t s, v_mps, yaw_rate_rps). Quarantined: a wrong field count, a value
+that is not a number (or not an integer), a speed or yaw rate beyond MAX_SPEED_MPS /
+MAX_YAW_RATE_RPS, time not increasing.
 """
 
 from __future__ import annotations
@@ -34,15 +42,17 @@ import pandas as pd
 from wsnloc.campaign import Campaign
 from wsnloc.errors import IngestError
 from wsnloc.io import newcom, tables
-from wsnloc.io.rawlines import Quarantine, RawFile, read_raw
+from wsnloc.io.rawlines import Quarantine, RawFile, check_magic, iter_fields, read_raw
 from wsnloc.io.timeorder import keep_in_time_order
 from wsnloc.sim.cricket import speed_of_sound
 
 LISTENER = "listener.log"
-OPTIONAL_FILES = ("imu.log", "truth.log")
+OPTIONAL_FILES = ("imu.log", "truth.log", "odometry.log")
 MAX_RANGE_M = 15.0            # Cricket ultrasound never reaches this far: longer is absurd
 MAX_COUNTER = 2**32           # TS/TM are 32-bit listener counters
 INCH_M = 0.0254
+MAX_SPEED_MPS = 5.0           # an indoor cart: faster is a damaged line
+MAX_YAW_RATE_RPS = 10.0       # ~570 deg/s: beyond any cart pivot
 V2_KEYS = {"VR", "ID", "SP", "DB", "DR", "TM", "TS"}
 OLD_KEYS = {"ver", "space", "id", "dist", "duration", "time"}
 _HEX_BYTES = re.compile(r"^[0-9a-fA-F]{1,2}(:[0-9a-fA-F]{1,2}){7}$")
@@ -194,8 +204,37 @@ def parse_listener(raw: RawFile, campaign: Campaign, quarantine: Quarantine) -> 
     return frame, len(kept) - len(rows)
 
 
+def _odometry_line(fields: list[str]) -> tuple[float, float, float]:
+    if len(fields) != 3:
+        raise _Bad(f"expected 3 fields 't_ms v_mmps yaw_mradps', found {len(fields)}")
+    t_ms = _number({"t_ms": fields[0]}, "t_ms")
+    v, w = (_number({key: text}, key, int) / 1000.0 for key, text in zip(("v_mmps", "yaw_mradps"), fields[1:]))
+    if abs(v) > MAX_SPEED_MPS:
+        raise _Bad(f"speed {v:g} m/s beyond {MAX_SPEED_MPS:g} m/s")
+    if abs(w) > MAX_YAW_RATE_RPS:
+        raise _Bad(f"yaw rate {w:g} rad/s beyond {MAX_YAW_RATE_RPS:g} rad/s")
+    return t_ms, v, w
+
+
+def parse_odometry(raw: RawFile, quarantine: Quarantine) -> pd.DataFrame:
+    """odometry.log: `t_ms v_mmps yaw_mradps` -> the odometry table (t s, v_mps m/s, yaw_rate_rps
+    rad/s); time must increase strictly (wsnloc.io.timeorder)."""
+    check_magic(raw, "-odometry")
+    accepted, rejected = [], []
+    for number, text, fields in iter_fields(raw):
+        try:
+            t_ms, v, w = _odometry_line(fields)
+        except _Bad as reason:
+            rejected.append((number, text, str(reason)))
+            continue
+        accepted.append((number, text, t_ms, (t_ms / 1000.0, v, w, number)))
+    rows = keep_in_time_order(raw.name, accepted, rejected, quarantine, strict=True)
+    return (pd.DataFrame(rows, columns=["t", "v_mps", "yaw_rate_rps", "line"]) if rows
+            else tables.empty("odometry"))
+
+
 def ingest_run(run_dir: str | Path, campaign: Campaign) -> tuple[dict[str, pd.DataFrame], dict]:
-    """Parse listener.log (required) and imu.log, truth.log (when present) of one Cricket run."""
+    """Parse listener.log (required) and imu.log, truth.log, odometry.log (when present) of one Cricket run."""
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
         raise IngestError(f"{run_dir}: not a directory")
@@ -209,6 +248,8 @@ def ingest_run(run_dir: str | Path, campaign: Campaign) -> tuple[dict[str, pd.Da
         "imu": newcom.parse_imu(raws["imu.log"], campaign, quarantine) if "imu.log" in raws else tables.empty("imu"),
         "truth": (newcom.parse_truth(raws["truth.log"], campaign, quarantine) if "truth.log" in raws
                   else tables.empty("truth")),
+        "odometry": (parse_odometry(raws["odometry.log"], quarantine) if "odometry.log" in raws
+                     else tables.empty("odometry")),
         "anchors": campaign.anchors[["anchor_id", "tech", "x", "y", "z"]].copy(),
         "quarantine": quarantine.frame(),
     }

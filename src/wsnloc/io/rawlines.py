@@ -175,7 +175,7 @@ def header_value(raw: RawFile, key: str) -> str | None:
     return None
 
 
-KINDS = ("-uwb", "-zigbee", "-imu", "-truth", "-listener")
+KINDS = ("-uwb", "-zigbee", "-imu", "-truth", "-listener", "-odometry")
 
 
 def check_magic(raw: RawFile, expected_kind: str) -> None:

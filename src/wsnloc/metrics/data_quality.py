@@ -43,8 +43,9 @@ def _shown(value: str) -> str:
 def reasons_with_values(reasons: pd.Series) -> pd.Series:
     """{reason category (reason_category): text} with the offending values put back: the
     reason itself when all of its rows say the same (values cut to VALUE_WIDTH characters), else
-    the category followed by its most frequent values
-    ('e.g. ...', at most VALUES_SHOWN, each cut to VALUE_WIDTH characters, '+N more')."""
+    the most frequent reason (quoted values as '…', numbers as written) followed by its most frequent values
+    ('e.g. ...', at most VALUES_SHOWN, each cut to VALUE_WIDTH characters, '+N more'), or, when
+    only numbers differ, the most frequent reason as written ('+N more variants')."""
     out = {}
     for category, group in reasons.groupby(reasons.map(reason_category), sort=False):
         values = pd.Series([v for reason in group for v in re.findall(r"'([^']*)'", reason)], dtype=object).value_counts()
@@ -52,9 +53,12 @@ def reasons_with_values(reasons: pd.Series) -> pd.Series:
             out[category] = re.sub(r"'([^']*)'", lambda m: _shown(m.group(1)), group.iloc[0])
         elif len(values):
             more = f", +{len(values) - VALUES_SHOWN} more" if len(values) > VALUES_SHOWN else ""
-            out[category] = f"{category} (e.g. {', '.join(map(_shown, values.index[:VALUES_SHOWN]))}{more})"
-        else:
-            out[category] = category
+            written = re.sub(r"'[^']*'|\"[^\"]*\"", "'…'", group.value_counts().index[0])   # its numbers kept
+            out[category] = f"{written} (e.g. {', '.join(map(_shown, values.index[:VALUES_SHOWN]))}{more})"
+        else:       # the numbers differ: the most frequent reason as written, not its N placeholders
+            variants = group.value_counts()
+            more = f" (+{len(variants) - 1} more variants)" if len(variants) > 1 else ""
+            out[category] = f"{variants.index[0]}{more}"
     return pd.Series(out, dtype=object)
 
 
@@ -165,8 +169,7 @@ def summarize(runs: dict[str, dict[str, pd.DataFrame]], imu_5hz: dict[str, pd.Da
         rows += ranging_validation.rows(ranging_validation.link_of_walls(errors), EXPERIMENT, label)
 
     per_anchor = _per_anchor_counts(runs)
-    q = quarantine.assign(category=quarantine["reason"].map(reason_category))
-    by_reason = (q.groupby(["file", "category"]).size().rename("lines").reset_index()
+    by_reason = (pd.DataFrame(quarantine_by_reason(quarantine), columns=["file", "reason", "lines"])
                  .sort_values(["file", "lines"], ascending=[True, False]))
     pooled_errors = {
         link.upper(): {k.removeprefix(f"{link}_"): v for k, v in

@@ -436,17 +436,34 @@ def trajectories(panels: dict[str, tuple[pd.DataFrame, dict[str, pd.DataFrame]]]
 
 @gc_paused
 def error_over_time(panels: dict[str, dict[str, pd.DataFrame]]) -> bytes:
-    """Position error (m) against time (s from the start), one panel per title."""
+    """Position error (m) against time t (s, the run's clock: the time origin of the sqrt(PCRB)
+    and ANEES plots of the same run), one panel per title."""
     fig, axes = plt.subplots(len(panels), 1, figsize=(9, 2.8 * len(panels)), squeeze=False)
     for ax, (title, curves) in zip(axes[:, 0], panels.items()):
-        start = min(c["t"].min() for c in curves.values() if len(c))
         for label, curve in curves.items():
-            ax.plot(curve["t"] - start, curve["error_m"], lw=1.0, label=label)
+            ax.plot(curve["t"], curve["error_m"], lw=1.0, label=label)
         ax.set_xlabel("t [s]")
         ax.set_ylabel("error [m]")
         ax.set_title(title, fontsize=10)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))     # beside: many curves
+    return fitted_png(fig)
+
+
+@gc_paused
+def height_over_time(panels: dict[str, tuple[pd.DataFrame, dict[str, pd.DataFrame]]]) -> bytes:
+    """Height z (m) against time t (s, the run's clock) per title: the truth (t, z) and each
+    cell's estimate (t, z)."""
+    fig, axes = plt.subplots(len(panels), 1, figsize=(9, 2.6 * len(panels)), squeeze=False)
+    for ax, (title, (truth, curves)) in zip(axes[:, 0], panels.items()):
+        ax.plot(truth["t"], truth["z"], color="k", lw=1.8, label="truth")
+        for label, curve in curves.items():
+            ax.plot(curve["t"], curve["z"], lw=1.0, label=f"{label} estimate")
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel("z [m]")
+        ax.set_title(title, fontsize=10)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     return fitted_png(fig)
 
 

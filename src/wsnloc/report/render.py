@@ -30,6 +30,11 @@ DIVERGED = 1e6      # |value| above this in a metric that `diverged` applies to 
 LARGEST_PLAIN = 1e12   # |value| from this on is written in powers of ten (at most 12 digits in a number)
 
 
+def counted(n, noun: str) -> str:
+    """'1 run', '2 runs': a count with its noun in the singular or plural (English -s)."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
 def fmt_number(value, digits: int = 3, unit: str = "", signed: bool = False, diverged: bool = False) -> str:
     """The one number formatter of the report: `digits` significant digits, but never fewer than
     the integer part (1234.5 -> 1235 at 3 digits; digits 0: whole numbers), then the unit.
@@ -142,6 +147,7 @@ def _environment(template_dir: str | Path) -> jinja2.Environment:
         lstrip_blocks=True,
     )
     env.filters["num"] = fmt_number
+    env.filters["counted"] = counted
     return env
 
 
@@ -224,9 +230,11 @@ def build_context(config: dict, summaries: list[dict], results: pd.DataFrame, fi
                 "summary": summary,
                 "range_error": results_table(results, "data", "Range error", label),
                 "path_loss": results_table(results, "data", "RSS path-loss fit", label),
-                "figures": {k: figure(v) for k, v in figures.get(label, {}).items()},
             })
         has = dataset_has(spec, [sc["summary"] for sc in scenarios])
+        for sc in scenarios:    # only the figures data.html.j2 shows are written (no orphan placeholder)
+            shown = {"rss_distance": bool(sc["path_loss"]), "imu_resampling": has["imu"]}
+            sc["figures"] = {k: figure(v) for k, v in figures.get(sc["label"], {}).items() if shown.get(k, True)}
         kind = dataset_kind(spec)
         datasets.append({"name": name, "spec": spec, "scenarios": scenarios, "kind": kind, "has": has,
                          "has_list": [{"imu": "IMU", "rss": "RSS", "walls": "walls"}[k] for k, v in has.items() if v],

@@ -111,7 +111,7 @@ def bound_line(results: pd.DataFrame, label: str, experiment: str, scenario: str
             **{stat: with_verdict(cell_of(results, **keys, **consistency, column=stat)) for stat in ("anees", "anis")}}
 
 
-STUDY_STATS = ("median", "p75", "p95", "rmse", "mean", "p90", "max", "availability", "resets", "gated", "time_per_step",
+STUDY_STATS = ("median", "p75", "p95", "rmse", "rmse_3d", "mean", "p90", "max", "availability", "resets", "gated", "time_per_step",
                "calibrated_scale", "calibration_fitted", "range_scale", "range_offset")
 BOUND_STATS = ("sqrt_pcrb", "efficiency", "anees", "anis")     # Bayesian filter cells only
 
@@ -158,11 +158,14 @@ def study_section(results: pd.DataFrame, study: str, spec: dict, figures: dict[s
     """Context of one study's section: the settings of each cell per scenario; per anchor
     subset, cells x scenarios with the `headline` statistics (config report.cell_stats), the
     best cell of each headline column marked (`best`: lowest error, highest availability), and
-    every statistic (for the detail); the figures."""
-    from wsnloc.studies import EXPERIMENT_PREFIX, estimator_of
+    every statistic (for the detail); the figures. A study with a 3-D cell adds its 3-D RMSE
+    (x, y, z) to the headline; the others are errors in the plane."""
+    from wsnloc.studies import EXPERIMENT_PREFIX, estimator_of, runs_on
 
     sel = results[results["experiment"] == EXPERIMENT_PREFIX + study]
     scenarios, cells = list(spec["scenarios"]), list(spec["estimators"])
+    if sel.loc[sel["column"] == "rmse_3d", "value"].notna().any():     # a 3-D cell: its 3-D RMSE beside the 2-D ones
+        headline = [*headline, "rmse_3d"]
     tables = []
     for subset in dict.fromkeys(sel["table"]):
         in_subset = sel[sel["table"] == subset]
@@ -176,7 +179,8 @@ def study_section(results: pd.DataFrame, study: str, spec: dict, figures: dict[s
                     r["cells"][k][stat]["best"] = best is not None and v == best
         tables.append({"subset": subset, "scenarios": scenarios, "rows": rows})
     estimators = [{"cell": c, "estimator": estimator_of(spec, c),
-                   "settings": [cell_settings(spec, c, sc) for sc in scenarios]} for c in cells]
+                   "settings": [cell_settings(spec, c, sc) if runs_on(spec, c, sc) else None
+                                for sc in scenarios]} for c in cells]
     runs = sel.loc[sel["column"] == "rmse", "runs"].dropna()
     return {"id": study, "tables": tables, "estimators": estimators, "scenarios": scenarios,
             "headline": list(headline), "runs": int(runs.min()) if len(runs) else None, "figures": figures}

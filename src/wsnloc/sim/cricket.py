@@ -9,8 +9,9 @@ beyond the ultrasound range only the RF part arrives (a line without DB/DR).
 True beacon positions are the nominal ones plus the hand-measurement error; the
 estimators only know the nominal positions from the campaign file.
 A small share of lines is damaged on the serial link (cut short, or run into the next
-line), as in real captures. Writes listener.log (host ms + TAB + Cricket v2 line),
-imu.log, truth.log, meta.yaml.
+line), as in real captures. The cart's controller logs its wheel odometry from two wheel
+encoders (odometry_text). Writes listener.log (host ms + TAB + Cricket v2 line), imu.log,
+truth.log, odometry.log, meta.yaml.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import numpy as np
 from wsnloc.campaign import Campaign
 from wsnloc.sim import trajectory as motion
 from wsnloc.sim.imu import noise_model_of
-from wsnloc.sim.logs import imu_text, lines_text, positions, truth_text, write_run
+from wsnloc.sim.logs import format_text, imu_text, lines_text, positions, truth_text, write_run
 from wsnloc.sim.seeding import model_rng
 
 
@@ -84,6 +85,34 @@ def _listener_lines(campaign: Campaign, traj, rng_beacons, rng_timing, rng_range
     return header + _serial_damage(lines, spec["serial_damage_rate"], rng_range)
 
 
+def odometry_text(campaign: Campaign, traj, rng, clock_ms: int) -> str:
+    """`odometry.log`: `t_ms v_mmps yaw_mradps` at the campaign's odometry rate, as the cart's
+    controller computes them from its two wheel encoders (campaign section `odometry`).
+
+    Wheel travel along the path: s_l,r = s -/+ (b / 2) (theta - theta_0) (s the path position,
+    theta the unwrapped heading, b the wheelbase). A wheel of true diameter D (1 + e_w),
+    e_w ~ N(0, diameter_sigma) per run and wheel, turns s_w / (pi D (1 + e_w)) revolutions: its
+    encoder counts floor(counts_per_rev s_w / (pi D (1 + e_w))). Per sample period dt the
+    controller reads v_w = dcounts pi D / counts_per_rev / dt with the NOMINAL D, then
+    v = (v_l + v_r) / 2 (m/s) and yaw rate w = (v_r - v_l) / b (rad/s), written in mm/s and mrad/s.
+    """
+    spec = campaign.section("odometry")
+    period_ms = 1000.0 / spec["rate_hz"]
+    t_ms = np.arange(0.0, traj.duration * 1000 + 1e-9, period_ms)
+    pose = positions(campaign, traj, t_ms / 1000.0)
+    turned = np.unwrap(pose["heading"]) - pose["heading"][0]
+    half = spec["wheelbase_m"] / 2.0
+    per_count = np.pi * spec["wheel_diameter_m"] / spec["encoder_counts_per_rev"]      # m per count, nominal
+    scale = 1.0 + rng.normal(0.0, spec["diameter_sigma"], 2)                           # true / nominal D
+    counts = [np.floor((pose["s"] + sign * half * turned) / (per_count * k)) for sign, k in zip((-1.0, 1.0), scale)]
+    left, right = (np.diff(c) * per_count / (np.diff(t_ms) / 1000.0) for c in counts)
+    v, w = (left + right) / 2.0, (right - left) / spec["wheelbase_m"]
+    header = [f"# {campaign.format}-odometry v1", "# t_ms v_mmps yaw_mradps"]
+    return lines_text(header) + format_text([(np.rint(t_ms[1:]).astype(np.int64) + clock_ms, 0),
+                                             (np.rint(v * 1000.0).astype(np.int64), 0),
+                                             (np.rint(w * 1000.0).astype(np.int64), 0)])
+
+
 def simulate_run(campaign: Campaign, scenario: str, seeds: np.random.SeedSequence, out_dir: Path,
                  *, imu_noise: str | None = None, meta: dict | None = None, **_ignored) -> Path:
     """Simulate `scenario` (e.g. speed_40) and write its raw logs into `out_dir`."""
@@ -96,5 +125,6 @@ def simulate_run(campaign: Campaign, scenario: str, seeds: np.random.SeedSequenc
                                                    model_rng(seeds, "timing"), model_rng(seeds, "ranging"), clock_ms)),
         "imu.log": imu_text(campaign, traj, model_rng(seeds, "imu"), imu_noise, clock_ms),
         "truth.log": truth_text(campaign, traj, clock_ms, "path_m"),
+        "odometry.log": odometry_text(campaign, traj, model_rng(seeds, "odometry"), clock_ms),
     }
     return write_run(out_dir, files, campaign, scenario, seeds, {"imu_noise_model": imu_noise, **(meta or {})})
