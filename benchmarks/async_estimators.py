@@ -95,7 +95,8 @@ def applicable(name: str, has_ranges: bool) -> bool:
         return False
     if has_ranges:
         return True
-    return bool({"measurements", "fixes"} & {q.name for q in estimator.params}) or reads_rss(name, p)
+    return any("rss" in (q.choices or ()) for q in estimator.params if q.name in ("measurements", "fixes")) \
+        or reads_rss(name, p)
 
 
 def main(argv=None) -> int:

@@ -9,7 +9,7 @@ import pytest
 from wsnloc import references
 from wsnloc.cli import main
 from wsnloc.diagnosis import diagnose_run, findings, metrics_of, report
-from wsnloc.errors import IngestError
+from wsnloc.errors import ConfigError, IngestError
 from wsnloc.estimators.auto import measurements_for
 from wsnloc.estimators.run_data import RunData
 from wsnloc.io.convert import QUARANTINE_FILE, convert_cucudasluv, convert_philotuxo, run_names
@@ -181,6 +181,10 @@ def test_rss_only_runs_are_estimated_on_their_rss():
     assert measurements_for(data, {"measurements": "toa", "fixes": "toa"}, set()) == {"measurements": "rss",
                                                                                       "fixes": "rss"}
     assert measurements_for(data, {"measurements": "toa"}, {"measurements"}) == {"measurements": "toa"}
+    # an estimator that reads ranges only (sliding_window) is told so, before any donor calibration
+    # (it reached the RSS model fit and stopped with KeyError 'path_loss_exponent')
+    with pytest.raises(ConfigError, match="reads measurements toa / tdoa only"):
+        measurements_for(data, {"measurements": "toa"}, set(), {"measurements": ("toa", "tdoa")})
 
 
 def _ble_run(root, seed=0):

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from wsnloc.errors import ConfigError
 from wsnloc.estimators.run_data import RunData
 
 CHOICE_KEYS = ("measurements", "fixes")      # parameters naming the measurement kind an estimator reads
@@ -31,7 +32,8 @@ def measurements_for(data: RunData, p: dict, explicit: set[str], choices: dict |
     """The parameters with the measurement kind switched where the run has no usable range and
     the key was not set explicitly: to 'tdoa' where the run has range differences and the key
     accepts it (`choices`: the estimator's {parameter: its choices}), else to 'rss' where the
-    run has RSS; the others unchanged."""
+    run has RSS and the key accepts it; the others unchanged. ConfigError where the run has
+    only RSS and no free key accepts it (an estimator that reads ranges only, e.g. sliding_window)."""
     ranges = data.usable_ranges(p.get("preliminary_filter", True), p.get("max_range_m", float("inf")))
     if len(ranges):
         return p
@@ -42,7 +44,12 @@ def measurements_for(data: RunData, p: dict, explicit: set[str], choices: dict |
             return dict(p, **{k: "tdoa" for k in accepting})
     if not len(data.usable_rss()):
         return p
-    return dict(p, **{k: "rss" for k in free})
+    accepting = [k for k in free if choices is None or "rss" in (choices.get(k) or ())]
+    if free and not accepting:
+        reads = ", ".join(k + " " + " / ".join(choices[k]) for k in free)
+        raise ConfigError(f"the run has RSS and no usable range or range difference; this estimator reads {reads} "
+                          "only (`wsnloc estimators` lists the ones that read RSS)")
+    return dict(p, **{k: "rss" for k in accepting})
 
 
 SYNCHRONOUS_SHARE = 0.5     # bursts in at least this share of the epochs with measurements: synchronous
