@@ -507,11 +507,11 @@ def test_paper_terms_of_papers_b_and_c_carry_their_arithmetic():
     rows = [results.row_over_runs([v] * 3, experiment="C", table="Table I", row=m, column="20 cm/s", scenario="c/s",
                                   metric="rmse_m", paper_value=p) for m, v, p in (("P", 0.2, 0.35), ("PVA", 0.25, 0.5))]
     numbers = explanations.Numbers(results.frame(rows), {})
-    [(text, value)] = paper_c_report.model_part(numbers, "Table I", "PVA", "20 cm/s", 0.5, 0.3, 1.0)
+    [(text, value)] = paper_c_report.model_part(numbers, "Table I", "PVA", "20 cm/s", 0.5, 0.3, 1.0, 9.80665)
     assert value == pytest.approx(0.05 - 0.15) and "+0.050 - (+0.150) = -0.100 m" in text
     leak = 9.80665 * math.sin(math.radians(1.0))
     assert f"a = 2 x 0.150 / 0.5^2 = {0.3 / 0.25:.2f} m/s^2" in text and f"{1.2 / leak:.1f} times the tilt" in text
-    assert paper_c_report.model_part(numbers, "Table I", "P", "20 cm/s", 0.5, 0.3, 1.0) == []
+    assert paper_c_report.model_part(numbers, "Table I", "P", "20 cm/s", 0.5, 0.3, 1.0, 9.80665) == []
     rows = [results.row_over_runs([v] * 2, experiment="B", table=TABLE, row="uwb", column=level, scenario="d/s",
                                   metric="rmse_m") for level, v in (("spec", 1.4), ("era", 1.6))]
     rows += [results.row_over_runs([v] * 2, experiment="B", table=paper_b.SNR_TABLE, row=paper_b.METHODS["imu"],

@@ -131,12 +131,12 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
                          converted_quarantine(run_dir)] if q]
     if "imu_5hz" in estimator.tables(p):
         run_tables["imu_5hz"] = resample_imu(run_tables["imu"], **RESAMPLE)
-    chosen = measurements_for(RunData(run_tables, campaign, None, str(run_dir)), p, set(overrides),
-                              {param.name: param.choices for param in estimator.params})
+    measured = RunData(run_tables, campaign, None, str(run_dir))      # what the run holds (no calibration yet)
+    choices = {param.name: param.choices for param in estimator.params}
+    chosen = measurements_for(measured, p, set(overrides), choices)
     notes += [f"{k}={v}: the run has {'range differences' if v == 'tdoa' else 'RSS'} and no usable range"
               for k, v in chosen.items() if p[k] != v]
-    notes += unused_tdoa_notes(RunData(run_tables, campaign, None, str(run_dir)), chosen, set(overrides),
-                               {param.name: param.choices for param in estimator.params})
+    notes += unused_tdoa_notes(measured, chosen, set(overrides), choices)
     p, chosen = chosen, motion_for(run_tables, chosen, set(overrides))
     notes += [f"{k}={v}: the run has odometry" for k, v in chosen.items() if p[k] != v]
     p, chosen = chosen, dimensions_for(campaign, chosen, set(overrides))

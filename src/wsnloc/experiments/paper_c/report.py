@@ -35,19 +35,17 @@ def section(results: pd.DataFrame, claims: dict, figures: dict[str, str], paper:
                           {"table": f"consistency: {subset}", "row": m})
                for subset in table_2 for m in MODELS]
     setup = {model: cell_params(spec, labels[0], model, table_1) for model in MODELS}
-    tilt_deg = campaign_of(config, labels[0]).spec.get("imu", {}).get("mount_tilt_sigma_deg", 0.0)
+    campaign = campaign_of(config, labels[0]).spec
+    tilt_deg, gravity = campaign.get("imu", {}).get("mount_tilt_sigma_deg", 0.0), campaign["gravity_mps2"]
     return paper_section(C, paper, spec, claims, figures, numbers=numbers, tables=tables, bounds=bounds, details=details, setup=setup,
                          why=why(numbers, config, labels, setup["P"]["epoch_s"]),
                          paper_terms=lambda table, row, column, cell: model_part(
                              numbers, table["table"], row["label"], column, setup["P"]["epoch_s"],
-                             setup["PV"]["accel_sigma_mps2"], tilt_deg))
-
-
-GRAVITY_MPS2 = 9.80665
+                             setup["PV"]["accel_sigma_mps2"], tilt_deg, gravity))
 
 
 def model_part(n: Numbers, table: str, row: str, column: str, period_s: float, pv_accel_sigma: float,
-               tilt_deg: float) -> list[tuple[str, float]]:
+               tilt_deg: float, gravity_mps2: float) -> list[tuple[str, float]]:
     """The PV or PVA cell's own part of its gap (explanations.cell_whys): its excess over the P
     model in the same column (Table I: rows are models; Table II: columns are), ours against the
     paper's, (ours_M - ours_P) - (paper_M - paper_P) in m; the rest of the gap is the P cell's.
@@ -68,7 +66,7 @@ def model_part(n: Numbers, table: str, row: str, column: str, period_s: float, p
     if dp > 0:
         a = 2.0 * dp / period_s**2
         if model == "PVA":
-            leak = GRAVITY_MPS2 * math.sin(math.radians(tilt_deg))
+            leak = gravity_mps2 * math.sin(math.radians(tilt_deg))
             text += (f"; an acceleration error a left in the prediction over T = {period_s:g} s adds a T^2 / 2, so the "
                      f"paper's {dp:.3f} m needs a = 2 x {dp:.3f} / {period_s:g}^2 = {a:.2f} m/s^2 that its bias states "
                      f"did not absorb, {a / leak:.1f} times the tilt leakage g sin({tilt_deg:g} deg) = "
