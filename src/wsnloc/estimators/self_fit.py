@@ -10,8 +10,8 @@ estimator's own filter or smoother then runs once with the fitted values (`outpu
 1. **Range scale and per-anchor offsets** (ranges, >= 4 anchors ranged, no configured or donor
    calibration, which wins): a first pass with the state augmented by a common range scale
    (estimators.self_calibration; observable while the target moves among >= 4 anchors); then
-   the per-anchor offsets against that pass's track (range_correction: least squares through
-   each window's geometry, undoing what the track absorbed). The ranges are corrected
+   the per-anchor offsets against that pass's track (range_correction: least squares jointly
+   with the track's own smooth error, undoing what the track absorbed). The ranges are corrected
    (estimators.range_calibration) for the next passes. On range differences (>= 4 anchors in
    the pairs) the same in TDOA form (tdoa_correction: scale and offset differences b_a - b_ref,
    a pair's bias, against a plain first pass's track, refitted once on the corrected track);
@@ -76,8 +76,8 @@ hardly depends on where the configured values start.
 
 Cost: one augmented pass (step 1; about 1.2x a plain pass: the calibration columns), four passes
 on 12% of the run (five where the correction passes the first test), one full pass and the fits
-(the offsets' window projections batched by anchor count: 0.02 s a fit on a real case, was 0.1 s;
-the likelihoods and innovations about 0.03 s): 2.6-3.0x one plain pass in CPU time on the shared
+(the offsets' sparse least squares: about 0.01 s a fit on a real case; the likelihoods and
+innovations about 0.03 s): 2.6-3.0x one plain pass in CPU time on the shared
 real cases (best of 3, two rounds on a shared machine, 2026-12-05; 2.7-3.1x before the measurement
 models of the candidates shared their geometry and the passes stopped leaving an object per
 update for the garbage collector; benchmarks/realdata.py prints it per case), within the 3x of
@@ -117,8 +117,11 @@ GRID = np.exp(np.linspace(np.log(CLAMP[0]), np.log(CLAMP[1]), 161))
 SIGMA_FLOOR_M = 0.01
 MIN_INNOVATIONS = 50
 MIN_ANCHORS_FOR_OFFSETS = 4
-WINDOW_S = 1.0                         # windows of the offsets' projection fit
-MIN_SPREAD = 0.5                       # smallest singular value of a window's unit-vector matrix H
+WINDOW_S = 1.0                         # windows of the TDOA offsets' projection fit
+MIN_SPREAD = 0.5                       # smallest singular value of a window's gradient matrix H
+KNOT_S = 1.0                           # s: knots of the track's error in the offsets' fit (smooth_error_fit)
+CORRECTION_PRIOR_M = 10.0              # m: weak prior of the track's error at a knot (smooth_error_fit)
+ACCEL_FLOOR = 1e-3                     # m/s^2: a zero accel_sigma_mps2 in the offsets' fit
 MAX_CONDITION = 1e3
 OUTLIER_SIGMAS = 4.0
 MIN_SCALE_ERROR = 0.02                 # a TDOA scale fit within 2% of 1 is kept at 1 (track lag aliases into it)
@@ -146,67 +149,77 @@ def range_correction(data, estimates: pd.DataFrame, p: dict, scale: float) -> di
     observable among >= 4 anchors, while against the filter's own track it is mostly absorbed);
     None with too few ranges.
 
-    A track computed from biased ranges has moved to absorb part of the biases: over a short
-    window it is close to the least-squares fix of the window's ranges, whose residuals keep only
-    e = (I - P_H) b, P_H = H (H'H)^-1 H' the projector onto the columns of the window's Jacobian
-    H (rows: unit vectors from the track to the anchors ranged), i.e. about 1 - 2/m of a bias
-    with m anchors. So the offsets are the least-squares solution of
-        sum_w M_w' (I - P_w) M_w b = sum_w M_w' (I - P_w) e_w
-    over windows w of WINDOW_S with >= 3 anchors ranged in directions spread enough to fix a
-    position (the smallest singular value of H at least MIN_SPREAD; M_w selects them, e_w their
-    median residuals r - s d); the median residual per anchor where that system is singular or
-    ill-conditioned (condition number above MAX_CONDITION). Residuals further than OUTLIER_SIGMAS
-    normalised MADs from their anchor's median (reflections, NLOS) are left out first."""
+    The residuals e_i = r_i - s d_i are fitted jointly with the track's own error (smooth_error_fit):
+        e_i = b_a(i) + s u_i . dx(t_i) + n_i,
+    u_i the unit vector from anchor a(i) to the track at t_i (the gradient of d), n_i ~ N(0, sigma^2)
+    with sigma the residuals' normalised MAD about their anchor's median. Where the offsets'
+    information G is ill-conditioned (condition number above MAX_CONDITION: offsets not separable
+    from the position, e.g. anchors seen in nearly one direction) the median residual per anchor.
+    Residuals further than OUTLIER_SIGMAS normalised MADs from their anchor's median (reflections,
+    NLOS) are left out first."""
     from wsnloc.diagnosis import track_distances
 
     samples = track_distances(data, estimates, p)
     if samples is None:
         return None
     ids = samples["anchor_id"].astype(str).to_numpy()
-    error = samples["range_m"].to_numpy(float) - scale * samples["true_distance_m"].to_numpy(float)
+    distance = samples["true_distance_m"].to_numpy(float)
+    error = samples["range_m"].to_numpy(float) - scale * distance
     anchors, column = np.unique(ids, return_inverse=True)
     centre = pd.Series(error).groupby(column).transform("median").to_numpy()
-    spread = robust_sigma(error - centre)
-    inlier = np.abs(error - centre) <= OUTLIER_SIGMAS * max(spread, SIGMA_FLOOR_M)
-    samples, error, column = samples[inlier], error[inlier], column[inlier]
-    xy = data.positions(anchors)
-    diff = samples[["true_x", "true_y"]].to_numpy(float) - xy[column]
-    unit = diff / np.maximum(samples["true_distance_m"].to_numpy(float), 1e-3)[:, None]
-    window = np.floor((samples["t"].to_numpy(float) - samples["t"].min()) / WINDOW_S).astype(int)
-    frame = pd.DataFrame({"w": window, "a": column, "e": error, "ux": unit[:, 0], "uy": unit[:, 1]})
-    means = frame.groupby(["w", "a"]).median().reset_index()     # sorted by window, then anchor
-    m = len(anchors)
-    G, g = np.zeros((m, m)), np.zeros(m)
-    for a, H, e in _windows(means["w"].to_numpy(), means["a"].to_numpy(), means[["ux", "uy"]].to_numpy(),
-                            means["e"].to_numpy()):
-        project = np.eye(a.shape[1]) - H @ np.linalg.solve(np.swapaxes(H, 1, 2) @ H, np.swapaxes(H, 1, 2))
-        np.add.at(G, (a[:, :, None], a[:, None, :]), project)
-        np.add.at(g, a, np.einsum("wij,wj->wi", project, e))
-    medians = pd.Series(error).groupby(column).median().to_numpy()
+    sigma = max(robust_sigma(error - centre), SIGMA_FLOOR_M)
+    inlier = np.abs(error - centre) <= OUTLIER_SIGMAS * sigma
+    samples, error, column, distance = samples[inlier], error[inlier], column[inlier], distance[inlier]
+    unit = (samples[["true_x", "true_y"]].to_numpy(float) - data.positions(anchors)[column]) \
+        / np.maximum(distance, 1e-3)[:, None]
+    G, g = smooth_error_fit(samples["t"].to_numpy(float), np.eye(len(anchors))[column], scale * unit, error,
+                            sigma, p["accel_sigma_mps2"])
     if np.linalg.cond(G) < MAX_CONDITION:
         offsets = np.linalg.solve(G, g)
     else:
-        offsets = medians
+        offsets = pd.Series(error).groupby(column).median().to_numpy()
     return {"scale": scale, "offsets_m": {str(a): float(b) for a, b in zip(anchors, offsets)},
             "parameters": 1 + len(anchors), "source": "self-fitted on the run (two-pass)"}
 
 
-def _windows(w: np.ndarray, a: np.ndarray, H: np.ndarray, e: np.ndarray):
-    """The windows of range_correction with >= 3 anchors ranged in directions spread enough to fix
-    a position (smallest singular value of H >= MIN_SPREAD), batched by their anchor count k: per k,
-    (a (N, k) anchor columns, H (N, k, 2) unit vectors, e (N, k) median residuals); rows sorted by
-    window w (N windows of k rows each)."""
-    starts = np.flatnonzero(np.r_[True, w[1:] != w[:-1]])
-    sizes = np.diff(np.r_[starts, len(w)])
-    for k in np.unique(sizes[sizes >= 3]):
-        rows = starts[sizes == k][:, None] + np.arange(k)[None, :]
-        Hk = H[rows]
-        gram = np.swapaxes(Hk, 1, 2) @ Hk                   # H'H (N, 2, 2): its eigenvalues are H's singular values^2
-        half_trace = 0.5 * (gram[:, 0, 0] + gram[:, 1, 1])
-        smallest = half_trace - np.sqrt(np.maximum(half_trace**2 - np.linalg.det(gram), 0.0))
-        spread = smallest >= MIN_SPREAD**2          # else anchors seen in nearly one direction: a shift along it is a bias
-        if spread.any():
-            yield a[rows[spread]], Hk[spread], e[rows[spread]]
+def smooth_error_fit(t: np.ndarray, X: np.ndarray, gradient: np.ndarray, error: np.ndarray, sigma: float,
+                     accel_sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """The normal equations G theta = g of constant measurement-error parameters theta (q,) fitted
+    jointly with the error of the track the residuals were computed against.
+
+    A track computed from biased measurements has moved to absorb part of the biases, smoothly in
+    time as a filter moves. So the residuals e_i against it (m; measured at t_i, s) are modelled as
+        e_i = X_i theta + gradient_i . dx(t_i) + n_i,   n_i ~ N(0, sigma^2),
+    with dx(t) = true position - track (m, 2-D), linear between knots tau_k KNOT_S apart, and
+    gradient_i the measurement's gradient in position at the track (n, 2). Prior of dx: white
+    acceleration of density q = accel_sigma^2 (the configured motion model's), as second
+    differences per axis  dx_k-1 - 2 dx_k + dx_k+1 ~ N(0, 2/3 q KNOT_S^3)  (the integrated Wiener
+    process's; the overlap of consecutive ones neglected), and dx_k ~ N(0, CORRECTION_PRIOR_M^2)
+    (keeps knots no measurement sees determined). Linear least squares in (theta, dx): with the
+    normal matrix in blocks N_tt, N_tx, N_xx (N_xx sparse, banded) and right-hand side (g_t, g_x),
+    theta's Schur complement  G = N_tt - N_tx N_xx^-1 N_xt,  g = g_t - N_tx N_xx^-1 g_x.
+    A zero accel_sigma is taken as ACCEL_FLOOR (a stiff prior: dx linear in time).
+    (It replaced a projection through 1 s windows, each window's position free: on ranges one
+    anchor at a time a window holds 2-4 ranges and kept one or two of them for the offsets, whose
+    errors reached 0.14 m on tests/test_self_fit.py's seeds 3 and 7, 0.10 m now.)"""
+    import scipy.sparse as sp                     # here, not at module level: the jobs that do not
+    from scipy.sparse.linalg import splu          # self-fit start without scipy.linalg (tests/test_job_imports.py)
+
+    t = t - t.min()
+    n, K = len(t), int(np.floor(t.max() / KNOT_S)) + 2
+    k = np.minimum(np.floor(t / KNOT_S).astype(int), K - 2)
+    w = t / KNOT_S - k                                    # linear interpolation weight of knot k + 1
+    columns = np.column_stack([2 * k, 2 * k + 1, 2 * k + 2, 2 * k + 3])
+    values = np.column_stack([(1 - w) * gradient[:, 0], (1 - w) * gradient[:, 1], w * gradient[:, 0], w * gradient[:, 1]])
+    B = sp.csr_matrix((values.ravel(), (np.repeat(np.arange(n), 4), columns.ravel())), shape=(n, 2 * K))
+    second = sp.kron(sp.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(K - 2, K)), sp.identity(2)) \
+        / (max(accel_sigma, ACCEL_FLOOR) * np.sqrt(2.0 / 3.0 * KNOT_S**3))
+    N_xx = ((B.T @ B) / sigma**2 + second.T @ second + sp.identity(2 * K) / CORRECTION_PRIOR_M**2).tocsc()
+    N_xt = np.asarray(B.T @ X) / sigma**2
+    solve = splu(N_xx).solve
+    G = X.T @ X / sigma**2 - N_xt.T @ solve(N_xt)
+    g = X.T @ error / sigma**2 - N_xt.T @ solve(np.asarray(B.T @ error) / sigma**2)
+    return G, g
 
 
 def _tdoa_track_residuals(data, estimates: pd.DataFrame, p: dict) -> pd.DataFrame | None:
@@ -242,8 +255,11 @@ def tdoa_correction(data, estimates: pd.DataFrame, p: dict) -> dict | None:
     tdoa = s (d_a - d_ref) + b_a - b_ref, against the track of a first pass (no truth); None when
     the windows do not determine them.
 
-    As range_correction, in TDOA form: over a short window the track is close to the
-    least-squares fix of the window's differences, so their residuals against it keep only
+    By projection through short windows (the form range_correction had before its smooth fit of the
+    track's error, smooth_error_fit, which on range differences traded the scale against the
+    offsets: a scale of 0.944 fitted on a simulated 10 Hz run without scale error, median 0.49 m
+    against 0.20 m): over a window the track is close to the least-squares fix of the window's
+    differences, so their residuals against it keep only
     (I - P_w) X_w theta, with X_w = [delta_w, D_w] (delta: the track's distance differences, for
     the scale error s - 1; D_w the pairs' incidence, +1 at the anchor, -1 at the reference) and
     P_w the projector onto the columns of the window's gradients u_a - u_ref. theta = (s - 1, b)
