@@ -153,3 +153,34 @@ def test_range_correction_undoes_a_smooth_error_of_the_track():
     samples = track_distances(data, track, p)
     medians = (samples["range_m"] - samples["true_distance_m"]).groupby(samples["anchor_id"]).median()
     assert max(abs(medians[a] - b) for a, b in OFFSETS.items()) > 0.05
+
+
+def test_smooth_error_fit_schur_complement_matches_least_squares_of_the_stacked_system():
+    """G^-1 g (the parameters' Schur complement) equals the parameter part of the full least-squares
+    solution of the stacked whitened system (residual rows, second differences, weak prior) by
+    numpy.linalg.lstsq."""
+    rng = np.random.default_rng(1)
+    n, q, sigma, accel = 60, 3, 0.1, 0.5
+    t = np.sort(rng.uniform(0.0, 7.5, n))
+    t -= t[0]                                          # the fit counts time from the first residual
+    X = np.eye(q)[rng.integers(0, q, n)]
+    gradient = rng.normal(size=(n, 2))
+    error = rng.normal(0.0, 0.3, n)
+    G, g = self_fit.smooth_error_fit(t, X, gradient, error, sigma, accel)
+    K = int(np.floor(t.max() / self_fit.KNOT_S)) + 2
+    k = np.minimum(np.floor(t / self_fit.KNOT_S).astype(int), K - 2)
+    w = t / self_fit.KNOT_S - k
+    A = np.zeros((n + 2 * (K - 2) + 2 * K, q + 2 * K))
+    A[:n, :q] = X / sigma
+    for i in range(n):
+        for axis in range(2):
+            A[i, q + 2 * k[i] + axis] = (1 - w[i]) * gradient[i, axis] / sigma
+            A[i, q + 2 * (k[i] + 1) + axis] = w[i] * gradient[i, axis] / sigma
+    sd = accel * np.sqrt(2.0 / 3.0 * self_fit.KNOT_S**3)
+    for j in range(K - 2):
+        for axis in range(2):
+            A[n + 2 * j + axis, q + 2 * j + axis: q + 2 * j + axis + 5: 2] = np.array([1.0, -2.0, 1.0]) / sd
+    A[n + 2 * (K - 2):, q:] = np.eye(2 * K) / self_fit.CORRECTION_PRIOR_M
+    b = np.r_[error / sigma, np.zeros(A.shape[0] - n)]
+    full = np.linalg.lstsq(A, b, rcond=None)[0]
+    assert np.linalg.solve(G, g) == pytest.approx(full[:q], abs=1e-8)
