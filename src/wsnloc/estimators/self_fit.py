@@ -77,13 +77,13 @@ hardly depends on where the configured values start.
 Cost: one augmented pass (step 1; about 1.2x a plain pass: the calibration columns), four passes
 on 12% of the run (five where the correction passes the first test), one full pass and the fits
 (the offsets' sparse least squares: about 0.01 s a fit on a real case; the likelihoods and
-innovations about 0.03 s): 2.6-3.0x one plain pass in CPU time on the shared
-real cases (best of 3, two rounds on a shared machine, 2026-12-05; 2.7-3.1x before the measurement
-models of the candidates shared their geometry and the passes stopped leaving an object per
-update for the garbage collector; benchmarks/realdata.py prints it per case), within the 3x of
-issue 28; on a synthetic run ranged one anchor at a time (340 s at 4 Hz, tests/test_self_fit.py)
-2.9x without range errors, 3.5-3.7x where the correction is applied (the fixed costs weigh more
-on a short run); on
+innovations about 0.03 s): the self-fitted run costs 2.6-3.0x one plain pass in CPU time on the
+shared real cases (best of 3, 2026-12-05; 2.7-3.1x before the measurement models of the
+candidates shared their geometry and the passes stopped leaving an object per update for the
+garbage collector; benchmarks/realdata.py prints it per case), the tuning alone (without the
+output pass) 1.6-2.0x; on a synthetic run ranged one anchor at a time (340 s at 4 Hz,
+tests/test_self_fit.py) 2.9x without range errors and 3.5-3.7x where the correction is applied
+(tuning alone 2.5-2.7x: seven passes' fixed costs weigh more on a short run); on
 range differences two full passes in step 1 (the offsets are fitted twice). For the UKF,
 particle filter and smoothers the fitting passes are EKF passes, so the overhead is that of
 the EKF's (about 1.7 EKF passes) on top of their own single pass.
