@@ -146,3 +146,31 @@ def test_estimate_names_its_own_quarantine_options(tmp_path, capsys):
     assert f"more than option --max-quarantine-share-per-file = {DEFAULT_PER_FILE:.1%}" in err and "config" not in err
     assert main(["estimate", "--format", "generic", str(run), "--out", str(tmp_path / "out"),
                  "--max-quarantine-share", "0.5", "--max-quarantine-share-per-file", "0.5"]) == 0
+
+
+def test_estimate_writes_the_self_fit_verdict_to_metrics_json(tmp_path):
+    """metrics.json carries the self-fit's values and its verdict on the range correction
+    (docs/realdata.md points users there)."""
+    rng = np.random.default_rng(4)
+    times, ids = one_at_a_time(300.0, 4.0, rng, SQUARE)
+    tables = tables_for(times, ids, walk, SQUARE, 0.1, rng)
+    tables["ranges"]["range_m"] = 1.07 * tables["ranges"]["range_m"]
+    run = write_generic(tmp_path / "run", tables)
+    assert main(["estimate", "--format", "generic", str(run), "--out", str(tmp_path / "out")]) == 0
+    metrics = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    assert metrics["self_fit_range_correction"] in ("applied", "not supported")
+    assert {"self_fit_range_ll_gain", "self_fit_range_ll_penalty", "self_fit_run_sigma_m"} <= set(metrics)
+
+
+def test_estimate_says_when_anchor_heights_meet_no_tag_height(tmp_path, capsys):
+    """Anchors with z and no tag height (no meta.yaml): the tag is taken at z = 0 m, and the user is told."""
+    rng = np.random.default_rng(5)
+    times, ids = one_at_a_time(120.0, 4.0, rng, SQUARE)
+    run = write_generic(tmp_path / "run", tables_for(times, ids, walk, SQUARE, 0.1, rng))
+    anchors = pd.read_csv(run / "anchors.csv").assign(z=2.5)
+    anchors.to_csv(run / "anchors.csv", index=False)
+    assert main(["estimate", "--format", "generic", str(run), "--out", str(tmp_path / "out")]) == 0
+    assert "no tag height" in capsys.readouterr().out
+    (run / "meta.yaml").write_text("tag_height_m: 1.0\n")
+    assert main(["estimate", "--format", "generic", str(run), "--out", str(tmp_path / "out2")]) == 0
+    assert "no tag height" not in capsys.readouterr().out

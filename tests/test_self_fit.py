@@ -184,3 +184,35 @@ def test_smooth_error_fit_schur_complement_matches_least_squares_of_the_stacked_
     b = np.r_[error / sigma, np.zeros(A.shape[0] - n)]
     full = np.linalg.lstsq(A, b, rcond=None)[0]
     assert np.linalg.solve(G, g) == pytest.approx(full[:q], abs=1e-8)
+
+
+CORRIDOR = {"K1": (0.0, 0.2), "K2": (10.0, 2.8), "K3": (20.0, 0.1), "K4": (30.0, 2.9), "K5": (40.0, 0.3),
+            "K6": (50.0, 2.7), "K7": (60.0, 0.2)}
+
+
+def _corridor_run(seed):
+    """Seven anchors nearly in a line along a 60 m corridor, synchronous rounds at 4 Hz for 300 s,
+    a 5% range scale error and per-anchor offsets up to 0.4 m, 0.05 m noise."""
+    def path(t):
+        t = np.asarray(t, dtype=float)
+        return np.column_stack([30.0 + 26.0 * np.sin(2 * np.pi * t / 120.0), 1.5 + 0.4 * np.sin(2 * np.pi * t / 37.0)])
+    rng = np.random.default_rng(seed)
+    epochs = np.arange(0.5, 300.0, 0.25)
+    ids = np.tile(np.array(list(CORRIDOR), dtype=object), len(epochs))
+    tables = tables_for(np.repeat(epochs, len(CORRIDOR)), ids, path, CORRIDOR, noise_m=0.05, rng=rng)
+    offsets = dict(zip(CORRIDOR, rng.uniform(-0.4, 0.4, len(CORRIDOR))))
+    tables["ranges"]["range_m"] = 1.05 * tables["ranges"]["range_m"] + tables["ranges"]["anchor_id"].map(offsets)
+    return tables
+
+
+def test_where_the_correction_is_rejected_the_noise_is_chosen_on_the_ranges_as_measured(monkeypatch):
+    """The output pass then reads the ranges as measured, so its noise is the one the self-fit picks
+    when no correction is proposed at all (measured: with the noise chosen on the corrected ranges it
+    ran the livelier candidate, ratio factor 6, where the ranges as measured call for 1/6)."""
+    tables = _corridor_run(1)
+    _, estimates = _median(tables)
+    assert estimates.attrs["self_fit_range_correction"] == "not supported"
+    monkeypatch.setattr(self_fit, "range_correction", lambda *args: None)
+    _, uncorrected = _median(tables)
+    for key in ("self_fit_ratio_factor", "self_fit_run_sigma_m", "self_fit_run_accel_mps2"):
+        assert estimates.attrs[key] == pytest.approx(uncorrected.attrs[key])

@@ -563,7 +563,10 @@ def test_the_self_fit_leaves_nlos_biases_that_change_along_the_path_uncorrected(
     likelihood-ratio test against the differences as measured (gain 495, penalty 38) and made the
     RMSE 1.01 m against 0.235 m with self_fit none; offsets fitted on the search segment alone
     explain it better than the constant ones by more than their own BIC penalty (82 against 38),
-    so the correction is not applied (RMSE 0.257 m, 1.09x none)."""
+    so the correction is not applied. The noise is then chosen on the differences as measured, where
+    the likelihood prefers the calmer candidate (sigma x 2, accel / 3), whose track lags: RMSE
+    0.321 m, 1.37x none (0.257 m, 1.09x, while the noise was chosen on the corrected differences;
+    self_fit.py, step 4)."""
     from wsnloc.io.newcom import ingest_run as ingest_newcom
     from wsnloc.metrics.tracking import run_metrics
 
@@ -578,7 +581,7 @@ def test_the_self_fit_leaves_nlos_biases_that_change_along_the_path_uncorrected(
     assert a["self_fit_range_local_gain"] > a["self_fit_range_local_penalty"]
     assert a["self_fit_range_correction"] == "not supported" and not a["calibrated_offsets_m"]
     rmse = {k: run_metrics(score(e, truth), truth)["rmse"] for k, e in (("fitted", fitted), ("plain", plain))}
-    assert rmse["fitted"] <= 1.15 * rmse["plain"], rmse
+    assert rmse["fitted"] <= 1.45 * rmse["plain"], rmse
 
 
 def test_tdoa_beside_newcom_logs_is_quarantined_by_the_generic_rules(simulated_tdoa_run, tmp_path):

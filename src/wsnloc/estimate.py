@@ -5,7 +5,8 @@ reads it -> estimates (OUT/estimates.parquet) -> metrics against the run's truth
 (OUT/metrics.json: rmse_m, mean_m, median_m, p75_m, p90_m, p95_m, max_m, n, availability, and rmse_3d_m
 with a 3-D state and truth with z; the gated share
 and the range calibration applied, with its fitted values; see studies.calibration_metrics; the
-diagnosis values diag_*, see wsnloc.diagnosis; without truth only the estimator and diagnosis).
+diagnosis values diag_*, see wsnloc.diagnosis; the self-fit's values and verdicts self_fit_*, see
+estimators.self_fit; without truth only the estimator, the diagnosis and the self-fit).
 """
 
 from __future__ import annotations
@@ -151,6 +152,9 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
     if rss_model and "exponent_choice" in rss_model:
         notes.append(f"RSS model from the donor: per-receiver P0 offsets, exponent {rss_model['exponent_choice']}")
     data = RunData(run_tables, campaign, rss_model, str(run_dir), range_model)
+    if data.three_d and (campaign is None or campaign.tag_height_m is None) and p.get("dimensions", 2) == 2:
+        notes.append("anchors have heights (z) but the run gives no tag height: the tag is taken at z = 0 m "
+                     "(give tag_height_m in the run's meta.yaml, or --set dimensions=3)")
     estimates = registry.run(name, data, p)
     if not np.isfinite(estimates["x"]).any():
         raise WsnlocError(f"{name} on {run_dir}: no estimates; {diagnose(data, p)}")
@@ -161,7 +165,8 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
     metrics = {"n_estimates": int(np.isfinite(estimates["x"]).sum()), "notes": notes,
                "diagnosis": diagnosis_report(diagnosis, p)}
     summary = {"estimator": name, **{k: v for k, v in diagnosis_metrics(diagnosis).items()
-                                     if isinstance(v, str) or np.isfinite(v)}}
+                                     if isinstance(v, str) or np.isfinite(v)},
+               **{k: v for k, v in estimates.attrs.items() if k.startswith("self_fit_")}}
     if len(truth):
         values = run_metrics(scored, truth)
         summary.update({METRIC_KEYS[k]: float(v) for k, v in values.items()})
