@@ -50,18 +50,7 @@ estimator's own filter or smoother then runs once with the fitted values (`outpu
    n_anchors - 1 (+ 1 where the scale was fitted, not held at 1) on range differences, whose
    offsets are defined up to a common constant (the gauge anchor's is 0) (a likelihood-ratio test: the likelihood of nested
    models, the extra parameters paid for; the corrected ranges (r - b) / s pay n log s, the
-   density of r); else the output pass reads the ranges as measured, and the noise is chosen
-   again on the segment with the ranges as measured (_rescore: the best candidate's score there
-   is known, the middle candidate is scored, and the far edge only where the middle one beats the
-   known one: the likelihood is taken as unimodal in the ratio). Chosen on the corrected ranges
-   and then run on the ranges as measured, it had picked the livelier candidate for ranges whose
-   uncorrected errors call for the calmer one: on a simulated corridor (7 anchors nearly in a
-   line, synchronous rounds, a 5% scale error and offsets) 2.4-2.9 m RMSE now against 3.5-4.5 m,
-   on 2 of 15 simulated Newcom++ runs 0.252 / 0.287 m against 0.352 / 0.370 m; the shared
-   cucudasluv cases unchanged. The likelihood is not the RMSE: on simulated newcom/tdoa run 1
-   (NLOS biases along the path, the correction rejected) the differences as measured prefer the
-   calmer candidate, whose track lags (0.321 m against 0.257 m with the noise chosen on the
-   corrected differences, 0.235 m configured).
+   density of r); else the output pass reads the ranges as measured.
    A correction is constant over the run; biases that change along the path (NLOS behind walls)
    are not, yet a constant fitted to them can pass that test: on simulated newcom/tdoa run 1
    anchors behind walls carry NLOS biases of 0.3-3.4 m that change along the path, the constant
@@ -72,14 +61,24 @@ estimator's own filter or smoother then runs once with the fitted values (`outpu
    kept only when that local correction does not raise max_c L(c) over the constant one by more
    than the BIC penalty of its own parameters (k_local / 2 ln n; nested in the sense that a
    constant over the run is a local fit that happens to hold everywhere). On that run 82 > 38: not
-   applied, RMSE 0.257 m with the noise chosen on the corrected differences (0.321 m now, above).
-   A constant offset passes (the local fit finds the same offsets, gain
-   about 0). On ranges ranged one at a time at a few Hz the segment holds ~100 ranges, too few
-   for the local fit to tell a 1 m bias on part of the path from a constant (measured: a
+   applied, RMSE 0.257 m with the noise chosen on the corrected differences (0.321 m now, below).
+   A constant offset passes (the local fit finds the same offsets, gain about 0). On ranges
+   ranged one at a time at a few Hz the segment holds ~100 ranges, too few for the local fit to tell a 1 m bias on part of the path from a constant (measured: a
    synthetic walk with two anchors 1 m long on half the square, local gain 1-10 against 12; the
    correction still applied there).
    attrs `self_fit_range_correction` (applied / not supported), `self_fit_range_ll_gain`,
    `self_fit_range_ll_penalty`, `self_fit_range_local_gain`, `self_fit_range_local_penalty`.
+   Where either test rejects the correction, the noise is chosen again on the segment with the
+   ranges as measured, which the output pass then reads (_rescore: the best candidate's score
+   there is known, the middle candidate is scored, and the far edge only where the middle one
+   beats the known one: the likelihood is taken as unimodal in the ratio). Chosen on the
+   corrected ranges and then run on the ranges as measured, it had picked the livelier candidate
+   for ranges whose uncorrected errors call for the calmer one: on a simulated corridor (7
+   anchors nearly in a line, synchronous rounds, a 5% scale error and offsets) 2.4-2.9 m RMSE now
+   against 3.5-4.5 m, on 2 of 15 simulated Newcom++ runs 0.252 / 0.287 m against 0.352 / 0.370 m;
+   the shared cucudasluv cases unchanged. The likelihood is not the RMSE: on simulated
+   newcom/tdoa run 1 (above) the differences as measured prefer the calmer candidate, whose track
+   lags (0.321 m against 0.257 m with the noise chosen on the corrected differences).
 
 Why three candidates: with only the configured one and a livelier one, a configured sigma
 smaller than the default (e.g. the true 0.1 m with the default accel) could never go calmer
