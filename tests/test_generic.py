@@ -52,6 +52,20 @@ def test_generic_tables_and_quarantine(run_dir, generic):
     assert np.isnan(result["anchors"]["z"].iloc[2]) and result["ranges"]["status"].tolist() == [0, 0, 0]
 
 
+def test_a_row_logged_twice_is_quarantined_once_and_the_first_kept(run_dir, generic):
+    """A row equal in every value to an earlier usable one (line 9 repeats line 2; line 10 repeats
+    line 5 with its stray space; line 11 differs in one value) is refused with the first row's line;
+    a repeat of a refused row (line 12 of line 4) keeps its own reason."""
+    with open(run_dir / "ranges.csv", "a") as out:
+        out.write("0.0,A1,5.0\n0.3,A3,7.5\n0.3,A3,7.6\n0.2,A9,3.0\n")
+    result, inventory = ingest_run(run_dir, generic)
+    q = result["quarantine"].set_index("line")["reason"].to_dict()
+    assert q[9] == "a repeat of line 2 (every value equal)" and q[10] == "a repeat of line 5 (every value equal)"
+    assert 11 not in q and q[12] == "unknown anchor 'A9' (not in anchors.csv)"
+    assert result["ranges"]["line"].tolist() == [2, 6, 5, 11]
+    assert inventory["ranges.csv"]["quarantined"] == 7
+
+
 def test_generic_parquet_input(run_dir, generic):
     pd.read_csv(run_dir / "truth.csv").to_parquet(run_dir / "truth.parquet")
     (run_dir / "truth.csv").unlink()

@@ -17,7 +17,8 @@ value: CSV rows with the wrong number of fields or cut off at the end of the fil
 (wsnloc.io.csvrows), missing or non-finite numbers, negative ranges, anchors missing
 from the anchors table (also counted per anchor in the inventory), a TDOA pair whose
 anchor is its own reference, a time stamp more than MAX_RUN_S (a day) from the file's median
-time (a clock reset, a zero or corrupt stamp). The line number is
+time (a clock reset, a zero or corrupt stamp), a row repeating an earlier row value for value (a
+record logged twice: counted twice otherwise; the first stays). The line number is
 the CSV line (header = line 1) or the Parquet row + 1. Rows need not be sorted: each
 table is sorted by time (stable), and the number of rows out of order is reported.
 Refused with IngestError naming the file: a missing column, an anchors, ranges, rss or
@@ -142,6 +143,23 @@ class _Table:
                      f"t {{value!r}} is more than {MAX_RUN_S:.0f} s from the median time of the file "
                      f"({centre:.3f} s): a clock reset or a corrupt time stamp")
 
+    def refuse_repeats(self) -> None:
+        """Refuse a row of a timed table whose every value equals an earlier usable row's: a record
+        logged twice (kept, it would count twice); the first one stays. Run after the other checks,
+        so that a refused row keeps its own reason."""
+        if "t" not in self.values:
+            return
+        usable = np.flatnonzero(self.ok)
+        frame = pd.DataFrame({c: v[usable] for c, v in self.values.items()})
+        key = pd.util.hash_pandas_object(frame, index=False).to_numpy()
+        _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+        repeat = np.arange(len(key)) != first[inverse]
+        first_line = np.full(len(self.ok), "", dtype=object)
+        first_line[usable[repeat]] = self.lines[usable[first[inverse[repeat]]]].astype(str)
+        mask = np.zeros(len(self.ok), dtype=bool)
+        mask[usable[repeat]] = True
+        self._reject(mask, pd.Series(first_line), "a repeat of line {value} (every value equal)")
+
     def _reject(self, mask, text: pd.Series, reason: str) -> None:
         """Refuse the rows of `mask` not refused yet; `reason` may name the row's {value}."""
         rows = np.flatnonzero(np.asarray(mask) & self.ok)
@@ -194,6 +212,7 @@ def tdoa_beside(path: Path, anchors: pd.DataFrame, anchors_source: str) -> tuple
     (usable rows, quarantine rows (file, line, text, reason), inventory entry)."""
     table = _Table(path, "tdoa")
     unknown = table.known_anchors(set(anchors["anchor_id"]), anchors_source)
+    table.refuse_repeats()
     usable, inventory = table.usable(), table.inventory()
     return usable, table.quarantined(), {**inventory, **({"unknown_anchors": unknown} if unknown else {})}
 
@@ -227,6 +246,8 @@ def ingest_run(run_dir: str | Path, campaign: Campaign | None = None) -> tuple[d
         anchors["z"] = np.nan
     unknown = {name: parsed[name].known_anchors(set(anchors["anchor_id"]), paths["anchors"].name)
                for name in ("ranges", "rss", "tdoa") if name in parsed}
+    for table in parsed.values():
+        table.refuse_repeats()
     result = {name: (parsed[name].usable() if name in parsed else tables.empty(name))
               for name in ("ranges", "rss", "tdoa", "imu", "truth", "odometry")}
     if "status" not in result["ranges"]:
