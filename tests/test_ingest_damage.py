@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from wsnloc.campaign import Campaign
@@ -507,8 +507,8 @@ GENERIC_DAMAGE = {
 @st.composite
 def damaged_ranges_csv(draw):
     n = draw(st.integers(2, 30))
-    t = draw(st.lists(st.integers(0, 5000), min_size=n, max_size=n))          # in any order
-    r = draw(st.lists(st.integers(1, 99999), min_size=n, max_size=n))
+    t = draw(st.lists(st.integers(0, 5000) | st.just(100), min_size=n, max_size=n))   # in any order
+    r = draw(st.lists(st.integers(1, 99999) | st.just(1000), min_size=n, max_size=n))  # repeats likely
     good = [f"{t[k] / 100},A{k % 3 + 1},{r[k] / 1000}" for k in range(n)]
     texts, bad = _apply(draw, good, GENERIC_DAMAGE)
     cut_last = draw(st.booleans())
@@ -517,6 +517,7 @@ def damaged_ranges_csv(draw):
 
 @DAMAGE
 @given(case=damaged_ranges_csv())
+@example(case=(["0.0,A1,0.001", "0.0,A2,0.001", "0.0,A3,0.001", "0.0,A1,0.001"],) * 2 + (set(), False))
 def test_random_damage_in_a_generic_table(tmp_path, case):
     good, texts, bad, cut_last = case
     run = tmp_path / "run"
@@ -528,6 +529,11 @@ def test_random_damage_in_a_generic_table(tmp_path, case):
         bad = bad | {len(good) - 1}
     (run / "ranges.csv").write_text(text)
     result, inventory = generic.ingest_run(run)
+    first_seen, repeats = {}, {}                           # a usable row equal to an earlier one is a repeat
+    for k in range(len(good)):
+        if k not in bad and first_seen.setdefault(good[k], k) != k:
+            repeats[k + 2] = f"a repeat of line {first_seen[good[k]] + 2} (every value equal)"
+    bad = bad | {line - 2 for line in repeats}
     intact = sorted((k for k in range(len(good)) if k not in bad), key=lambda k: float(good[k].split(",")[0]))
     ranges = result["ranges"]
     assert ranges["line"].tolist() == [k + 2 for k in intact]
@@ -536,4 +542,5 @@ def test_random_damage_in_a_generic_table(tmp_path, case):
     assert ranges["range_m"].tolist() == [float(good[k].split(",")[2]) for k in intact]
     q = result["quarantine"]
     assert q["file"].eq("ranges.csv").all() and q["line"].tolist() == [k + 2 for k in sorted(bad)]
+    assert {line: reason for line, reason in zip(q["line"], q["reason"]) if line in repeats} == repeats
     assert inventory["ranges.csv"]["data_lines"] == len(good)
