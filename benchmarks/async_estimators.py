@@ -14,7 +14,10 @@ have none); those reading only ranges are skipped on the RSS-only tracks.
 Per (run, estimator): exit (ok or the error), availability, median and RMSE of the 2-D error
 (m), median / tracker's median on the same run, resets and the numerical-guard counters
 (`regularised`, `skipped`, `reinitialised` where the estimator has them). Prints the command,
-the median / tracker's per run and estimator and that full table in Markdown, and writes them
+the median / tracker's per run and estimator and that full table in Markdown, then what the data
+allow: per run the share of the truth span between its first and last measurement (the ceiling
+of availability) and, on the synthetic run, the best median of a random-walk EKF written here
+apart from the package (the ceiling of a position-only model such as `ekf_p`); writes them
 to OUT/async_estimators.md (the table also as .csv; the scratch folder is git-ignored); with
 --docs, also between the markers of benchmarks/ASYNC_RESULTS.md (publish.py).
 """
@@ -71,6 +74,52 @@ def synthetic_run(folder: Path, seed: int = 7, duration_s: float = 600.0, rate_h
     return folder
 
 
+def measurement_span_share(run_dir: Path) -> float:
+    """Share of the truth span [T0, T1] between the run's first and last usable measurement
+    (ranges or RSS): an estimator outputs from its first measurement to its last, so this bounds
+    its availability (metrics.tracking.availability)."""
+    from wsnloc.io.generic import ingest_run
+    from wsnloc.metrics.tracking import truth_span
+
+    tables, _ = ingest_run(run_dir)
+    times = np.concatenate([tables[name]["t"].to_numpy(float) for name in ("ranges", "rss") if len(tables[name])])
+    t0, t1 = truth_span(tables["truth"])
+    return float((min(times.max(), t1) - max(times.min(), t0)) / (t1 - t0))
+
+
+def random_walk_bound(run_dir: Path, times: np.ndarray, q_grid=np.geomspace(0.01, 100.0, 25)) -> tuple[float, float]:
+    """(best median 2-D error (m), its q (m^2/s)) of a minimal random-walk EKF written here apart
+    from the package, on a 2-D run with truth: state x (2,), predict P += q dt I, one update per
+    range r = |x - a| + n, n ~ N(0, sigma^2) with the true sigma (0.1 m), started at the true
+    position, read at `times` (tracker's output times) by the last update; q over `q_grid`. The
+    best any position-only (P) model can do with that information: what `ekf_p` is measured against."""
+    from wsnloc.metrics.tracking import run_metrics, score
+
+    ranges = pd.read_csv(run_dir / "ranges.csv").sort_values("t")
+    truth = pd.read_csv(run_dir / "truth.csv")
+    anchors = pd.read_csv(run_dir / "anchors.csv").set_index("anchor_id")[["x", "y"]]
+    t, r, a = ranges["t"].to_numpy(), ranges["range_m"].to_numpy(), anchors.loc[ranges["anchor_id"]].to_numpy()
+    best = (np.inf, np.nan)
+    for q in q_grid:
+        x = np.array([np.interp(t[0], truth["t"], truth["x"]), np.interp(t[0], truth["t"], truth["y"])])
+        P, states = np.eye(2) * 0.01, np.empty((len(t), 2))
+        for k in range(len(t)):
+            P = P + q * (t[k] - t[max(k - 1, 0)]) * np.eye(2)
+            d = x - a[k]
+            H = d / max(np.hypot(*d), 1e-6)
+            S = H @ P @ H + 0.1 ** 2
+            K = P @ H / S
+            x, P = x + K * (r[k] - np.hypot(*d)), P - np.outer(K, H @ P)
+            states[k] = x
+        last = np.searchsorted(t, times, side="right") - 1
+        keep = last >= 0
+        track = pd.DataFrame({"t": times[keep], "x": states[last[keep], 0], "y": states[last[keep], 1]})
+        median = run_metrics(score(track, truth), truth)["median"]
+        if median < best[0]:
+            best = (float(median), float(q))
+    return best
+
+
 def runs(src: Path, out: Path) -> list[tuple[str, Path, Path | None, bool]]:
     """(label, run folder, calibration donor or None, has ranges) of every run."""
     items = []
@@ -112,10 +161,11 @@ def main(argv=None) -> int:
     names = [n for n in (args.estimators.split(",") if args.estimators else registry.ESTIMATORS) if n]
     if "tracker" not in names:
         names.insert(0, "tracker")
-    rows = []
+    rows, run_dirs = [], {}
     for label, run_dir, donor, has_ranges in runs(Path(args.realdata), out):
         if args.cases and not any(c in label for c in args.cases.split(",")):
             continue
+        run_dirs[label] = run_dir
         for name in names:
             if not applicable(name, has_ranges):
                 continue
@@ -142,11 +192,25 @@ def main(argv=None) -> int:
     columns = ["run", "estimator", "exit", "availability", "median_m", "vs_tracker", "rmse_m", *COUNTERS, "seconds"]
     ratios = table.pivot(index="run", columns="estimator", values="vs_tracker")
     ratios = ratios[[n for n in names if n in ratios and n != "tracker"]]
+    limits = []
+    for label, run_dir in run_dirs.items():
+        row = {"run": label, "measurements span / truth span": measurement_span_share(run_dir)}
+        tracker_out = out / "estimates" / label / "tracker" / "estimates.parquet"
+        if label.startswith("synthetic") and tracker_out.is_file() and label in tracker.index:
+            median, q = random_walk_bound(run_dir, pd.read_parquet(tracker_out)["t"].to_numpy(float))
+            row.update({"random-walk EKF, best q: median_m": median, "its q_m2ps": q,
+                        "its median / tracker's": median / tracker[label]})
+        limits.append(row)
     command = " ".join(["python benchmarks/async_estimators.py", *(sys.argv[1:] if argv is None else argv)])
     publish([f"`{command}` ({time.strftime('%Y-%m-%d', time.gmtime())}, "
              f"{time.perf_counter() - started_all:.0f} s)", "",
              "Median 2-D error / `tracker`'s on the same run:", "", ratios.to_markdown(floatfmt=".2f"), "",
-             "Every (run, estimator):", "", table.reindex(columns=columns).to_markdown(index=False, floatfmt=".3g")],
+             "Every (run, estimator):", "", table.reindex(columns=columns).to_markdown(index=False, floatfmt=".3g"),
+             "", "What the data allow: the share of the truth span between the first and the last "
+             "measurement (`measurement_span_share`: no estimator that needs measurements covers more), "
+             "and on the synthetic run what a position-only model can reach (`random_walk_bound`: an EKF "
+             "written apart from the package, true sigma, true start, best q of a grid; `ekf_p` is "
+             "measured against it):", "", pd.DataFrame(limits).to_markdown(index=False, floatfmt=".3g")],
             out, "async_estimators", "benchmarks/ASYNC_RESULTS.md" if args.docs else None)
     return 0
 
