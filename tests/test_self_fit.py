@@ -209,6 +209,7 @@ def test_where_the_correction_is_rejected_the_noise_is_chosen_on_the_ranges_as_m
     """The output pass then reads the ranges as measured, so its noise is the one the self-fit picks
     when no correction is proposed at all (measured: with the noise chosen on the corrected ranges it
     ran the livelier candidate, ratio factor 6, where the ranges as measured call for 1/6)."""
+    monkeypatch.setattr(self_fit, "_scale_only", lambda *args: None)      # the ranges as measured, not the scale alone
     tables = _corridor_run(1)
     _, estimates = _median(tables)
     assert estimates.attrs["self_fit_range_correction"] == "not supported"
@@ -216,3 +217,43 @@ def test_where_the_correction_is_rejected_the_noise_is_chosen_on_the_ranges_as_m
     _, uncorrected = _median(tables)
     for key in ("self_fit_ratio_factor", "self_fit_run_sigma_m", "self_fit_run_accel_mps2"):
         assert estimates.attrs[key] == pytest.approx(uncorrected.attrs[key])
+
+
+@pytest.mark.parametrize("seed", [1, 3])
+def test_where_the_offsets_are_not_constant_the_scale_alone_is_kept(monkeypatch, seed):
+    """The corridor (anchors nearly in a line, 5% scale error): the local test rejects the offsets,
+    and with them the scale went (measured median 3.07 / 2.88 m); the scale alone, tested on the
+    segment against the ranges as measured, is kept (measured 0.50 / 0.23 m)."""
+    tables = _corridor_run(seed)
+    median, estimates = _median(tables)
+    assert estimates.attrs["self_fit_range_correction"] == "applied, scale only (offsets not constant)"
+    assert estimates.attrs["self_fit_range_local_gain"] > estimates.attrs["self_fit_range_local_penalty"]
+    assert estimates.attrs["self_fit_range_scale"] == pytest.approx(1.05, abs=0.01)
+    assert estimates.attrs["calibrated_scale"] == estimates.attrs["self_fit_range_scale"]
+    assert not estimates.attrs["calibrated_offsets_m"]
+    monkeypatch.setattr(self_fit, "_scale_only", lambda *args: None)
+    without, _ = _median(tables)
+    assert median < 0.3 * without
+
+
+def test_a_scale_the_segment_does_not_support_is_not_kept_alone():
+    """_scale_only on a run without a scale error, offered a wrong scale (1.05): the corrected ranges
+    lower the likelihood against the ranges as measured, so no scale-only model; none either for a
+    scale of exactly 1 (nothing to correct), on range differences, or for the P model (its lag)."""
+    from wsnloc.estimators import bayes
+
+    tables = _run(1)
+    p = registry.get("tracker").resolve({})
+    q = dict(p, self_fit="none")
+    part = self_fit.segment(run_data(tables), q, self_fit.SEARCH_SHARE)
+    span = 2.0 * p["max_range_m"]
+    as_measured = self_fit._score(bayes._fit_pass, part, dict(q, range_calibration="none"), span)
+    candidate = dict(q, range_calibration="other_run")
+    model = {"scale": 1.05, "offsets_m": {"A1": 0.2}, "parameters": 5, "source": "injected"}
+    assert self_fit._scale_only(bayes._fit_pass, part, candidate, model, as_measured, p, span) is None
+    near = dict(model, scale=1.0)
+    assert self_fit._scale_only(bayes._fit_pass, part, candidate, near, as_measured, p, span) is None
+    tdoa = dict(p, measurements="tdoa")
+    assert self_fit._scale_only(bayes._fit_pass, part, candidate, model, as_measured, tdoa, span) is None
+    random_walk = dict(p, motion="p")
+    assert self_fit._scale_only(bayes._fit_pass, part, candidate, model, as_measured, random_walk, span) is None

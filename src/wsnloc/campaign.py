@@ -7,6 +7,7 @@ campaign; the raw run directories hold only what a logger would write.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cache
 from importlib import resources
 from pathlib import Path as FsPath
 
@@ -111,3 +112,10 @@ class Campaign:
     def walls_between(self, points: np.ndarray, anchor_xy: np.ndarray) -> np.ndarray:
         """Walls crossed by the straight link from each point to the anchor."""
         return count_crossings(points, anchor_xy, self.walls)
+
+
+@cache
+def generic_site() -> Campaign:
+    """The site of a run without a campaign file (generic format): no walls, no path, no tag
+    height; the anchors come from the run's own table. One shared instance (read, never changed)."""
+    return Campaign(name="generic", format="generic", spec={}, source="(no campaign file)")

@@ -40,7 +40,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from wsnloc.campaign import Campaign
+from wsnloc.campaign import generic_site
 from wsnloc.estimators.run_data import RunData
 from wsnloc.estimators.self_fit import FITTED_NOISE_KEYS, PROCESS_NOISE
 from wsnloc.metrics.consistency import chi2_band
@@ -76,7 +76,7 @@ def track_distances(data: RunData, estimates: pd.DataFrame, p: dict) -> pd.DataF
     track = estimates.loc[np.isfinite(estimates["x"]) & np.isfinite(estimates["y"]), ["t", "x", "y"]]
     if len(ranges) < MIN_RANGES or len(track) < 2:
         return None
-    site = data.campaign or Campaign(name="generic", format="generic", spec={}, source="(no campaign file)")
+    site = data.campaign or generic_site()
     anchors = data.table("anchors") if len(data.table("anchors")) else site.anchors
     samples = range_errors(ranges, track.reset_index(drop=True), site, anchors)
     return samples if len(samples) >= MIN_RANGES else None

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from wsnloc.campaign import Campaign
+from wsnloc.campaign import Campaign, generic_site
 from wsnloc.errors import WsnlocError
 from wsnloc.diagnosis import diagnose_run, metrics_of as diagnosis_metrics, report as diagnosis_report
 from wsnloc.estimators import registry
@@ -92,7 +92,7 @@ def donor_models(fmt: str, donor_dir: Path, campaign: Campaign | None, out_dir: 
     for table, wanted in (("rss", reads_rss), ("ranges", wants_ranges and not len(donor["tdoa"]))):
         if wanted and len(donor[table]) == 0:
             raise WsnlocError(f"{donor_dir}: a calibration donor needs the {table} it calibrates, and has none")
-    site = campaign or Campaign(name="generic", format="generic", spec={}, source="(no campaign file)")
+    site = campaign or generic_site()
     source = f"fitted on {donor_dir}"
     rss = dict(donor_model_for(p, donor["rss"], donor["truth"], site,
                                lambda model: registry.run(name, RunData(donor, campaign, model, str(donor_dir)), p),

@@ -16,9 +16,8 @@ from pathlib import Path
 import pandas as pd
 
 from wsnloc import references, results
-from wsnloc.campaign import Campaign
+from wsnloc.campaign import Campaign, generic_site
 
-GENERIC_SITE = Campaign(name="generic", format="generic", spec={}, source="(no campaign file)")
 
 
 def reference_scores(run_dir: str | Path, tables: dict[str, pd.DataFrame], donor: dict[str, pd.DataFrame] | None,
@@ -30,7 +29,7 @@ def reference_scores(run_dir: str | Path, tables: dict[str, pd.DataFrame], donor
         out["weighted centroid (3 strongest, 1 s)"] = references.rmse_of(
             references.weighted_centroid(tables["rss"], tables["anchors"]), truth)
         if donor is not None:
-            site = campaign or GENERIC_SITE
+            site = campaign or generic_site()
             model = references.fit_donor_model(donor["rss"], donor["truth"], donor["anchors"], site)
             out["gated EKF, path loss fitted on donor"] = references.rmse_of(
                 references.path_loss_ekf(tables["rss"], tables["anchors"], model, site.tag_height_m), truth)
