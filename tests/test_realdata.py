@@ -131,6 +131,14 @@ def test_diagnosis_names_a_range_scale_error_and_its_remedy():
     d = diagnose_run(data, estimates, {"update": "sequential", "range_sigma_m": 0.3})
     assert d["range_scale"] == pytest.approx(1.07, abs=1e-6)
     assert any("ranges look 7% long" in f and "range_self_calibration=scale" in f for f in findings(d, {}))
+    fitted = dict(d, self_fit_range_correction="applied", calibrated_scale=1.07)      # the self-fit's output pass
+    assert any("ranges look 7% long" in f and "the self-fit corrected it (scale 1.070 applied)" in f
+               for f in findings(fitted, {}))
+    biased = dict(fitted, range_offsets_m={"A": 0.3, "B": 0.0})
+    assert any("A +0.30 m" in f and "the self-fit corrected them" in f for f in findings(biased, {}))
+    scale_only = dict(biased, self_fit_range_correction="applied, scale only (offsets not constant)")
+    assert any("A +0.30 m" in f and "left them out" in f and "--calibration DONOR_RUN" in f
+               for f in findings(scale_only, {}))
     clean, _ = _range_run(1.0)
     assert findings(diagnose_run(clean, estimates, {"update": "sequential"}), {}) == []
 

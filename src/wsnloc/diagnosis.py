@@ -32,7 +32,10 @@ Values (`diagnose_run`, all optional, NaN where the estimator or run has none):
                     positive definite, updates skipped (singular or non-finite), particle-filter
                     restarts from a fix after its likelihood collapsed (attrs, where counted)
   update            the update mode used (`auto` resolved from the data: estimators.auto), not a metric
-Sentences (`findings`): one per value outside its tolerance, each "what: likely cause; remedy".
+Sentences (`findings`): one per value outside its tolerance, each "what: likely cause; remedy";
+where the self-fit already corrected the range scale or offsets the sentence says so instead
+(the fit above reads the ranges as measured), and where it kept the scale alone, why the offsets
+were left out.
 """
 
 from __future__ import annotations
@@ -141,16 +144,26 @@ def findings(d: dict, p: dict) -> list[str]:
         out.append(f"numerical guards acted ({listed}: covariances made positive definite, updates skipped, particle "
                    f"filter restarted from a fix): the measurements disagree with the model or the geometry is "
                    f"degenerate (few or collinear anchors); check the anchors, raise range_sigma_m or use `tracker`")
+    corrected = str(d.get("self_fit_range_correction", ""))
     scale = d.get("range_scale", np.nan)
     if np.isfinite(scale) and abs(scale - 1.0) > SCALE_TOLERANCE:
+        remedy = (f"the self-fit corrected it (scale {d['calibrated_scale']:.3f} applied)"
+                  if corrected.startswith("applied") and "calibrated_scale" in d
+                  else "try range_self_calibration=scale, or --calibration DONOR_RUN")
         out.append(f"ranges look {abs(scale - 1.0):.0%} {'long' if scale > 1 else 'short'} against the track: "
-                   f"a common range scale error; try range_self_calibration=scale, or --calibration DONOR_RUN")
+                   f"a common range scale error; {remedy}")
     biased = {k: v for k, v in (d.get("range_offsets_m") or {}).items() if abs(v) > OFFSET_TOLERANCE_M}
     if biased:
         listed = ", ".join(f"{k} {v:+.2f} m" for k, v in sorted(biased.items(), key=lambda kv: -abs(kv[1])))
-        out.append(f"per-anchor range offsets against the track ({listed}): antenna delays or NLOS biases; "
-                   f"try --calibration DONOR_RUN (a run of the same site with truth) or the campaign's "
-                   f"range_calibration.offsets_m")
+        if corrected == "applied":
+            remedy = "the self-fit corrected them (calibrated_offsets_m in metrics.json)"
+        else:
+            left = ("the self-fit left them out: offsets fitted on part of the run beat constant ones "
+                    "(self_fit_range_local_gain), so they change along the path; "
+                    if corrected.startswith("applied, scale only") else "")
+            remedy = (f"{left}try --calibration DONOR_RUN (a run of the same site with truth) or the campaign's "
+                      f"range_calibration.offsets_m")
+        out.append(f"per-anchor range offsets against the track ({listed}): antenna delays or NLOS biases; {remedy}")
     return out
 
 
