@@ -124,8 +124,12 @@ def findings(d: dict, p: dict) -> list[str]:
             remedy = (f"the RSS model (P0, path-loss exponent, sigma_db) does not fit the site; fit it on a donor "
                       f"run with truth (--calibration DONOR_RUN) or raise sigma_db (now {p.get('sigma_db', '?')})")
         else:
-            remedy = (f"noise too small, ranges biased or scaled; try robust_loss=cauchy or a larger range_sigma_m "
-                      f"(now {p.get('range_sigma_m', '?')}), or calibrate the ranges (--calibration DONOR_RUN)")
+            sigma = d.get("self_fit_run_sigma_m") or p.get("range_sigma_m")      # the one the run used
+            now = f" (the run's {float(sigma):.2g} m)" if sigma is not None else ""
+            calibrate = "" if str(d.get("self_fit_range_correction", "")).startswith("applied") \
+                else ", or calibrate the ranges (--calibration DONOR_RUN)"
+            remedy = (f"noise too small, ranges biased or scaled; try robust_loss=cauchy or a larger "
+                      f"range_sigma_m{now}{calibrate}")
         out.append(f"the gate rejected {d['gated_share']:.0%} of the measurements: the model is wrong more often "
                    f"than outliers explain ({remedy})")
     if d.get("widenings", 0) > 0:
@@ -186,8 +190,9 @@ def _nis_findings(d: dict, p: dict) -> list[str]:
         return [band.format("below") + f": the self-fit ran with range sigma {run:.2g} m, the candidate whose "
                 f"gain fits the innovations best, while their Gaussian core is about {core:.2g} m; the stated "
                 f"covariance is pessimistic by about {1 / np.sqrt(d['nis_mean']):.1f}x in sigma (the wider noise "
-                f"keeps NLOS-long ranges inside the gate). For a consistent covariance set range_sigma_m={core:.2g} "
-                f"{noise}={process:.2g} with self_fit=none (a tighter gate: check the gated share)"]
+                f"keeps NLOS-long ranges inside the gate). By design, not a setting to change: the core's sigma "
+                f"({core:.2g} m, {noise} {process:.2g}) as the run's noise with self_fit=none gates those ranges "
+                f"out and can lose the track (docs/realdata.md, self-fit)"]
     return [band.format("below") + ": the measurement noise is set larger than the data need; a smaller one "
             "would follow the track more closely"]
 

@@ -45,7 +45,7 @@ def reasons_with_values(reasons: pd.Series) -> pd.Series:
     reason itself when all of its rows say the same (values cut to VALUE_WIDTH characters), else
     the most frequent reason (quoted values as '…', numbers as written) followed by its most frequent values
     ('e.g. ...', at most VALUES_SHOWN, each cut to VALUE_WIDTH characters, '+N more'), or, when
-    only numbers differ, the most frequent reason as written ('+N more variants')."""
+    only numbers differ, the most frequent reason as written ('and N more with other numbers')."""
     out = {}
     for category, group in reasons.groupby(reasons.map(reason_category), sort=False):
         values = pd.Series([v for reason in group for v in re.findall(r"'([^']*)'", reason)], dtype=object).value_counts()
@@ -57,7 +57,7 @@ def reasons_with_values(reasons: pd.Series) -> pd.Series:
             out[category] = f"{written} (e.g. {', '.join(map(_shown, values.index[:VALUES_SHOWN]))}{more})"
         else:       # the numbers differ: the most frequent reason as written, not its N placeholders
             variants = group.value_counts()
-            more = f" (+{len(variants) - 1} more variants)" if len(variants) > 1 else ""
+            more = f" (and {len(variants) - 1} more with other numbers)" if len(variants) > 1 else ""
             out[category] = f"{variants.index[0]}{more}"
     return pd.Series(out, dtype=object)
 
