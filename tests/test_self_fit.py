@@ -239,7 +239,8 @@ def test_where_the_offsets_are_not_constant_the_scale_alone_is_kept(monkeypatch,
 def test_a_scale_the_segment_does_not_support_is_not_kept_alone():
     """_scale_only on a run without a scale error, offered a wrong scale (1.05): the corrected ranges
     lower the likelihood against the ranges as measured, so no scale-only model; none either for a
-    scale of exactly 1 (nothing to correct), on range differences, or for the P model (its lag)."""
+    scale of exactly 1 (nothing to correct), on range differences, for the P model (its lag) or with
+    the NLOS-aware noise (the scale there is the NLOS excess's trend with distance)."""
     from wsnloc.estimators import bayes
 
     tables = _run(1)
@@ -257,3 +258,5 @@ def test_a_scale_the_segment_does_not_support_is_not_kept_alone():
     assert self_fit._scale_only(bayes._fit_pass, part, candidate, model, as_measured, tdoa, span) is None
     random_walk = dict(p, motion="p")
     assert self_fit._scale_only(bayes._fit_pass, part, candidate, model, as_measured, random_walk, span) is None
+    walls = dict(p, range_sigma_per_wall_m=0.3)
+    assert self_fit._scale_only(bayes._fit_pass, part, candidate, model, as_measured, walls, span) is None

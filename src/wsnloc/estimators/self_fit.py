@@ -75,7 +75,8 @@ estimator's own filter or smoother then runs once with the fitted values (`outpu
    1, 3); a simulated outdoor walk (4 beacons 60 m apart, one range at a time at 3 Hz, 0.3 m
    noise, 10% NLOS, a 7% scale, 17-97 s gaps) where the local test rejected (1 seed of 12)
    5.35 -> 0.48 m; on the 21 simulated Newcom++ range runs the step applied on 13, RMSE lower on
-   11 (by up to 26%) and higher on 2 (+1.5%, +29%: variable run 5, 0.252 -> 0.325 m); the shared
+   11 (by up to 26%) and higher on 2 (+1.5%, +29%: variable run 5, 0.252 -> 0.325 m), by
+   compensating part of their NLOS excess rather than a scale error (_scale_only); the shared
    cucudasluv cases unchanged (no local rejection there).
    attrs `self_fit_range_correction` (applied / applied, scale only / not supported), `self_fit_range_ll_gain`,
    `self_fit_range_ll_penalty`, `self_fit_range_local_gain`, `self_fit_range_local_penalty`.
@@ -490,8 +491,14 @@ def _scale_only(run_pass, plain, candidate: dict, model: dict, as_measured: tupl
     Not for the P model (`motion: p`, ekf_p): a random walk lags a moving target, and the lag
     enters the residuals of the scale and of the local fit alike (cucudasluv nlos/a-case-1: local
     gain 106 for ekf_p against 16 for tracker on the same ranges; there the scale alone made
-    ekf_p's RMSE 0.968 m against 0.864 m as measured)."""
-    if p["measurements"] not in ("toa", "hybrid") or model["scale"] == 1.0 or p.get("motion") == "p":
+    ekf_p's RMSE 0.968 m against 0.864 m as measured). Nor with the NLOS-aware noise
+    (`range_sigma_per_wall_m` > 0), which models the excess of ranges through walls as noise: a
+    scale read from those ranges is that excess's trend with distance (simulated Newcom++ variable
+    runs: LOS ranges' slope against the true distance 0.999-1.001, all ranges' 1.018-1.050, the
+    scale read 1.009-1.010; kept alone it raised that filter's RMSE on the 5 runs where it passed,
+    e.g. 0.158 -> 0.196 m)."""
+    if p["measurements"] not in ("toa", "hybrid") or model["scale"] == 1.0 or p.get("motion") == "p" \
+            or p.get("range_sigma_per_wall_m", 0.0) > 0:
         return None
     scaled = dict(model, offsets_m={}, parameters=1, source=f"{model['source']}; scale only")
     score = _score(run_pass, replace(plain, range_model=scaled, _cache=plain._cache), candidate, span)
