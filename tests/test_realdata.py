@@ -131,6 +131,9 @@ def test_diagnosis_names_a_range_scale_error_and_its_remedy():
     d = diagnose_run(data, estimates, {"update": "sequential", "range_sigma_m": 0.3})
     assert d["range_scale"] == pytest.approx(1.07, abs=1e-6)
     assert any("ranges look 7% long" in f and "range_self_calibration=scale" in f for f in findings(d, {}))
+    poor = dict(d, gated_share=0.31)                     # against a track the gate disagreed with: a caveat
+    assert any("ranges look 7% long against the track (read against a track whose gate rejected 31%" in f
+               for f in findings(poor, {}))
     fitted = dict(d, self_fit_range_correction="applied", calibrated_scale=1.07)      # the self-fit's output pass
     assert any("ranges look 7% long" in f and "the self-fit corrected it (scale 1.070 applied)" in f
                for f in findings(fitted, {}))

@@ -35,7 +35,9 @@ Values (`diagnose_run`, all optional, NaN where the estimator or run has none):
 Sentences (`findings`): one per value outside its tolerance, each "what: likely cause; remedy";
 where the self-fit already corrected the range scale or offsets the sentence says so instead
 (the fit above reads the ranges as measured), and where it kept the scale alone, why the offsets
-were left out.
+were left out. Read against a track whose gate rejected more than POOR_TRACK_GATED_SHARE of the
+ranges, the scale and offsets carry a caveat: that track trades them against its own error (a
+walk with ranges 7% long read "13% short" with 42% gated and self_fit=none).
 """
 
 from __future__ import annotations
@@ -50,6 +52,7 @@ from wsnloc.metrics.consistency import chi2_band
 from wsnloc.metrics.ranging import fit_range_bias, range_errors
 
 GATED_SHARE_LIMIT = 0.05        # more rejected than this: the model is wrong more often than an outlier rate
+POOR_TRACK_GATED_SHARE = 0.2    # more rejected than this: the scale / offsets read against the track are unreliable
 SCALE_TOLERANCE = 0.03          # |s - 1| above this: a common range scale error (UWB clock/antenna delay ~1%)
 OFFSET_TOLERANCE_M = 0.15       # |b_a| above this: a per-anchor bias (antenna delay, cable; UWB sigma ~0.1 m)
 MIN_RANGES = 50                 # fewer ranges along the track: no scale / offset fit
@@ -149,13 +152,18 @@ def findings(d: dict, p: dict) -> list[str]:
                    f"filter restarted from a fix): the measurements disagree with the model or the geometry is "
                    f"degenerate (few or collinear anchors); check the anchors, raise range_sigma_m or use `tracker`")
     corrected = str(d.get("self_fit_range_correction", ""))
+    gated = d.get("gated_share", np.nan)
+    caveat = (f" (read against a track whose gate rejected {gated:.0%} of the ranges: a poor track trades "
+              f"scale and offsets against its own error, so these may be off, even in sign)"
+              if np.isfinite(gated) and gated > POOR_TRACK_GATED_SHARE else "")
     scale = d.get("range_scale", np.nan)
     if np.isfinite(scale) and abs(scale - 1.0) > SCALE_TOLERANCE:
         remedy = (f"the self-fit corrected it (scale {d['calibrated_scale']:.3f} applied)"
                   if corrected.startswith("applied") and "calibrated_scale" in d
                   else "try range_self_calibration=scale, or --calibration DONOR_RUN")
-        out.append(f"ranges look {abs(scale - 1.0):.0%} {'long' if scale > 1 else 'short'} against the track: "
-                   f"a common range scale error; {remedy}")
+        out.append(f"ranges look {abs(scale - 1.0):.0%} {'long' if scale > 1 else 'short'} against the track"
+                   f"{caveat}: a common range scale error; {remedy}")
+        caveat = " (the same caveat)" if caveat else ""
     biased = {k: v for k, v in (d.get("range_offsets_m") or {}).items() if abs(v) > OFFSET_TOLERANCE_M}
     if biased:
         listed = ", ".join(f"{k} {v:+.2f} m" for k, v in sorted(biased.items(), key=lambda kv: -abs(kv[1])))
@@ -167,7 +175,8 @@ def findings(d: dict, p: dict) -> list[str]:
                     if corrected.startswith("applied, scale only") else "")
             remedy = (f"{left}try --calibration DONOR_RUN (a run of the same site with truth) or the campaign's "
                       f"range_calibration.offsets_m")
-        out.append(f"per-anchor range offsets against the track ({listed}): antenna delays or NLOS biases; {remedy}")
+        out.append(f"per-anchor range offsets against the track ({listed}){caveat}: antenna delays or NLOS biases; "
+                   f"{remedy}")
     return out
 
 
