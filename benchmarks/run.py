@@ -382,7 +382,7 @@ def bench_estimators(repeats: int, scenarios=("constant", "variable")) -> list[d
     for scenario in scenarios:
         raw = simulate_run(campaign, scenario, run_seed_sequence(1, "bench", scenario, 1),
                            OUT / f"estimators-{scenario}")
-        run_tables = load_run("newcom", raw, campaign, OUT / f"estimators-{scenario}-tables")
+        run_tables, _ = load_run("newcom", raw, campaign, OUT / f"estimators-{scenario}-tables")
         for label, name, params in ESTIMATOR_CASES:
             p = dict(params, max_range_m=50.0)
 

@@ -35,7 +35,7 @@ def test_estimators_lists_the_registry_as_json(capsys):
     assert main(["estimators"]) == 0 and "tracker (default of `wsnloc estimate`)" in capsys.readouterr().out
 
 
-def test_estimate_tracks_ranges_one_anchor_at_a_time_with_default_settings(tmp_path):
+def test_estimate_tracks_ranges_one_anchor_at_a_time_with_default_settings(tmp_path, capsys):
     """Acceptance: 4 anchors, about 2 Hz in total, one anchor at a time, unsorted rows and a
     60 s gap; the same walk ranged in bursts (4 ranges every 2 s) is the reference."""
     rng = np.random.default_rng(21)
@@ -47,6 +47,10 @@ def test_estimate_tracks_ranges_one_anchor_at_a_time_with_default_settings(tmp_p
     burst = write_generic(tmp_path / "burst" / "run", tables_for(t_burst[keep], id_burst[keep], walk, SQUARE, 0.1, rng))
     for run in (single, burst):
         assert main(["estimate", "--format", "generic", str(run), "--out", str(run.parent / "out")]) == 0
+        if run is single:                    # the shuffled rows are said to be sorted, as ingest says it
+            printed = capsys.readouterr()
+            said = printed.out + printed.err
+            assert "ranges.csv: " in said and "row(s) out of time order (sorted)" in said
     a = json.loads((single.parent / "out" / "metrics.json").read_text())
     b = json.loads((burst.parent / "out" / "metrics.json").read_text())
     assert set(a) >= {"rmse_m", "median_m", "p75_m", "p90_m", "p95_m", "max_m", "n", "availability"}

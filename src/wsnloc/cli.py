@@ -18,7 +18,7 @@ from wsnloc.config import read_yaml
 from wsnloc.validation import validate_config
 from wsnloc.errors import WsnlocError
 from wsnloc.estimators.parameters import parse_assignment
-from wsnloc.io.ingest import PARSERS, ingest_one
+from wsnloc.io.ingest import PARSERS, file_notes, ingest_one
 from wsnloc.io import tables
 from wsnloc.io.limits import (DEFAULT_PER_FILE, DEFAULT_PER_RUN, QuarantineLimits, check_quarantine_limits,
                               quarantine_share)
@@ -48,9 +48,6 @@ def cmd_simulate(args) -> int:
     return 0
 
 
-NOTES = {"rf_only": "RF-only record(s) (no range)", "reordered": "row(s) out of time order (sorted)"}
-
-
 def _ingest_campaign(args) -> Campaign | None:
     """The --campaign file, else the format's default, as the run's scenario sees it (the
     `scenario` its meta.yaml names, as the simulator writes it: a 3-D scenario's heights,
@@ -70,7 +67,7 @@ def cmd_ingest(args) -> int:
     inventory = ingest_one(args.format, args.run_dir, _ingest_campaign(args), args.out_dir)
     print(f"{'file':<14} {'records':>9} {'quarantined':>12}  notes")
     for name, info in inventory.items():
-        notes = ", ".join(f"{info[key]} {label}" for key, label in NOTES.items() if info.get(key))
+        notes = file_notes(info)
         print(f"{name:<14} {info['data_lines']:>9} {info['quarantined']:>12}  {notes}")
         for anchor, count in info.get("unknown_anchors", {}).items():
             print(f"{'':<14} {count:>9} row(s) of anchor {anchor!r}, missing from the anchors table")

@@ -26,7 +26,7 @@ from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments.calibration import calibrate_ranges, calibrate_tdoa, donor_model_for
 from wsnloc.io import tables
 from wsnloc.io.convert import QUARANTINE_FILE
-from wsnloc.io.ingest import ingest_one
+from wsnloc.io.ingest import file_notes, ingest_one
 from wsnloc.io.limits import QuarantineLimits, check_quarantine_limits
 from wsnloc.metrics.tracking import run_metrics, score
 from wsnloc.signal.resample import resample_imu
@@ -38,15 +38,16 @@ METRIC_KEYS = {"rmse": "rmse_m", "mean": "mean_m", "median": "median_m", "p75": 
 
 
 def load_run(fmt: str, run_dir: Path, campaign: Campaign | None, out_dir: Path,
-             limits: QuarantineLimits = QuarantineLimits()) -> dict[str, pd.DataFrame]:
-    """Ingest a raw run into out_dir (Parquet + quarantine), stop above the quarantine limits.
-    The quarantine table is under the key 'quarantine'."""
+             limits: QuarantineLimits = QuarantineLimits()) -> tuple[dict[str, pd.DataFrame], list[str]]:
+    """Ingest a raw run into out_dir (Parquet + quarantine), stop above the quarantine limits:
+    (the tables, the quarantine table under the key 'quarantine'; the files' inventory notes,
+    e.g. 'ranges.csv: 12 row(s) out of time order (sorted)', as `wsnloc ingest` prints them)."""
     inventory = ingest_one(fmt, run_dir, campaign, out_dir)
     quarantine = tables.read(out_dir / "quarantine.parquet")
     check_quarantine_limits(run_dir, inventory, quarantine, limits, out_dir / "quarantine.parquet")
     loaded = {name: tables.read(out_dir / f"{name}.parquet") for name in tables.RAW_TABLES}
     loaded["quarantine"] = quarantine
-    return loaded
+    return loaded, [f"{name}: {file_notes(info)}" for name, info in inventory.items() if file_notes(info)]
 
 
 def quarantine_summary(quarantine: pd.DataFrame, where: Path) -> str | None:
@@ -86,7 +87,7 @@ def donor_models(fmt: str, donor_dir: Path, campaign: Campaign | None, out_dir: 
     if not (reads_rss or wants_ranges):
         raise WsnlocError(f"--calibration {donor_dir}: this estimator calibrates nothing on a donor (it reads no "
                           f"RSS, and range_calibration is {p.get('range_calibration')!r})")
-    donor = load_run(fmt, donor_dir, campaign, out_dir, limits)
+    donor, _ = load_run(fmt, donor_dir, campaign, out_dir, limits)
     if len(donor["truth"]) == 0:
         raise WsnlocError(f"{donor_dir}: a calibration donor needs truth")
     for table, wanted in (("rss", reads_rss), ("ranges", wants_ranges and not len(donor["tdoa"]))):
@@ -127,9 +128,9 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
     The run and the donor stop above the quarantine `limits` (IngestError)."""
     estimator = registry.get(name, "--estimator")
     p = estimator.resolve(overrides, "--set")
-    run_tables = load_run(fmt, run_dir, campaign, out / "tables", limits)
+    run_tables, inventory_notes = load_run(fmt, run_dir, campaign, out / "tables", limits)
     notes = [q for q in [quarantine_summary(run_tables.pop("quarantine"), out / "tables" / "quarantine.parquet"),
-                         converted_quarantine(run_dir)] if q]
+                         converted_quarantine(run_dir)] if q] + inventory_notes
     if "imu_5hz" in estimator.tables(p):
         run_tables["imu_5hz"] = resample_imu(run_tables["imu"], **RESAMPLE)
     measured = RunData(run_tables, campaign, None, str(run_dir))      # what the run holds (no calibration yet)

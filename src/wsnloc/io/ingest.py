@@ -33,6 +33,15 @@ def parser_for(fmt: str):
         raise IngestError(f"unknown raw format {fmt!r} (known: {', '.join(sorted(PARSERS))})") from None
 
 
+INVENTORY_NOTES = {"rf_only": "RF-only record(s) (no range)", "reordered": "row(s) out of time order (sorted)"}
+
+
+def file_notes(info: dict) -> str:
+    """What one file's inventory entry notes beside its counts ('12 row(s) out of time order
+    (sorted)', ...), '' when nothing."""
+    return ", ".join(f"{info[key]} {label}" for key, label in INVENTORY_NOTES.items() if info.get(key))
+
+
 def ingest_one(fmt: str, run_dir: str | Path, campaign: Campaign | None, out_dir: str | Path) -> dict:
     """Parse one run directory and write its tables to out_dir; returns its inventory.
 
