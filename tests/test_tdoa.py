@@ -624,3 +624,22 @@ def test_sliding_window_tdoa_factors_jacobian_and_noise_free_solution():
     estimate = window.estimate(2.0, t, factors.anchors, 0.0, factors.ranges, 0.1, np.array([8.0, 8.0, 0.0, 0.0]),
                                (factors.ref, factors.ref_dz, blocks))
     assert np.hypot(*(estimate.x[:2] - truth)) < 1e-6
+
+
+def test_sources_with_different_corrections_do_not_share_cached_fixes():
+    """TdoaSource caches its window fixes in the run's cache (shared by the self-fit's variants of a
+    run): the key carries the correction, so a corrected source does not read the fix of the
+    uncorrected one (it did: the self-fit's segments then started from uncorrected fixes)."""
+    from wsnloc.estimators.range_calibration import RangeCorrection
+    from wsnloc.estimators.tdoa import TdoaSource
+
+    data = biased_tdoa_run()
+    plain = TdoaSource(data, "all", 0.1, 50.0)
+    corrected = TdoaSource(data, "all", 0.1, 50.0, RangeCorrection.of(
+        {"scale": 1.07, "offsets_m": {"A1": 0.3, "A2": -0.2, "A3": 0.6, "A4": 0.0}}, "given"))
+    t = float(plain.records().t[40])
+    uncorrected_fix, corrected_fix = plain.window_fix(t, 1.0), corrected.window_fix(t, 1.0)
+    assert uncorrected_fix is not None and corrected_fix is not None
+    assert np.hypot(*(corrected_fix - uncorrected_fix)) > 0.05
+    alone = TdoaSource(biased_tdoa_run(), "all", 0.1, 50.0, corrected.correction).window_fix(t, 1.0)
+    assert corrected_fix == pytest.approx(alone)

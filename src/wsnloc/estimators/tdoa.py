@@ -93,7 +93,7 @@ class TdoaSource:
         frame = data.usable_tdoa()
         frame = frame[frame["anchor_id"].isin(members) & frame["ref_anchor_id"].isin(members)]
         keys = (frame["anchor_id"] + PAIR + frame["ref_anchor_id"]).to_numpy(dtype=object)
-        self._key = ("tdoa", anchors, dimensions)
+        self._key = ("tdoa", anchors, dimensions, correction)     # the records are corrected: cached fixes too
         self._records = Records(frame["t"].to_numpy(float), np.zeros(len(frame), dtype=np.int8), keys,
                                 corrected(frame, correction))
 
