@@ -40,7 +40,8 @@ from publish import publish  # noqa: E402
 from wsnloc.estimate import estimate_run  # noqa: E402
 from wsnloc.estimators import registry  # noqa: E402
 from wsnloc.io.convert import convert_cucudasluv, convert_philotuxo  # noqa: E402
-from wsnloc.io.generic import run_campaign  # noqa: E402
+from wsnloc.io.generic import ingest_run, run_campaign  # noqa: E402
+from wsnloc.metrics.tracking import run_metrics, score, truth_span  # noqa: E402
 from wsnloc.studies import reads_rss  # noqa: E402
 
 INERTIAL_TABLES = {"imu", "imu_5hz"}
@@ -78,9 +79,6 @@ def measurement_span_share(run_dir: Path) -> float:
     """Share of the truth span [T0, T1] between the run's first and last usable measurement
     (ranges or RSS): an estimator outputs from its first measurement to its last, so this bounds
     its availability (metrics.tracking.availability)."""
-    from wsnloc.io.generic import ingest_run
-    from wsnloc.metrics.tracking import truth_span
-
     tables, _ = ingest_run(run_dir)
     times = np.concatenate([tables[name]["t"].to_numpy(float) for name in ("ranges", "rss") if len(tables[name])])
     t0, t1 = truth_span(tables["truth"])
@@ -93,11 +91,9 @@ def random_walk_bound(run_dir: Path, times: np.ndarray, q_grid=np.geomspace(0.01
     range r = |x - a| + n, n ~ N(0, sigma^2) with the true sigma (0.1 m), started at the true
     position, read at `times` (tracker's output times) by the last update; q over `q_grid`. The
     best any position-only (P) model can do with that information: what `ekf_p` is measured against."""
-    from wsnloc.metrics.tracking import run_metrics, score
-
-    ranges = pd.read_csv(run_dir / "ranges.csv").sort_values("t")
-    truth = pd.read_csv(run_dir / "truth.csv")
-    anchors = pd.read_csv(run_dir / "anchors.csv").set_index("anchor_id")[["x", "y"]]
+    tables, _ = ingest_run(run_dir)                       # the package's reader; the filter below is not its
+    ranges, truth = tables["ranges"], tables["truth"]
+    anchors = tables["anchors"].set_index("anchor_id")[["x", "y"]]
     t, r, a = ranges["t"].to_numpy(), ranges["range_m"].to_numpy(), anchors.loc[ranges["anchor_id"]].to_numpy()
     best = (np.inf, np.nan)
     for q in q_grid:

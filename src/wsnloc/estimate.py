@@ -47,7 +47,8 @@ def load_run(fmt: str, run_dir: Path, campaign: Campaign | None, out_dir: Path,
     check_quarantine_limits(run_dir, inventory, quarantine, limits, out_dir / "quarantine.parquet")
     loaded = {name: tables.read(out_dir / f"{name}.parquet") for name in tables.RAW_TABLES}
     loaded["quarantine"] = quarantine
-    return loaded, [f"{name}: {file_notes(info)}" for name, info in inventory.items() if file_notes(info)]
+    notes = {name: file_notes(info) for name, info in inventory.items()}
+    return loaded, [f"{name}: {text}" for name, text in notes.items() if text]
 
 
 def quarantine_summary(quarantine: pd.DataFrame, where: Path) -> str | None:

@@ -19,7 +19,6 @@ from wsnloc import references, results
 from wsnloc.campaign import Campaign, generic_site
 
 
-
 def reference_scores(run_dir: str | Path, tables: dict[str, pd.DataFrame], donor: dict[str, pd.DataFrame] | None,
                      campaign: Campaign | None) -> dict[str, float]:
     truth = tables["truth"]
