@@ -17,7 +17,8 @@ Per (run, estimator): exit (ok or the error), availability, median and RMSE of t
 the median / tracker's per run and estimator and that full table in Markdown, then what the data
 allow: per run the share of the truth span between its first and last measurement (the ceiling
 of availability) and, on the synthetic run, the best median of a random-walk EKF written here
-apart from the package (the ceiling of a position-only model such as `ekf_p`); writes them
+apart from the package (the ceiling of a position-only model such as `ekf_p`) and the medians
+of the trackers over fixes on its noise-free twin (the ceiling set by their fixes); writes them
 to OUT/async_estimators.md (the table also as .csv; the scratch folder is git-ignored); with
 --docs, also between the markers of benchmarks/ASYNC_RESULTS.md (publish.py).
 """
@@ -116,6 +117,18 @@ def random_walk_bound(run_dir: Path, times: np.ndarray, q_grid=np.geomspace(0.01
     return best
 
 
+def noise_free_fixes(out: Path) -> dict[str, float]:
+    """Median 2-D error (m) of the trackers over fixes (paper D) and of the multilateration
+    window fixes they can be fed, on the synthetic run's noise-free twin (synthetic_run with
+    noise_m 0: the same times and anchors, exact ranges): what is left is the fixes' own error,
+    each solved from a window of ranges taken one anchor at a time along the walk, the ceiling
+    of any estimator that filters per-epoch fixes instead of the ranges."""
+    run_dir = synthetic_run(out / "converted" / "synthetic" / "noise_free", noise_m=0.0)
+    return {name: estimate_run("generic", run_dir, run_campaign(run_dir), out / "estimates" / "noise_free" / name,
+                               name, {})["median_m"]
+            for name in ("multilateration", "velocity_tracker", "kf_tracker")}
+
+
 def runs(src: Path, out: Path) -> list[tuple[str, Path, Path | None, bool]]:
     """(label, run folder, calibration donor or None, has ranges) of every run."""
     items = []
@@ -196,6 +209,8 @@ def main(argv=None) -> int:
             median, q = random_walk_bound(run_dir, pd.read_parquet(tracker_out)["t"].to_numpy(float))
             row.update({"random-walk EKF, best q: median_m": median, "its q_m2ps": q,
                         "its median / tracker's": median / tracker[label]})
+            row.update({f"noise-free ranges: {name} / tracker's": median / tracker[label]
+                        for name, median in noise_free_fixes(out).items()})
         limits.append(row)
     command = " ".join(["python benchmarks/async_estimators.py", *(sys.argv[1:] if argv is None else argv)])
     publish([f"`{command}` ({time.strftime('%Y-%m-%d', time.gmtime())}, "
@@ -206,7 +221,9 @@ def main(argv=None) -> int:
              "measurement (`measurement_span_share`: no estimator that needs measurements covers more), "
              "and on the synthetic run what a position-only model can reach (`random_walk_bound`: an EKF "
              "written apart from the package, true sigma, true start, best q of a grid; `ekf_p` is "
-             "measured against it):", "", pd.DataFrame(limits).to_markdown(index=False, floatfmt=".3g")],
+             "measured against it) and what per-epoch fixes can reach (`noise_free_fixes`: the trackers over "
+             "fixes and multilateration on the run's noise-free twin, median / tracker's median on the "
+             "noisy run):", "", pd.DataFrame(limits).to_markdown(index=False, floatfmt=".3g")],
             out, "async_estimators", "benchmarks/ASYNC_RESULTS.md" if args.docs else None)
     return 0
 

@@ -17,7 +17,7 @@ from wsnloc import results
 from wsnloc.campaign import Campaign
 from wsnloc.errors import ConfigError
 from wsnloc.estimators import registry, robust, self_calibration
-from wsnloc.estimators.filter_options import ConfiguredFilter, UpdateCounts, configured_factory
+from wsnloc.estimators.filter_options import LOSS_WINDOW, ConfiguredFilter, UpdateCounts, configured_factory
 from wsnloc.estimators.run_data import RunData
 from wsnloc.experiments.calibration import calibrate_ranges
 from wsnloc.filters.kalman import ExtendedKalmanFilter
@@ -340,19 +340,74 @@ def test_a_track_whose_gate_rejects_most_measurements_is_widened_back_onto_the_t
     A1-A3: the ranges to A1 and A3 stay the same, those to A2 and A4 change by 6.9 m. The gated
     filter keeps agreeing with A1 and A3 and rejects A2 and A4 (half of all ranges), for ever
     unless the gate's rejections are acted on (gate_loss_share below 0.5 here): the covariance
-    is widened and the track pulled onto the target, without a restart."""
-    def jump(t):
-        return np.where((np.asarray(t) < 60.0)[:, None], [[5.0, 10.0]], [[10.0, 5.0]])
-
-    times, ids = bursts(120.0, 0.5, SQUARE)
-    tables = tables_for(times, ids, jump, SQUARE, noise_m=0.05, rng=np.random.default_rng(81))
-    params = {"range_sigma_m": 0.1, "gate_probability": 0.999}
+    is widened and the track pulled onto the target, without a restart (gate_refix off; with it,
+    the next test)."""
+    tables = _mirror_jump_run()
+    params = {"range_sigma_m": 0.1, "gate_probability": 0.999, "gate_refix": False}
     stuck = registry.run("ekf", run_data(tables), dict(params, gate_loss_share=1.0))
     restarted = registry.run("ekf", run_data(tables), dict(params, gate_loss_share=0.4))
     final = {k: np.hypot(e["x"].iloc[-1] - 10.0, e["y"].iloc[-1] - 5.0) for k, e in (("stuck", stuck),
                                                                                        ("restarted", restarted))}
     assert final["stuck"] > 5.0 and stuck.attrs["gate_track_losses"] == 0
     assert final["restarted"] < 0.1 and restarted.attrs["gate_widenings"] >= 1 and restarted.attrs["resets"] == 0
+
+
+def _mirror_jump(t):
+    """(5, 10) before 60 s, then its mirror image (10, 5) across the diagonal A1-A3 of SQUARE."""
+    return np.where((np.asarray(t) < 60.0)[:, None], [[5.0, 10.0]], [[10.0, 5.0]])
+
+
+def _mirror_jump_run() -> dict:
+    times, ids = bursts(120.0, 0.5, SQUARE)
+    return tables_for(times, ids, _mirror_jump, SQUARE, noise_m=0.05, rng=np.random.default_rng(81))
+
+
+def test_a_track_on_the_mirror_branch_is_refixed_at_once_by_default():
+    """The same jump with gate_refix (the default): when the gate has rejected most of the last
+    updates' ranges, a fix on them explains them far better than the track (its median |residual|
+    0.05 m against 3.4 m), so the track is dropped at once and restarted from the window fix,
+    without a widening; it is back on the target (within 0.1 m) before the widened track of the
+    previous test."""
+    tables = _mirror_jump_run()
+    params = {"range_sigma_m": 0.1, "gate_probability": 0.999, "gate_loss_share": 0.4}
+    refixed = registry.run("ekf", run_data(tables), params)
+    widened = registry.run("ekf", run_data(tables), dict(params, gate_refix=False))
+    assert refixed.attrs["gate_track_losses"] == 1 and refixed.attrs["resets"] == 1
+    assert refixed.attrs["gate_widenings"] == 0
+
+    def back_on_target(estimates):
+        after = estimates[estimates["t"] > 60.0]
+        return after["t"][np.hypot(after["x"] - 10.0, after["y"] - 5.0) < 0.1].iloc[0]
+    assert back_on_target(refixed) < back_on_target(widened) < 70.0
+    from wsnloc.diagnosis import diagnose_run, report
+    text = report(diagnose_run(run_data(tables), refixed, registry.get("ekf").resolve(params)), params)
+    assert "restarted from a fix 1 time(s)" in text and "dropped and restarted" not in text
+
+
+def _recent(filt: ConfiguredFilter, position, model=None) -> None:
+    """Fill filt's last LOSS_WINDOW updates with noise-free single ranges from `position` (RSS:
+    `model`), each with its innovation at the filter's state."""
+    for k in range(LOSS_WINDOW):
+        a = ANCHORS[k % len(ANCHORS)][None]
+        m = model or Stacked([RangeModel(a, np.full(1, SIGMA))], np.array([np.hypot(*(np.asarray(position) - a[0]))]))
+        filt.recent_models.append((m, m.z - m.h(filt.x)))
+
+
+def test_a_fix_explains_the_ranges_better_only_off_the_track():
+    """fix_explains_better on noise-free ranges from 4 anchors, one at a time: False with the
+    track on the position, True with it at the mirror image of the position across two anchors'
+    diagonal (two anchors agree with it, the other two are 6.9 m off); never on RSS."""
+    true = np.array([5.0, 10.0])
+    for track, expected in ((true, False), (np.array([10.0, 5.0]), True)):
+        filt = ConfiguredFilter(ExtendedKalmanFilter(np.r_[track, 0.0, 0.0], np.eye(4), np.eye(4), np.zeros((4, 4))),
+                                registry.get("ekf").resolve({}), UpdateCounts())
+        _recent(filt, true)
+        assert filt.fix_explains_better() is expected
+    rss = Stacked([RssModel(ANCHORS[:1], -40.0, 2.5, 3.0)], np.array([-60.0]))
+    filt = ConfiguredFilter(ExtendedKalmanFilter(np.array([10.0, 5.0, 0.0, 0.0]), np.eye(4), np.eye(4),
+                                                 np.zeros((4, 4))), registry.get("ekf").resolve({}), UpdateCounts())
+    _recent(filt, true, model=rss)
+    assert filt.fix_explains_better() is False
 
 
 def test_self_calibrated_states_are_reported_per_cell():

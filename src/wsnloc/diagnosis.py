@@ -7,6 +7,8 @@ Values (`diagnose_run`, all optional, NaN where the estimator or run has none):
   restarts          track dropped and restarted (attrs `resets`)
   widenings         the gate rejected most recent measurements and the covariance was widened
                     (attrs `gate_widenings`, filter_options.ConfiguredFilter.widen)
+  refixes           restarts at once because a fix on the recent ranges explained them better
+                    than the track (attrs `gate_refixes`, ConfiguredFilter.fix_explains_better)
   nis_mean          mean normalised innovation squared per measurement dof over the updates,
   nis_low/high      with its two-sided 95% chi-square band (metrics.consistency.chi2_band;
                     sequential updates: 1 dof per update, the last update of each output
@@ -105,6 +107,7 @@ def diagnose_run(data: RunData, estimates: pd.DataFrame, p: dict) -> dict:
     a = estimates.attrs
     out = {"gated_share": float(a["gated_share"]) if "gated_share" in a else np.nan,
            "restarts": int(a.get("resets", 0)), "widenings": int(a.get("gate_widenings", 0)),
+           "refixes": int(a.get("gate_refixes", 0)),
            **_nis(estimates, p), **range_fit(data, estimates, p)}
     if "range_scale" in a:
         out["self_scale"] = float(a["range_scale"])
@@ -139,10 +142,16 @@ def findings(d: dict, p: dict) -> list[str]:
         out.append(f"the gate rejected most measurements {d['widenings']} time(s) and the position covariance "
                    f"was widened to take them back: turns livelier than the process noise, a bias or a gap; "
                    f"raise accel_sigma_mps2 or range_sigma_m if it recurs")
-    if d.get("restarts", 0) > 0:
-        out.append(f"the track was dropped and restarted {d['restarts']} time(s): gaps longer than max_coast_s "
-                   f"({p.get('max_coast_s', '?')} s) or a gate that lost the track; check the gaps, raise "
+    refixes = d.get("refixes", 0)
+    if d.get("restarts", 0) > refixes:
+        out.append(f"the track was dropped and restarted {d['restarts'] - refixes} time(s): gaps longer than "
+                   f"max_coast_s ({p.get('max_coast_s', '?')} s) or a gate that lost the track; check the gaps, raise "
                    f"max_coast_s or gate_loss_share")
+    if refixes > 0:
+        out.append(f"the track was restarted from a fix {refixes} time(s) where the gate rejected most recent ranges "
+                   f"and the fix explained them far better than the track: a wrong branch (past an anchor ranged one "
+                   f"at a time, the mirror side of two anchors); more anchors in range or faster ranging avoid it, "
+                   f"gate_refix=false widens instead")
     if "nis_mean" in d:
         out += _nis_findings(d, p)
     guarded = {k: d[k] for k in GUARDS if d.get(k, 0) > 0}
