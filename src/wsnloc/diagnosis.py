@@ -148,10 +148,10 @@ def findings(d: dict, p: dict) -> list[str]:
                    f"max_coast_s ({p.get('max_coast_s', '?')} s) or a gate that lost the track; check the gaps, raise "
                    f"max_coast_s or gate_loss_share")
     if refixes > 0:
-        out.append(f"the track was restarted from a fix {refixes} time(s) where the gate rejected most recent ranges "
-                   f"and the fix explained them far better than the track: a wrong branch (past an anchor ranged one "
-                   f"at a time, the mirror side of two anchors); more anchors in range or faster ranging avoid it, "
-                   f"gate_refix=false widens instead")
+        out.append(f"the track was restarted from a fix {refixes} time(s): the gate rejected most recent ranges and a "
+                   f"fix on them fitted them far better than the track; often a wrong branch (ranged one anchor at a "
+                   f"time past an anchor, the mirror side of two anchors); more anchors in range or a higher ranging "
+                   f"rate avoid it (gate_refix=false widens the covariance instead, as the smoothers do)")
     if "nis_mean" in d:
         out += _nis_findings(d, p)
     guarded = {k: d[k] for k in GUARDS if d.get(k, 0) > 0}

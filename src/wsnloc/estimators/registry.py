@@ -235,9 +235,9 @@ TRACKER_DEFAULTS = dict(update="sequential", init_window_s=4.0, initial_sigma_m=
 # has a heavy-tailed likelihood instead of a gate.
 SELF_FITTED_FILTER = _with(FILTER, self_fit=TRACKER_DEFAULTS["self_fit"])
 GATED_FILTER = _with(SELF_FITTED_FILTER, gate_probability=TRACKER_DEFAULTS["gate_probability"])
-# The smoothers do not re-fix: their backward pass carries the whole run across a forward pass's
-# transient, and a restart splits the chain (simulated Cricket, ekf_rts RMSE with / without the
-# re-fix on the runs where it fired: 0.113 / 0.039, 0.099 / 0.029, 0.121 / 0.055, 0.320 / 0.678 m).
+# The smoothers do not re-fix by default: their backward pass carries the run across a forward
+# transient and a restart splits the chain; measured mixed (docs/realdata.md: RMSE lower on 16 of
+# 25 simulated one-anchor-at-a-time walks, higher on 7, 3x on 3 of the simulated Cricket runs).
 GATED_SMOOTHER = _with(GATED_FILTER, gate_refix=False)
 
 ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
