@@ -22,7 +22,8 @@ covariance, computed once per update for the innovation record, the gate and the
 (robust.robust_update with the configured gate and loss by default; pass another as `updater`
 to configured_factory / ConfiguredFilter for another gate or likelihood). The adapter counts
 the measurements offered and gated over a run (across track restarts), judges the track lost
-from the gate's recent rejections (`lost`, which the deleter reads: core.CoastingDeleter)
+from the gate's recent rejections, at once where a fix on the rejected ranges fits them far
+better than the track (`gate_refix`; `lost`, which the deleter reads: core.CoastingDeleter)
 and exposes the calibration states; bayes.run_filter copies them to the estimates' attrs.
 """
 
@@ -225,9 +226,10 @@ class ConfiguredFilter:
         at a time, a track that passes close to an anchor can take the mirror branch, where two
         anchors' circles meet again: those two keep it there, the gate rejects the rest, and after
         a widening their next ranges shrink the covariance again before the others are taken
-        back (simulated walks: 12-15 s, up to 35 m off). False (widen) unless every recent update is of ranges
-        alone, in 2-D, from at least REFIX_ANCHORS anchors (with 3 the fix meets every anchor's
-        mean range but for one degree of freedom: it would explain any ranges)."""
+        back (simulated walks: 12-15 s, up to 35 m off). False (widen) unless every recent update
+        is of ranges alone, with a 2-D state, from at least REFIX_ANCHORS anchors (with 3 the fix
+        meets every anchor's mean range but for one degree of freedom: it would explain any
+        ranges)."""
         models = [model for model, _ in self.recent_models]
         parts = [part for model in models for part in getattr(model, "parts", [model])]
         if not all(isinstance(part, RangeModel) and part.anchors.shape[1] == 2 for part in parts):

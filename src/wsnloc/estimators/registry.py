@@ -285,7 +285,8 @@ ESTIMATORS: dict[str, Estimator] = {e.name: e for e in [
     Estimator("ekf_rts", "EKF followed by the fixed-interval RTS smoother (offline: each estimate uses the "
               "whole run)", COMMON + RSS + GATED_SMOOTHER, bayes.run_smoother, _filter_inputs),
     Estimator("ukf_rts", "UKF followed by the fixed-interval RTS smoother (offline: each estimate uses the "
-              "whole run)", COMMON + RSS + _filter(GATED_SMOOTHER, "ukf") + bayes.UKF, bayes.run_smoother, _filter_inputs),
+              "whole run)", COMMON + RSS + _filter(GATED_SMOOTHER, "ukf") + bayes.UKF, bayes.run_smoother,
+              _filter_inputs),
     Estimator("sliding_window", "Sliding-window batch: robust non-linear least squares over the ranges of the "
               "last W seconds with a constant-velocity prior (factor-graph style)",
               COMMON + SLIDING_WINDOW, batch.sliding_window),
