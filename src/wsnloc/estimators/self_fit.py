@@ -117,7 +117,7 @@ range differences two full passes in step 1 (the offsets are fitted twice). For 
 particle filter and smoothers the fitting passes are EKF passes, so the overhead is that of
 the EKF's (about 1.7 EKF passes) on top of their own single pass.
 Online (live) use has no second pass: `range_self_calibration` (state augmentation) and the
-gate's widening (filter_options) adapt as the data come.
+gate's widening and re-fix (filter_options) adapt as the data come.
 """
 
 from __future__ import annotations
