@@ -172,6 +172,20 @@ def test_diagnosis_explains_the_nis_of_a_self_fitted_run():
     assert metrics_of(d)["diag_self_fit_range_corrected"] == 0.0
 
 
+def test_a_nis_below_its_band_with_a_core_wider_than_the_run_sigma_is_read_as_the_gates_truncation():
+    """Where the innovations' core is not narrower than the run's sigma (simulated newcom/variable:
+    core 0.85 m, run 0.6 m, NIS 0.18, 10% gated) the NIS is low because it counts only the kept
+    measurements: the diagnosis says so instead of calling the covariance pessimistic by design."""
+    data, truth = _range_run(1.0)
+    estimates = truth.assign(nis=0.18, n_meas=1)
+    estimates.attrs = {"gated_share": 0.1, "resets": 0, "self_fit_run_sigma_m": 0.6, "self_fit_range_sigma_m": 0.85,
+                       "self_fit_accel_sigma_mps2": 0.24, "self_fit_range_correction": "not supported"}
+    d = diagnose_run(data, estimates, {"update": "sequential"})
+    text = " ".join(findings(d, {"range_sigma_m": 0.3}))
+    assert "counts only the measurements the gate kept (10% gated)" in text
+    assert "pessimistic" not in text and "larger than the data need" not in text
+
+
 def test_diagnosis_of_a_self_fitted_p_model_names_its_process_noise():
     """ekf_p self-fits p_sigma_m (its random walk), not accel_sigma_mps2: the diagnosis keeps that key
     and its advice for a NIS below the band names p_sigma_m with the fitted value."""

@@ -9,6 +9,7 @@ import pandas as pd
 import pytest
 from scipy.stats import chi2
 import yaml
+from markupsafe import escape
 from PIL import Image
 
 from conftest import ROOT
@@ -29,7 +30,7 @@ from wsnloc.metrics.tracking import run_metrics, score
 from wsnloc.report import figures
 from wsnloc.report.render import build_context, render_pages
 from wsnloc.report.sections import study_section
-from wsnloc.studies import results_rows, run_cell
+from wsnloc.studies import diagnosis_rows, results_rows, run_cell
 
 ANCHORS = np.array(list(SQUARE.values()))
 SIGMA = 0.3
@@ -430,22 +431,31 @@ def test_report_shows_gating_calibration_and_per_anchor_range_quality(campaign, 
     spec = {"scenarios": ["site/walk"],
             "estimators": {"donor": {"estimator": "tracker", "range_calibration": "other_run"},
                            "self_offset": {"estimator": "tracker", "range_self_calibration": "offset"}}}
-    rows = list(data_rows)
+    rows, diagnosed = list(data_rows), []
     for cell, overrides in spec["estimators"].items():
         p = registry.get("tracker").resolve({k: v for k, v in overrides.items() if k != "estimator"})
         _, metrics = run_cell("site/walk", cell, "tracker", p, ["all"], runs, _generic())
         rows += results_rows("robustness", cell, "site/walk", metrics)
+        diagnosed += diagnosis_rows("site/walk", cell, metrics)
     frame = results.frame(rows)
     config = {"runs": 1, "seed": 1, "report": {"title": "t"},
               "datasets": {"newcom": {"format": "newcom", "campaign": "c.yaml", "source": "simulate",
                                       "scenarios": ["constant"], "raw_dir": "r"}}}
     context = build_context(config, [summary], frame, {}, {})
-    context["studies"] = [study_section(frame, "robustness", spec, {})]
+    context["studies"] = [study_section(frame, "robustness", spec, {}, diagnosed=pd.DataFrame(diagnosed))]
     pages = render_pages(ROOT / "workflow" / "templates", context)
     html = pages["pages/data-newcom.html"] + pages["pages/study-robustness.html"]
     assert "Range error per anchor" in html and "Robust fit r = s·d + b" in html
     assert "fitted in 100% of runs" in html
     assert "self-cal: offset" in html and "<th>gated</th>" in html and "<th>p95 [m]</th>" in html
+    # each run's diagnosis, in the cells' order, each sentence as `wsnloc estimate` prints it
+    section = context["studies"][0]["diagnosis"]
+    assert [(d["cell"], d["run"]) for d in section] == [("donor", "r1"), ("donor", "r2"),
+                                                         ("self_offset", "r1"), ("self_offset", "r2")]
+    assert "What says the model does not fit, per run" in html
+    for d in section:
+        assert all(f"<p>{escape(f)}</p>" in html for f in d["findings"])
+    assert any(d["findings"] for d in section)
 
 
 def test_n_meas_counts_the_measurements_the_gate_kept():

@@ -191,7 +191,9 @@ def findings(d: dict, p: dict) -> list[str]:
 
 def _nis_findings(d: dict, p: dict) -> list[str]:
     """The NIS outside its band: what it means. A self-fitted run states its own sigma (run) and the
-    innovations' core (fit): below the band by about (fit / run)^2 is the self-fit's choice."""
+    innovations' core (fit): below the band by about (fit / run)^2 is the self-fit's choice. The
+    NIS is that of the measurements the gate kept (estimators.robust.robust_update): where the core
+    is not narrower than the run's sigma, a NIS below the band is the gate's truncation."""
     band = f"NIS {d['nis_mean']:.2f} per dof is {{}} its 95% band [{d['nis_low']:.2f}, {d['nis_high']:.2f}]"
     noise = PROCESS_NOISE[p.get("motion") == "p"]          # accel_sigma_mps2, or p_sigma_m for the P model
     run, core, process = (d.get(k) for k in ("self_fit_run_sigma_m", "self_fit_range_sigma_m",
@@ -204,6 +206,12 @@ def _nis_findings(d: dict, p: dict) -> list[str]:
                 f"measurement noise{hint} or the process noise ({noise})"]
     if d["nis_mean"] >= d["nis_low"]:
         return []
+    if run and core and process and core >= run:
+        gated = d.get("gated_share", np.nan)
+        share = f" ({gated:.0%} gated)" if np.isfinite(gated) else ""
+        return [band.format("below") + f", yet the innovations' Gaussian core (about {core:.2g} m) is not narrower "
+                f"than the run's range sigma ({run:.2g} m): the NIS counts only the measurements the gate kept"
+                f"{share}, the smaller innovations; read the gated share and the range offsets above, not this NIS"]
     if run and core and process:
         return [band.format("below") + f": the self-fit ran with range sigma {run:.2g} m, the candidate whose "
                 f"gain fits the innovations best, while their Gaussian core is about {core:.2g} m; the stated "

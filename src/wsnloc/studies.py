@@ -48,6 +48,7 @@ REPORTED = RUN_METRICS + ("resets", "gated", "time_per_step")   # per cell and r
 BOUND_METRICS = ("sqrt_pcrb", "efficiency")  # Bayesian filters only
 CALIBRATION = ("calibrated_scale", "calibration_fitted", "range_scale", "range_offset")   # where a cell has them
 DIAGNOSIS = ("diag_nis_mean", "diag_nis_high", "diag_range_scale", "diag_max_abs_offset_m")   # wsnloc.diagnosis
+FINDINGS_SEPARATOR = "\n"      # between a run's diagnosis sentences in metrics.csv and diagnosis.csv
 UNIT = {"diag_nis_mean": "per_dof", "diag_nis_high": "per_dof", "diag_range_scale": "1", "n": "count", "availability": "share", "resets": "count", "gated": "share", "efficiency": "ratio",
         "time_per_step": "us", "calibrated_scale": "1", "calibration_fitted": "share", "range_scale": "1"}
 # wall-clock time of the estimator per output step (us): measured in the scenario job, so it varies from
@@ -276,8 +277,10 @@ def run_cell(label: str, cell: str, name: str, p: dict, subsets: list[str], runs
                 scored = scored.join(quality[["pcrb_m2", "nees"]]).assign(
                     epoch_update=float(est.attrs.get("update", q.get("update")) == "epoch"))
             estimates.append(scored)
+            diagnosed = diagnosis.diagnose_run(data, est, q)
             metrics.append({"run": run, "subset": subset, **run_metrics(scored, run_tables["truth"]),
-                            **diagnosis.metrics_of(diagnosis.diagnose_run(data, est, q)),
+                            **diagnosis.metrics_of(diagnosed),
+                            "findings": FINDINGS_SEPARATOR.join(diagnosis.findings(diagnosed, q)),
                             "resets": est.attrs.get("resets", 0), "time_per_step": elapsed_us / len(est),
                             **efficiency, **calibration_metrics(est),
                             "rss_model": (models[run] or {}).get("source", "configured") if reads_rss(name, p) else ""})
@@ -301,6 +304,15 @@ def results_rows(study: str, cell: str, label: str, metrics: pd.DataFrame) -> li
                                               metric=f"{metric}_{UNIT.get(metric, 'm')}"))
     return rows
 
+
+
+def diagnosis_rows(label: str, cell: str, metrics: pd.DataFrame) -> list[dict]:
+    """The diagnosis of each run of one cell (wsnloc.diagnosis.findings: what says the model does not
+    fit, each with a likely cause and a remedy, as `wsnloc estimate` prints it): rows scenario,
+    cell, run, subset, findings (the sentences joined by FINDINGS_SEPARATOR; empty: none)."""
+    return [{"scenario": label, "cell": cell, "run": row["run"], "subset": row["subset"],
+             "findings": row["findings"] if isinstance(row.get("findings"), str) else ""}
+            for row in metrics.to_dict("records")]
 
 
 def study_panels(estimates: dict[tuple[str, str], pd.DataFrame]) -> tuple[dict, dict, dict, dict]:

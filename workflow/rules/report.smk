@@ -12,7 +12,7 @@ from wsnloc import experiments as _experiments
 EXPERIMENTS_DIR = os.path.relpath(Path(_experiments.__file__).parent)   # src/wsnloc/experiments
 PAPERS = ("paper_a", "paper_b", "paper_c", "paper_d")   # the papers' rules (their sections in this order)
 
-STUDY_OUTPUTS = ["results.csv", "figures/error_cdf.png", "figures/error_over_time.png", "figures/trajectories.png",
+STUDY_OUTPUTS = ["results.csv", "diagnosis.csv", "figures/error_cdf.png", "figures/error_over_time.png", "figures/trajectories.png",
                  "figures/height_over_time.png", "figures/pcrb_vs_rmse.png", "figures/consistency.png", "figures/estimators.png"]
 
 

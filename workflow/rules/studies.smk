@@ -34,6 +34,7 @@ rule study_summary:
         references=study_reference_inputs,
     output:
         results="data/processed/studies/{study}/results.csv",
+        diagnosis="data/processed/studies/{study}/diagnosis.csv",     # each run's diagnosis sentences
         cdf="data/processed/studies/{study}/figures/error_cdf.png",
         errors="data/processed/studies/{study}/figures/error_over_time.png",
         tracks="data/processed/studies/{study}/figures/trajectories.png",

@@ -57,9 +57,11 @@ numbers = explanations.Numbers(final_results, {summary["label"]: summary for sum
 for study, spec in sm.params.studies.items():
     pngs = [Path(p) for p in sm.input.studies if p.endswith(".png") and Path(p).parts[3] == study
             and Path(p).stat().st_size]          # an empty PNG: the figure does not apply (no 3-D cell)
+    diagnosed = next(pd.read_csv(p, keep_default_na=False) for p in sm.input.studies
+                     if p.endswith("diagnosis.csv") and Path(p).parts[3] == study)
     context["studies"].append(study_section(final_results, study, spec, {path.stem: figure(path.read_bytes())
                                                                          for path in pngs},
-                                            config["report"]["cell_stats"]))
+                                            config["report"]["cell_stats"], diagnosed))
     context["studies"][-1]["bound_whys"] = explanations.study_bound_whys(numbers, context["studies"][-1])
 for paper, labels in sm.params.papers.items():   # each paper's section: wsnloc.experiments.<paper>.report
     spec = config["experiments"][paper]

@@ -154,13 +154,14 @@ def cell_settings(spec: dict, cell: str, label: str) -> list[str]:
 
 
 def study_section(results: pd.DataFrame, study: str, spec: dict, figures: dict[str, str],
-                  headline: list[str] = ("median", "p75", "rmse")) -> dict:
+                  headline: list[str] = ("median", "p75", "rmse"), diagnosed: pd.DataFrame | None = None) -> dict:
     """Context of one study's section: the settings of each cell per scenario; per anchor
     subset, cells x scenarios with the `headline` statistics (config report.cell_stats), the
     best cell of each headline column marked (`best`: lowest error, highest availability), and
-    every statistic (for the detail); the figures. A study with a 3-D cell adds its 3-D RMSE
-    (x, y, z) to the headline; the others are errors in the plane."""
-    from wsnloc.studies import EXPERIMENT_PREFIX, estimator_of, runs_on
+    every statistic (for the detail); the figures; each run's diagnosis (`diagnosed`: the rows of
+    studies.diagnosis_rows, in the cells' and scenarios' order; none without). A study with a 3-D
+    cell adds its 3-D RMSE (x, y, z) to the headline; the others are errors in the plane."""
+    from wsnloc.studies import EXPERIMENT_PREFIX, FINDINGS_SEPARATOR, estimator_of, runs_on
 
     sel = results[results["experiment"] == EXPERIMENT_PREFIX + study]
     scenarios, cells = list(spec["scenarios"]), list(spec["estimators"])
@@ -182,8 +183,13 @@ def study_section(results: pd.DataFrame, study: str, spec: dict, figures: dict[s
                    "settings": [cell_settings(spec, c, sc) if runs_on(spec, c, sc) else None
                                 for sc in scenarios]} for c in cells]
     runs = sel.loc[sel["column"] == "rmse", "runs"].dropna()
+    rows = [] if diagnosed is None else diagnosed.to_dict("records")
+    order = {(c, sc): k for k, (c, sc) in enumerate((c, sc) for c in cells for sc in scenarios)}
+    diagnosis = [dict(row, findings=[f for f in str(row["findings"]).split(FINDINGS_SEPARATOR) if f])
+                 for row in sorted(rows, key=lambda row: order.get((row["cell"], row["scenario"]), len(order)))]
     return {"id": study, "tables": tables, "estimators": estimators, "scenarios": scenarios,
-            "headline": list(headline), "runs": int(runs.min()) if len(runs) else None, "figures": figures}
+            "headline": list(headline), "runs": int(runs.min()) if len(runs) else None, "figures": figures,
+            "diagnosis": diagnosis}
 
 
 def static_bounds_section(results: pd.DataFrame, dataset: str, maps: str) -> dict:
