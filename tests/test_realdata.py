@@ -155,15 +155,22 @@ def test_diagnosis_flags_gate_restarts_and_a_nis_above_its_band():
     assert "rejected 40%" in text and "restarted 3 time(s)" in text and "range_sigma_m about 0.2" in text
 
 
+def _self_fitted(nis: float, gated: float, run: float, core: float, **process) -> tuple:
+    """(data, estimates, diagnose_run) of a self-fitted run: NIS `nis` per update, the gated share,
+    the self-fit's run sigma, the innovations' core sigma and its fitted process noise (attrs
+    self_fit_<key>, as bayes.run_filter writes them); the range correction not supported."""
+    data, truth = _range_run(1.0)
+    estimates = truth.assign(nis=nis, n_meas=1)
+    estimates.attrs = {"gated_share": gated, "resets": 0, "self_fit_run_sigma_m": run, "self_fit_range_sigma_m": core,
+                       **{f"self_fit_{k}": v for k, v in process.items()}, "self_fit_range_correction": "not supported"}
+    return data, estimates, diagnose_run(data, estimates, {"update": "sequential"})
+
+
 def test_diagnosis_explains_the_nis_of_a_self_fitted_run():
     """The self-fit runs a wider sigma than the innovations' core on purpose: a NIS below its band then
     names both sigmas and why the core's sigma is not the setting to take (it gates NLOS-long ranges out:
     cucudasluv nlos/a-case-2 RMSE 0.73 -> 1.86 m that way), instead of 'noise set too large'."""
-    data, truth = _range_run(1.0)
-    estimates = truth.assign(nis=0.2, n_meas=1)
-    estimates.attrs = {"gated_share": 0.0, "resets": 0, "self_fit_run_sigma_m": 0.15, "self_fit_range_sigma_m": 0.07,
-                       "self_fit_accel_sigma_mps2": 0.7, "self_fit_range_correction": "not supported"}
-    d = diagnose_run(data, estimates, {"update": "sequential"})
+    _, _, d = _self_fitted(0.2, 0.0, 0.15, 0.07, accel_sigma_mps2=0.7)
     text = " ".join(findings(d, {"range_sigma_m": 0.3}))
     assert "self-fit ran with range sigma 0.15 m" in text and "core is about 0.07 m" in text
     assert "pessimistic by about 2.2x" in text and "(0.07 m, accel_sigma_mps2 0.7)" in text
@@ -176,11 +183,7 @@ def test_a_nis_below_its_band_with_a_core_wider_than_the_run_sigma_is_read_as_th
     """Where the innovations' core is not narrower than the run's sigma (simulated newcom/variable:
     core 0.85 m, run 0.6 m, NIS 0.18, 10% gated) the NIS is low because it counts only the kept
     measurements: the diagnosis says so instead of calling the covariance pessimistic by design."""
-    data, truth = _range_run(1.0)
-    estimates = truth.assign(nis=0.18, n_meas=1)
-    estimates.attrs = {"gated_share": 0.1, "resets": 0, "self_fit_run_sigma_m": 0.6, "self_fit_range_sigma_m": 0.85,
-                       "self_fit_accel_sigma_mps2": 0.24, "self_fit_range_correction": "not supported"}
-    d = diagnose_run(data, estimates, {"update": "sequential"})
+    _, _, d = _self_fitted(0.18, 0.1, 0.6, 0.85, accel_sigma_mps2=0.24)
     text = " ".join(findings(d, {"range_sigma_m": 0.3}))
     assert "counts only the measurements the gate kept (10% gated)" in text
     assert "pessimistic" not in text and "larger than the data need" not in text
@@ -189,11 +192,7 @@ def test_a_nis_below_its_band_with_a_core_wider_than_the_run_sigma_is_read_as_th
 def test_diagnosis_of_a_self_fitted_p_model_names_its_process_noise():
     """ekf_p self-fits p_sigma_m (its random walk), not accel_sigma_mps2: the diagnosis keeps that key
     and its advice for a NIS below the band names p_sigma_m with the fitted value."""
-    data, truth = _range_run(1.0)
-    estimates = truth.assign(nis=0.2, n_meas=1)
-    estimates.attrs = {"gated_share": 0.0, "resets": 0, "self_fit_run_sigma_m": 0.15, "self_fit_range_sigma_m": 0.07,
-                       "self_fit_p_sigma_m": 0.4, "self_fit_range_correction": "not supported"}
-    d = diagnose_run(data, estimates, {"update": "sequential"})
+    data, estimates, d = _self_fitted(0.2, 0.0, 0.15, 0.07, p_sigma_m=0.4)
     assert d["self_fit_p_sigma_m"] == 0.4
     text = " ".join(findings(d, {"range_sigma_m": 0.3, "motion": "p"}))
     assert "(0.07 m, p_sigma_m 0.4)" in text and "accel" not in text

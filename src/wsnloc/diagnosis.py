@@ -177,7 +177,7 @@ def findings(d: dict, p: dict) -> list[str]:
     if biased:
         listed = ", ".join(f"{k} {v:+.2f} m" for k, v in sorted(biased.items(), key=lambda kv: -abs(kv[1])))
         if corrected == "applied":
-            remedy = "the self-fit corrected them (calibrated_offsets_m in metrics.json)"
+            remedy = "the self-fit corrected them (calibrated_offsets_m in the run's metrics)"
         else:
             left = ("the self-fit left them out: offsets fitted on part of the run beat constant ones "
                     "(self_fit_range_local_gain), so they change along the path; "
