@@ -383,6 +383,7 @@ def test_a_track_on_the_mirror_branch_is_refixed_at_once_by_default():
     from wsnloc.diagnosis import diagnose_run, report
     text = report(diagnose_run(run_data(tables), refixed, registry.get("ekf").resolve(params)), params)
     assert "restarted from a fix 1 time(s)" in text and "dropped and restarted" not in text
+    assert "restarts 1 (1 re-fixed), widened 0" in text
 
 
 def _recent(filt: ConfiguredFilter, position, model=None) -> None:

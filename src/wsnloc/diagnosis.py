@@ -238,7 +238,8 @@ def report(d: dict, p: dict) -> str:
     """Lines for `wsnloc estimate`: the values, then each finding (or that the model fits)."""
     values = [f"{d['update']} updates" if "update" in d else None,
               f"gated {d['gated_share']:.1%}" if np.isfinite(d.get("gated_share", np.nan)) else None,
-              f"restarts {d.get('restarts', 0)}", f"widened {d.get('widenings', 0)}",
+              f"restarts {d.get('restarts', 0)}" + (f" ({d['refixes']} re-fixed)" if d.get("refixes") else ""),
+              f"widened {d.get('widenings', 0)}",
               f"NIS {d['nis_mean']:.2f} per dof (95% band {d['nis_low']:.2f}-{d['nis_high']:.2f})"
               if "nis_mean" in d else None,
               f"range scale vs track {d['range_scale']:.3f}" if "range_scale" in d else None,
