@@ -201,7 +201,8 @@ class ConfiguredFilter:
         if self.extra:
             self.counts.calibration = dict(zip(self.calibration_keys, self.filt.x[-self.extra:].tolist()))
         self.recent.append((offered, offered - used, float((y**2 / variances).max(initial=0.0))))
-        self.recent_models.append((model, y))
+        if self.refix:                  # what fix_explains_better reads; nothing to keep without it
+            self.recent_models.append((model, y))
         if len(self.recent) < LOSS_WINDOW:
             return
         if sum(r[1] for r in self.recent) > self.loss_share * sum(r[0] for r in self.recent):
