@@ -8,6 +8,7 @@ from synthetic import SQUARE, bursts, run_data, tables_for, walk
 from wsnloc.estimators import bayes, core, filter_options, registry
 from wsnloc.filters.kalman import ExtendedKalmanFilter
 from wsnloc.filters.measurement_models import RangeModel
+from wsnloc.metrics.tracking import run_metrics, score
 
 ANCHORS = np.array(list(SQUARE.values()))
 
@@ -99,6 +100,55 @@ def test_sequential_loop_deletes_across_a_gap_and_restarts():
     assert est.attrs["resets"] == 1
     assert not ((est["t"] > 18.0) & (est["t"] < 23.0)).any()
     assert (est["t"] <= 18.0).sum() > 20 and (est["t"] >= 23.0).sum() > 20
+
+
+def test_the_rss_site_bound_projects_the_state_with_its_covariance():
+    """Estimate projection (filter_options.ConfiguredFilter._project): a position past the box's edge
+    is moved onto it, and the velocity by its correlation with the excess (the conditional mean),
+    so the prediction does not carry the track out again; a position inside is left alone."""
+    p = registry.get("tracker").resolve({"measurements": "rss"})
+    P = np.diag([4.0, 4.0, 1.0, 1.0])
+    P[0, 2] = P[2, 0] = 1.5                          # x and vx correlated
+    bounds = np.array([[0.0, 0.0], [10.0, 10.0]])
+    filt = filter_options.ConfiguredFilter(ExtendedKalmanFilter(np.array([12.0, 5.0, 2.0, 0.5]), P, np.eye(4),
+                                                                np.eye(4)), p, filter_options.UpdateCounts(),
+                                           bounds=bounds)
+    filt._project()
+    np.testing.assert_allclose(filt.x, [10.0, 5.0, 2.0 - 1.5 / 4.0 * 2.0, 0.5])
+    inside = np.array([3.0, 4.0, 2.0, 0.5])
+    filt.filt.x = inside.copy()
+    filt._project()
+    np.testing.assert_array_equal(filt.x, inside)
+
+
+def test_withhold_uncertain_leaves_out_rows_past_the_sigma_limit_and_counts_them():
+    rows = np.zeros((4, len(core.COLUMNS)))
+    rows[:, 0] = [0.0, 1.0, 2.0, 3.0]
+    rows[:, 3], rows[:, 5] = [1.0, 8.0, 9.0, np.nan], [1.0, 8.0, 7.5, np.nan]  # sigma sqrt(2), 4, 4.06, NaN
+    kept, withheld = core.withhold_uncertain(rows, 4.0)
+    assert kept[:, 0].tolist() == [0.0, 1.0, 3.0] and withheld == 1             # NaN covariance: kept
+    assert core.withhold_uncertain(rows, 0.0) == (rows, 0)
+
+
+@pytest.mark.parametrize("name", ["ekf", "tracker", "ekf_rts"])
+def test_a_track_coasting_through_a_gap_is_not_output_once_its_sigma_passes_the_limit(name):
+    """Ranges stop for 20 s (max_coast_s 10): without the limit the coasting track is output for
+    10 s with its sigma growing to metres; with it (the default) the rows past
+    max_position_sigma_m are left out and counted, the rows before are the same, the error of the
+    kept rows is lower, and the track continues as before after the gap."""
+    t, ids = bursts(80.0)
+    gap = (t > 30.0) & (t < 50.0)
+    tables = tables_for(t[~gap], ids[~gap], walk, noise_m=0.1, rng=np.random.default_rng(2))
+    every = registry.run(name, run_data(tables), {"max_position_sigma_m": 0.0})
+    limited = registry.run(name, run_data(tables))
+    sigma = np.sqrt(every["p_xx"] + every["p_yy"]).to_numpy()
+    past = sigma > registry.get(name).resolve({})["max_position_sigma_m"]
+    assert past.sum() >= 3 and limited.attrs["withheld"] == past.sum() and every.attrs["withheld"] == 0
+    assert np.all((every["t"][past] > 30.0) & (every["t"][past] < 41.0))       # in the gap, while coasting
+    np.testing.assert_array_equal(limited["t"], every["t"][~past])
+    np.testing.assert_allclose(limited[["x", "y"]], every.loc[~past, ["x", "y"]], atol=1e-12)
+    truth = tables["truth"]
+    assert run_metrics(score(limited, truth), truth)["rmse"] < run_metrics(score(every, truth), truth)["rmse"]
 
 
 def test_updater_is_pluggable_and_the_gate_is_counted():

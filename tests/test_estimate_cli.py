@@ -178,3 +178,18 @@ def test_estimate_says_when_anchor_heights_meet_no_tag_height(tmp_path, capsys):
     (run / "meta.yaml").write_text("tag_height_m: 1.0\n")
     assert main(["estimate", "--format", "generic", str(run), "--out", str(tmp_path / "out2")]) == 0
     assert "no tag height" not in capsys.readouterr().out
+
+
+def test_estimate_without_truth_writes_the_estimates_and_no_error_metrics(tmp_path, capsys):
+    """truth.csv is optional: without it the estimates, the diagnosis and the self-fit are written
+    (metrics.json has no error metrics) and the command succeeds."""
+    rng = np.random.default_rng(3)
+    times, ids = one_at_a_time(120.0, 4.0, rng, SQUARE)
+    run = write_generic(tmp_path / "run", tables_for(times, ids, walk, SQUARE, 0.1, rng))
+    (run / "truth.csv").unlink()
+    assert main(["estimate", "--format", "generic", str(run), "--out", str(tmp_path / "out")]) == 0
+    assert "diagnosis:" in capsys.readouterr().out
+    estimates = pd.read_parquet(tmp_path / "out" / "estimates.parquet")
+    assert len(estimates) > 100 and np.isfinite(estimates["x"]).all() and estimates["error_m"].isna().all()
+    metrics = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    assert metrics["estimator"] == "tracker" and "rmse_m" not in metrics

@@ -10,6 +10,7 @@ from wsnloc import references
 from wsnloc.cli import main
 from wsnloc.diagnosis import diagnose_run, findings, metrics_of, report
 from wsnloc.errors import ConfigError, IngestError
+from wsnloc.estimators import registry
 from wsnloc.estimators.auto import measurements_for
 from wsnloc.estimators.run_data import RunData
 from wsnloc.io.convert import QUARANTINE_FILE, convert_cucudasluv, convert_philotuxo, run_names
@@ -130,7 +131,11 @@ def test_diagnosis_names_a_range_scale_error_and_its_remedy():
     estimates.attrs = {"gated_share": 0.0, "resets": 0}
     d = diagnose_run(data, estimates, {"update": "sequential", "range_sigma_m": 0.3})
     assert d["range_scale"] == pytest.approx(1.07, abs=1e-6)
-    assert any("ranges look 7% long" in f and "range_self_calibration=scale" in f for f in findings(d, {}))
+    tracker = registry.get("tracker").resolve({})
+    assert any("ranges look 7% long" in f and "range_self_calibration=scale" in f for f in findings(d, tracker))
+    # advice names only settings the estimator has: multilateration has no range_self_calibration
+    said = [f for f in findings(d, registry.get("multilateration").resolve({})) if "ranges look 7% long" in f]
+    assert len(said) == 1 and "range_self_calibration" not in said[0] and "--calibration DONOR_RUN" in said[0]
     poor = dict(d, gated_share=0.31)                     # against a track the gate disagreed with: a caveat
     assert any("ranges look 7% long against the track (read against a track whose gate rejected 31%" in f
                for f in findings(poor, {}))

@@ -5,6 +5,8 @@ measurements, so that it works on any user run.
 Values (`diagnose_run`, all optional, NaN where the estimator or run has none):
   gated_share       measurements rejected by the innovation gate / offered (attrs)
   restarts          track dropped and restarted (attrs `resets`)
+  withheld          estimates not output because their position sigma passed max_position_sigma_m
+                    (attrs `withheld`: a track coasting through a gap, core.withhold_uncertain)
   widenings         the gate rejected most recent measurements and the covariance was widened
                     (attrs `gate_widenings`, filter_options.ConfiguredFilter.widen)
   refixes           restarts at once because a fix on the recent ranges explained them better
@@ -107,7 +109,7 @@ def diagnose_run(data: RunData, estimates: pd.DataFrame, p: dict) -> dict:
     a = estimates.attrs
     out = {"gated_share": float(a["gated_share"]) if "gated_share" in a else np.nan,
            "restarts": int(a.get("resets", 0)), "widenings": int(a.get("gate_widenings", 0)),
-           "refixes": int(a.get("gate_refixes", 0)),
+           "refixes": int(a.get("gate_refixes", 0)), "withheld": int(a.get("withheld", 0)),
            **_nis(estimates, p), **range_fit(data, estimates, p)}
     if "range_scale" in a:
         out["self_scale"] = float(a["range_scale"])
@@ -133,9 +135,10 @@ def findings(d: dict, p: dict) -> list[str]:
             sigma = d.get("self_fit_run_sigma_m") or p.get("range_sigma_m")      # the one the run used
             now = f" (the run's {float(sigma):.2g} m)" if sigma is not None else ""
             calibrate = "" if str(d.get("self_fit_range_correction", "")).startswith("applied") \
-                else ", or calibrate the ranges (--calibration DONOR_RUN)"
-            remedy = (f"noise too small, ranges biased or scaled; try robust_loss=cauchy or a larger "
-                      f"range_sigma_m{now}{calibrate}")
+                else "calibrate the ranges (--calibration DONOR_RUN)"
+            options = _options(p, robust_loss="robust_loss=cauchy", range_sigma_m=f"a larger range_sigma_m{now}")
+            remedy = "noise too small, ranges biased or scaled" + (f"; try {options}" if options else "") \
+                + (", or " if options and calibrate else "; " if calibrate else "") + calibrate
         out.append(f"the gate rejected {d['gated_share']:.0%} of the measurements: the model is wrong more often "
                    f"than outliers explain ({remedy})")
     if d.get("widenings", 0) > 0:
@@ -144,9 +147,10 @@ def findings(d: dict, p: dict) -> list[str]:
                    f"raise accel_sigma_mps2 or range_sigma_m if it recurs")
     refixes = d.get("refixes", 0)
     if d.get("restarts", 0) > refixes:
+        raise_ = _options(p, max_coast_s="max_coast_s", gate_loss_share="gate_loss_share")
         out.append(f"the track was dropped and restarted {d['restarts'] - refixes} time(s): gaps longer than "
-                   f"max_coast_s ({p.get('max_coast_s', '?')} s) or a gate that lost the track; check the gaps, raise "
-                   f"max_coast_s or gate_loss_share")
+                   f"max_coast_s ({p.get('max_coast_s', '?')} s) or a gate that lost the track; check the gaps"
+                   + (f", raise {raise_}" if raise_ else ""))
     if refixes > 0:
         out.append(f"the track was restarted from a fix {refixes} time(s): the gate rejected most recent ranges and a "
                    f"fix on them fitted them far better than the track; often a wrong branch (ranged one anchor at a "
@@ -169,7 +173,8 @@ def findings(d: dict, p: dict) -> list[str]:
     if np.isfinite(scale) and abs(scale - 1.0) > SCALE_TOLERANCE:
         remedy = (f"the self-fit corrected it (scale {d['calibrated_scale']:.3f} applied)"
                   if corrected.startswith("applied") and "calibrated_scale" in d
-                  else "try range_self_calibration=scale, or --calibration DONOR_RUN")
+                  else "try " + ", or ".join(t for t in (_options(p, range_self_calibration="range_self_calibration=scale"),
+                                                          "--calibration DONOR_RUN") if t))
         out.append(f"ranges look {abs(scale - 1.0):.0%} {'long' if scale > 1 else 'short'} against the track"
                    f"{caveat}: a common range scale error; {remedy}")
         caveat = " (the same caveat)" if caveat else ""
@@ -187,6 +192,12 @@ def findings(d: dict, p: dict) -> list[str]:
         out.append(f"per-anchor range offsets against the track ({listed}){caveat}: antenna delays or NLOS biases; "
                    f"{remedy}")
     return out
+
+
+def _options(p: dict, **phrases: str) -> str:
+    """The phrases (keyed by parameter name) of the parameters the estimator has (p: its resolved
+    parameters), joined by " or ": advice names only settings the estimator accepts."""
+    return " or ".join(phrase for name, phrase in phrases.items() if name in p)
 
 
 def _nis_findings(d: dict, p: dict) -> list[str]:
@@ -240,6 +251,8 @@ def report(d: dict, p: dict) -> str:
               f"gated {d['gated_share']:.1%}" if np.isfinite(d.get("gated_share", np.nan)) else None,
               f"restarts {d.get('restarts', 0)}" + (f" ({d['refixes']} re-fixed)" if d.get("refixes") else ""),
               f"widened {d.get('widenings', 0)}",
+              f"withheld {d['withheld']} estimates (position sigma above max_position_sigma_m "
+              f"{p.get('max_position_sigma_m', '?')} m)" if d.get("withheld") else None,
               f"NIS {d['nis_mean']:.2f} per dof (95% band {d['nis_low']:.2f}-{d['nis_high']:.2f})"
               if "nis_mean" in d else None,
               f"range scale vs track {d['range_scale']:.3f}" if "range_scale" in d else None,

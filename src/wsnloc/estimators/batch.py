@@ -13,7 +13,9 @@ without a range the solution is dropped (counted as a reset) and restarted by th
 so is a window whose least squares do not converge (filters.least_squares.ConvergenceError)
 or whose prior, the previous window's covariance, is numerically singular (on real data with
 poor geometry, e.g. range differences far from a small anchor cluster), or whose solution is
-not finite: such a window is counted in attrs `skipped`; covariances that are not positive
+not finite or further than max_range_m from every anchor (no range could reach it: range
+differences from four anchors within 3 m, the target outside them, ran off along the
+hyperbolae' asymptotes to 1e7 m): such a window is counted in attrs `skipped`; covariances that are not positive
 definite where a factor is needed are regularised (filters.numerics, attrs `regularised`).
 Range differences (`measurements: tdoa`, estimators.tdoa.TdoaSource): each group of records
 sharing a time stamp is one factor block with its TdoaModel's correlated noise (whitened by
@@ -25,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from wsnloc.estimators.core import COLUMNS, CoastingDeleter, Track
+from wsnloc.estimators.core import COLUMNS, CoastingDeleter, Track, withhold_uncertain
 from wsnloc.estimators.measurements import MeasurementSource
 from wsnloc.estimators.run_data import RunData
 from wsnloc.estimators.tdoa import TdoaSource
@@ -75,6 +77,7 @@ def sliding_window(data: RunData, p: dict) -> pd.DataFrame:
     times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
     window = p["window_s"]
     deleter = CoastingDeleter(p["max_coast_s"])
+    members = data.positions(sorted(data.members(p["anchors"])))
     rows, resets, solver, last_range, guards = [], 0, None, -np.inf, Guards()
     for t_k in times:
         a = int(np.searchsorted(records.t, t_k - window, side="left"))
@@ -101,10 +104,13 @@ def sliding_window(data: RunData, p: dict) -> pd.DataFrame:
                                            p["range_sigma_m"], initial)
         except (ConvergenceError, np.linalg.LinAlgError):   # a window the solver cannot settle, or whose
             estimate = None         # previous solution's covariance is numerically singular
-        if estimate is None or not usable(estimate.x, estimate.P):     # drop the solution (a reset)
+        if estimate is None or not usable(estimate.x, estimate.P) \
+                or np.hypot(*(members - estimate.x[:2]).T).min() > p["max_range_m"]:   # drop the solution (a reset)
             guards.skipped += 1
             solver, resets = None, resets + 1
             continue
         P = estimate.P
         rows.append((t_k, estimate.x[0], estimate.x[1], P[0, 0], P[0, 1], P[1, 1], estimate.n_ranges, np.nan))
-    return Track(np.array(rows, dtype=float).reshape(len(rows), len(COLUMNS)), {"resets": resets, **guards.attrs()}).frame()
+    rows, withheld = withhold_uncertain(np.array(rows, dtype=float).reshape(len(rows), len(COLUMNS)),
+                                        p["max_position_sigma_m"])
+    return Track(rows, {"resets": resets, "withheld": withheld, **guards.attrs()}).frame()

@@ -21,7 +21,9 @@ Initiator (core.WindowInitiator, `init_window_s`): the first time the measuremen
 Deleter (core.CoastingDeleter, `max_coast_s`): after `max_coast_s` seconds without an update
   (or when the innovation gate finds the track lost, estimators.filter_options) the track is
   dropped (counted as a reset) and restarted by the initiator; no estimate is output
-  meanwhile, so a long gap shows as lower availability instead of unbounded drift.
+  meanwhile, so a long gap shows as lower availability instead of unbounded drift. Before that,
+  an estimate whose position sigma passes `max_position_sigma_m` is not output
+  (core.withhold_uncertain; the smoothers' on their smoothed covariance), counted in attrs `withheld`.
 Motion detection (paper A): in epochs declared static by the accelerometer the predict
   step is skipped (state and covariance frozen).
 Filters (`FILTERS`, parameter `filter`): `ekf` (filters.kalman), `ukf` (scaled sigma points,
@@ -48,8 +50,8 @@ import pandas as pd
 from wsnloc.errors import ConfigError
 from wsnloc.estimators import array_ekf, range_calibration, self_fit
 from wsnloc.estimators.auto import update_mode
-from wsnloc.estimators.core import CoastingDeleter, FilterBank, RunInputs, Track, WindowInitiator, \
-    epoch_loop, sequential_loop
+from wsnloc.estimators.core import COLUMNS_3D, CoastingDeleter, FilterBank, RunInputs, Track, WindowInitiator, \
+    epoch_loop, sequential_loop, withhold_uncertain
 from wsnloc.estimators.filter_options import STANDARD_GATE, UpdateCounts, configured_factory, site_bounds
 from wsnloc.estimators.fixes import epoch_fixes
 from wsnloc.estimators.inertial import epoch_inputs, floor_input, heading_from_fixes
@@ -247,16 +249,17 @@ def run_smoother(data: RunData, p: dict) -> pd.DataFrame:
 
 def _plain_smoother(data: RunData, p: dict) -> pd.DataFrame:
     forward = ForwardPass()
-    out = run_filters([(data, p)], forward)[0].frame()
-    smoothed = forward.smooth()
-    if len(out):
+    track = run_filters([(data, p)], forward)[0]
+    rows = track.rows.copy()
+    if len(rows):
+        smoothed = forward.smooth()
         xs = np.array([x for x, _ in smoothed])
         Ps = np.array([P for _, P in smoothed])
-        out["x"], out["y"] = xs[:, 0], xs[:, 1]
-        out["p_xx"], out["p_xy"], out["p_yy"] = Ps[:, 0, 0], Ps[:, 0, 1], Ps[:, 1, 1]
-        if "z" in out:
-            out["z"], out["p_zz"] = xs[:, 2], Ps[:, 2, 2]
-    return out
+        rows[:, 1:3], rows[:, 3:6] = xs[:, :2], Ps[:, [0, 0, 1], [0, 1, 1]]
+        if rows.shape[1] == len(COLUMNS_3D):
+            rows[:, -2], rows[:, -1] = xs[:, 2], Ps[:, 2, 2]
+    rows, withheld = withhold_uncertain(rows, p["max_position_sigma_m"])
+    return Track(rows, dict(track.attrs, withheld=withheld)).frame()
 
 
 # groups of fewer bare-EKF cells run as filter objects: the array EKF's packing and array
@@ -320,8 +323,10 @@ def run_filters(cells: list[tuple[RunData, dict]], forward: ForwardPass | None =
                 else FilterBank(makes, [r.source.epoch_models(r.times, p["epoch_s"]) for r in runs])
             out = epoch_loop(bank, runs, motion, p["epoch_s"], initiator, deleter, forward)
         for i, run, c, g, (rows, resets) in zip(members, runs, counts, guards, out):
-            tracks[i] = Track(rows, {"resets": resets, "update": cells[i][1]["update"], **c.attrs(), **g.attrs(),
-                                     **run.source.correction.describe()})
+            rows, withheld = (rows, 0) if forward is not None \
+                else withhold_uncertain(rows, cells[i][1]["max_position_sigma_m"])     # the smoother's: smoothed
+            tracks[i] = Track(rows, {"resets": resets, "withheld": withheld, "update": cells[i][1]["update"],
+                                     **c.attrs(), **g.attrs(), **run.source.correction.describe()})
             all_counts[i] = c
     if counts_out is not None:
         counts_out.extend(all_counts)

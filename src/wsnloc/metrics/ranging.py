@@ -14,7 +14,10 @@ from wsnloc.metrics.stats import robust_sigma
 
 
 def truth_at(truth: pd.DataFrame, t: np.ndarray) -> np.ndarray:
-    """(N, 2) true position at times t (s) by linear interpolation; NaN outside the truth span."""
+    """(N, 2) true position at times t (s) by linear interpolation; NaN outside the truth span
+    (everywhere without truth: a run's truth is optional)."""
+    if len(truth) == 0:
+        return np.full((len(t), 2), np.nan)
     x = np.interp(t, truth["t"], truth["x"], left=np.nan, right=np.nan)
     y = np.interp(t, truth["t"], truth["y"], left=np.nan, right=np.nan)
     return np.column_stack([x, y])
