@@ -102,25 +102,6 @@ def test_sequential_loop_deletes_across_a_gap_and_restarts():
     assert (est["t"] <= 18.0).sum() > 20 and (est["t"] >= 23.0).sum() > 20
 
 
-def test_the_rss_site_bound_projects_the_state_with_its_covariance():
-    """Estimate projection (filter_options.ConfiguredFilter._project): a position past the box's edge
-    is moved onto it, and the velocity by its correlation with the excess (the conditional mean),
-    so the prediction does not carry the track out again; a position inside is left alone."""
-    p = registry.get("tracker").resolve({"measurements": "rss"})
-    P = np.diag([4.0, 4.0, 1.0, 1.0])
-    P[0, 2] = P[2, 0] = 1.5                          # x and vx correlated
-    bounds = np.array([[0.0, 0.0], [10.0, 10.0]])
-    filt = filter_options.ConfiguredFilter(ExtendedKalmanFilter(np.array([12.0, 5.0, 2.0, 0.5]), P, np.eye(4),
-                                                                np.eye(4)), p, filter_options.UpdateCounts(),
-                                           bounds=bounds)
-    filt._project()
-    np.testing.assert_allclose(filt.x, [10.0, 5.0, 2.0 - 1.5 / 4.0 * 2.0, 0.5])
-    inside = np.array([3.0, 4.0, 2.0, 0.5])
-    filt.filt.x = inside.copy()
-    filt._project()
-    np.testing.assert_array_equal(filt.x, inside)
-
-
 def test_withhold_uncertain_leaves_out_rows_past_the_sigma_limit_and_counts_them():
     rows = np.zeros((4, len(core.COLUMNS)))
     rows[:, 0] = [0.0, 1.0, 2.0, 3.0]

@@ -193,3 +193,12 @@ def test_estimate_without_truth_writes_the_estimates_and_no_error_metrics(tmp_pa
     assert len(estimates) > 100 and np.isfinite(estimates["x"]).all() and estimates["error_m"].isna().all()
     metrics = json.loads((tmp_path / "out" / "metrics.json").read_text())
     assert metrics["estimator"] == "tracker" and "rmse_m" not in metrics
+
+
+def test_estimate_says_when_a_fusing_estimator_has_no_rss_to_fuse(tmp_path, capsys):
+    t, ids = bursts(30.0, 0.5, SQUARE)
+    run = write_generic(tmp_path / "run", tables_for(t, ids, walk, SQUARE))
+    assert main(["estimate", "--format", "generic", str(run), "--out", str(tmp_path / "out"), "--estimator", "pmix"]) == 0
+    assert "the run has no RSS: pmix reads the ranges alone" in capsys.readouterr().out
+    assert main(["estimate", "--format", "generic", str(run), "--out", str(tmp_path / "o2"), "--estimator", "minmax"]) == 0
+    assert "no RSS" not in capsys.readouterr().out

@@ -158,6 +158,8 @@ def test_diagnosis_flags_gate_restarts_and_a_nis_above_its_band():
     d = diagnose_run(data, estimates, {"update": "sequential"})
     text = " ".join(findings(d, {"range_sigma_m": 0.1}))
     assert "rejected 40%" in text and "restarted 3 time(s)" in text and "range_sigma_m about 0.2" in text
+    particles = " ".join(findings(d, registry.get("pf").resolve({})))      # no gate: outliers raise its NIS
+    assert "particle filter updates with every measurement" in particles and "range_sigma_m about" not in particles
 
 
 def _self_fitted(nis: float, gated: float, run: float, core: float, **process) -> tuple:

@@ -223,7 +223,7 @@ def test_the_window_on_range_differences_far_from_a_small_cluster_stays_within_r
     tables = tables_for(times, np.repeat(np.array(["C1"], dtype=object), len(times)), far, cluster)
     tables["ranges"] = tables["ranges"].iloc[:0]
     tables["tdoa"] = tdoa_table(times, far, cluster, noise_m=0.1, rng=rng)
-    p = {"measurements": "tdoa", "range_sigma_m": 0.1, "max_position_sigma_m": 0.0, "max_range_m": 50.0}
+    p = {"measurements": "tdoa", "range_sigma_m": 0.1, "max_range_m": 50.0}
     estimates = registry.run("sliding_window", RunData(tables, None, None, "far"), p)
     anchors = np.array(list(cluster.values()))
     nearest = np.hypot(*(estimates[["x", "y"]].to_numpy()[:, None, :] - anchors[None]).transpose(2, 0, 1)).min(axis=1)

