@@ -162,6 +162,20 @@ def test_diagnosis_flags_gate_restarts_and_a_nis_above_its_band():
     assert "particle filter updates with every measurement" in particles and "range_sigma_m about" not in particles
 
 
+def test_diagnosis_names_the_gaps_behind_the_restarts():
+    data, truth = _range_run(1.0)
+    ranges = data.table("ranges")
+    gapped = RunData(dict(data.tables, ranges=ranges[(ranges["t"] < 20.0) | (ranges["t"] > 35.0)]))
+    estimates = truth.assign(nis=1.0, n_meas=1)
+    estimates.attrs = {"gated_share": 0.0, "resets": 1}
+    tracker = registry.get("tracker").resolve({})
+    d = diagnose_run(gapped, estimates, dict(tracker, update="sequential"))
+    assert d["gaps"] == [pytest.approx((19.9, 35.1), abs=0.05)] and metrics_of(d)["diag_gaps"] == 1
+    said = " ".join(findings(d, tracker))
+    assert "the measurements stop for longer than max_coast_s (10.0 s) 1 time(s) (20-35 s after the first)" in said
+    assert "so a gate lost the track" in " ".join(findings(dict(d, gaps=[]), tracker))
+
+
 def _self_fitted(nis: float, gated: float, run: float, core: float, **process) -> tuple:
     """(data, estimates, diagnose_run) of a self-fitted run: NIS `nis` per update, the gated share,
     the self-fit's run sigma, the innovations' core sigma and its fitted process noise (attrs

@@ -5,6 +5,9 @@ measurements, so that it works on any user run.
 Values (`diagnose_run`, all optional, NaN where the estimator or run has none):
   gated_share       measurements rejected by the innovation gate / offered (attrs)
   restarts          track dropped and restarted (attrs `resets`)
+  gaps              the measurement gaps longer than max_coast_s (the usable ranges, RSS and range
+                    differences together), as (start, end) in s after the first measurement: where
+                    a track had to be dropped whatever the model (restarts)
   withheld          estimates not output because their position sigma passed max_position_sigma_m
                     (attrs `withheld`: a track coasting through a gap, core.withhold_uncertain)
   widenings         the gate rejected most recent measurements and the covariance was widened
@@ -60,6 +63,7 @@ POOR_TRACK_GATED_SHARE = 0.2    # more rejected than this: the scale / offsets r
 SCALE_TOLERANCE = 0.03          # |s - 1| above this: a common range scale error (UWB clock/antenna delay ~1%)
 OFFSET_TOLERANCE_M = 0.15       # |b_a| above this: a per-anchor bias (antenna delay, cable; UWB sigma ~0.1 m)
 MIN_RANGES = 50                 # fewer ranges along the track: no scale / offset fit
+MAX_GAPS_LISTED = 3             # measurement gaps named in the restart sentence
 GUARDS = ("regularised", "skipped", "reinitialised")
 SELF_FIT = ("self_fit_run_sigma_m", "self_fit_range_sigma_m", "self_fit_range_correction") \
     + tuple(fitted for _, fitted in FITTED_NOISE_KEYS.values())
@@ -104,13 +108,27 @@ def range_fit(data: RunData, estimates: pd.DataFrame, p: dict) -> dict:
     return {"range_scale": float(fit["scale"]), "range_offsets_m": {k: float(v) for k, v in fit["offsets_m"].items()}}
 
 
+def measurement_gaps(data: RunData, p: dict) -> list[tuple[float, float]]:
+    """(start, end) (s after the first usable measurement) of every stretch without one longer than
+    max_coast_s (module docstring, gaps); [] for an estimator without a coasting limit."""
+    if "max_coast_s" not in p:
+        return []
+    ranges = data.usable_ranges(p.get("preliminary_filter", True), p.get("max_range_m", np.inf))
+    t = np.sort(np.concatenate([ranges["t"].to_numpy(float), data.usable_rss()["t"].to_numpy(float),
+                                data.usable_tdoa()["t"].to_numpy(float)]))
+    if len(t) < 2:
+        return []
+    long = np.flatnonzero(np.diff(t) > p["max_coast_s"])
+    return [(float(t[i] - t[0]), float(t[i + 1] - t[0])) for i in long]
+
+
 def diagnose_run(data: RunData, estimates: pd.DataFrame, p: dict) -> dict:
     """The diagnosis values of one run (module docstring)."""
     a = estimates.attrs
     out = {"gated_share": float(a["gated_share"]) if "gated_share" in a else np.nan,
            "restarts": int(a.get("resets", 0)), "widenings": int(a.get("gate_widenings", 0)),
            "refixes": int(a.get("gate_refixes", 0)), "withheld": int(a.get("withheld", 0)),
-           **_nis(estimates, p), **range_fit(data, estimates, p)}
+           "gaps": measurement_gaps(data, p), **_nis(estimates, p), **range_fit(data, estimates, p)}
     if "range_scale" in a:
         out["self_scale"] = float(a["range_scale"])
     if "range_offset_m" in a:
@@ -148,9 +166,14 @@ def findings(d: dict, p: dict) -> list[str]:
     refixes = d.get("refixes", 0)
     if d.get("restarts", 0) > refixes:
         raise_ = _options(p, max_coast_s="max_coast_s", gate_loss_share="gate_loss_share")
-        out.append(f"the track was dropped and restarted {d['restarts'] - refixes} time(s): gaps longer than "
-                   f"max_coast_s ({p.get('max_coast_s', '?')} s) or a gate that lost the track; check the gaps"
-                   + (f", raise {raise_}" if raise_ else ""))
+        gaps = d.get("gaps") or []
+        listed = ", ".join(f"{a:.0f}-{b:.0f} s" for a, b in gaps[:MAX_GAPS_LISTED]) \
+            + (f" and {len(gaps) - MAX_GAPS_LISTED} more" if len(gaps) > MAX_GAPS_LISTED else "")
+        where = (f"the measurements stop for longer than max_coast_s ({p.get('max_coast_s', '?')} s) "
+                 f"{len(gaps)} time(s) ({listed} after the first)" if gaps
+                 else f"no gap is longer than max_coast_s ({p.get('max_coast_s', '?')} s), so a gate lost the track")
+        out.append(f"the track was dropped and restarted {d['restarts'] - refixes} time(s): {where}"
+                   + (f"; raise {raise_} if that is not what you expect" if raise_ else ""))
     if refixes > 0:
         out.append(f"the track was restarted from a fix {refixes} time(s): the gate rejected most recent ranges and a "
                    f"fix on them fitted them far better than the track; often a wrong branch (ranged one anchor at a "
@@ -241,7 +264,9 @@ def _nis_findings(d: dict, p: dict) -> list[str]:
 
 def metrics_of(d: dict) -> dict:
     """Flat scalar columns of a diagnosis for metrics files (offsets as 'A=b;...', findings counted)."""
-    out = {f"diag_{k}": v for k, v in d.items() if k not in ("range_offsets_m", "update", "self_fit_range_correction")}
+    out = {f"diag_{k}": v for k, v in d.items()
+           if k not in ("range_offsets_m", "update", "self_fit_range_correction", "gaps")}
+    out["diag_gaps"] = len(d.get("gaps") or [])
     if "self_fit_range_correction" in d:
         out["diag_self_fit_range_corrected"] = float(d["self_fit_range_correction"].startswith("applied"))
     offsets = d.get("range_offsets_m") or {}

@@ -147,8 +147,9 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
     p = chosen
     if reads_rss(name, p) and p.get("measurements") != "rss" and p.get("fixes") != "rss" \
             and not len(measured.usable_rss()) and len(run_tables["ranges"]):
-        notes.append(f"the run has no RSS: {name} reads the ranges alone (its RSS part has nothing to read"
-                     f"{', so it gives the range fixes' if name in ('pmix', 'fmix') or p.get('fixes') in ('pmix', 'fmix') else ''})")
+        mixes = name in ("pmix", "fmix") or p.get("fixes") in ("pmix", "fmix")
+        notes.append(f"the run has no RSS: {name} reads the ranges alone"
+                     + (" (no RSS fix to mix in: the range fixes)" if mixes else ""))
     if calibration_dir is not None and "range_calibration" in p and "range_calibration" not in overrides \
             and len(run_tables["ranges"]) and p.get("measurements", "toa") != "rss":
         p = dict(p, range_calibration="other_run")       # the donor calibrates the ranges too

@@ -324,7 +324,7 @@ def run_filters(cells: list[tuple[RunData, dict]], forward: ForwardPass | None =
             out = epoch_loop(bank, runs, motion, p["epoch_s"], initiator, deleter, forward)
         for i, run, c, g, (rows, resets) in zip(members, runs, counts, guards, out):
             rows, withheld = (rows, 0) if forward is not None \
-                else withhold_uncertain(rows, cells[i][1]["max_position_sigma_m"])     # the smoother's: smoothed
+                else withhold_uncertain(rows, cells[i][1]["max_position_sigma_m"])   # smoothers: on the smoothed P
             tracks[i] = Track(rows, {"resets": resets, "withheld": withheld, "update": cells[i][1]["update"],
                                      **c.attrs(), **g.attrs(), **run.source.correction.describe()})
             all_counts[i] = c
