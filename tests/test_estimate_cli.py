@@ -188,7 +188,8 @@ def test_estimate_without_truth_writes_the_estimates_and_no_error_metrics(tmp_pa
     run = write_generic(tmp_path / "run", tables_for(times, ids, walk, SQUARE, 0.1, rng))
     (run / "truth.csv").unlink()
     assert main(["estimate", "--format", "generic", str(run), "--out", str(tmp_path / "out")]) == 0
-    assert "diagnosis:" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "diagnosis:" in printed and "not scored: the run has no truth" in printed
     estimates = pd.read_parquet(tmp_path / "out" / "estimates.parquet")
     assert len(estimates) > 100 and np.isfinite(estimates["x"]).all() and estimates["error_m"].isna().all()
     metrics = json.loads((tmp_path / "out" / "metrics.json").read_text())

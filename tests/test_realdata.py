@@ -172,8 +172,11 @@ def test_diagnosis_names_the_gaps_behind_the_restarts():
     d = diagnose_run(gapped, estimates, dict(tracker, update="sequential"))
     assert d["gaps"] == [pytest.approx((19.9, 35.1), abs=0.05)] and metrics_of(d)["diag_gaps"] == 1
     said = " ".join(findings(d, tracker))
-    assert "the measurements stop for longer than max_coast_s (10.0 s) 1 time(s) (20-35 s after the first)" in said
-    assert "so a gate lost the track" in " ".join(findings(dict(d, gaps=[]), tracker))
+    assert "the measurements stop for longer than max_coast_s (10.0 s) 1 time(s) (20-35 s after the first " \
+        "measurement): no estimate there is expected" in said and "gate lost" not in said
+    assert "restarted 1 time(s): 1 time(s) the gate lost the track" in " ".join(findings(dict(d, gaps=[]), tracker))
+    both = " ".join(findings(dict(d, restarts=3), tracker))            # one gap, two losses
+    assert "1 time(s) (20-35 s" in both and "the other 2 time(s) the gate lost the track" in both
 
 
 def _self_fitted(nis: float, gated: float, run: float, core: float, **process) -> tuple:

@@ -143,6 +143,8 @@ def cmd_estimate(args) -> int:
     print(f"{args.estimator}: {metrics.pop('n_estimates')} estimates written to {Path(args.out) / 'estimates.parquet'}")
     if metrics:  # n: the estimates scored against truth (inside its time span)
         print("  " + ", ".join(f"n scored {v:.0f}" if k == "n" else f"{k} {v:.3f}" for k, v in metrics.items()))
+    else:
+        print("  not scored: the run has no truth")
     print(diagnosis)
     return 0
 

@@ -64,7 +64,8 @@ SCALE_TOLERANCE = 0.03          # |s - 1| above this: a common range scale error
 OFFSET_TOLERANCE_M = 0.15       # |b_a| above this: a per-anchor bias (antenna delay, cable; UWB sigma ~0.1 m)
 MIN_RANGES = 50                 # fewer ranges along the track: no scale / offset fit
 MAX_GAPS_LISTED = 3             # measurement gaps named in the restart sentence
-GUARDS = ("regularised", "skipped", "reinitialised")
+GUARDS = {"regularised": "covariances made positive definite", "skipped": "updates or windows skipped",
+          "reinitialised": "particle filter restarted from a fix"}
 SELF_FIT = ("self_fit_run_sigma_m", "self_fit_range_sigma_m", "self_fit_range_correction") \
     + tuple(fitted for _, fitted in FITTED_NOISE_KEYS.values())
 
@@ -165,15 +166,7 @@ def findings(d: dict, p: dict) -> list[str]:
                    f"raise accel_sigma_mps2 or range_sigma_m if it recurs")
     refixes = d.get("refixes", 0)
     if d.get("restarts", 0) > refixes:
-        raise_ = _options(p, max_coast_s="max_coast_s", gate_loss_share="gate_loss_share")
-        gaps = d.get("gaps") or []
-        listed = ", ".join(f"{a:.0f}-{b:.0f} s" for a, b in gaps[:MAX_GAPS_LISTED]) \
-            + (f" and {len(gaps) - MAX_GAPS_LISTED} more" if len(gaps) > MAX_GAPS_LISTED else "")
-        where = (f"the measurements stop for longer than max_coast_s ({p.get('max_coast_s', '?')} s) "
-                 f"{len(gaps)} time(s) ({listed} after the first)" if gaps
-                 else f"no gap is longer than max_coast_s ({p.get('max_coast_s', '?')} s), so a gate lost the track")
-        out.append(f"the track was dropped and restarted {d['restarts'] - refixes} time(s): {where}"
-                   + (f"; raise {raise_} if that is not what you expect" if raise_ else ""))
+        out.append(_restarts(d["restarts"] - refixes, d.get("gaps") or [], p))
     if refixes > 0:
         out.append(f"the track was restarted from a fix {refixes} time(s): the gate rejected most recent ranges and a "
                    f"fix on them fitted them far better than the track; often a wrong branch (ranged one anchor at a "
@@ -183,9 +176,8 @@ def findings(d: dict, p: dict) -> list[str]:
         out += _nis_findings(d, p)
     guarded = {k: d[k] for k in GUARDS if d.get(k, 0) > 0}
     if guarded:
-        listed = ", ".join(f"{k} {n}" for k, n in guarded.items())
-        out.append(f"numerical guards acted ({listed}: covariances made positive definite, updates skipped, particle "
-                   f"filter restarted from a fix): the measurements disagree with the model or the geometry is "
+        listed = ", ".join(f"{k} {n}: {GUARDS[k]}" for k, n in guarded.items())
+        out.append(f"numerical guards acted ({listed}): the measurements disagree with the model or the geometry is "
                    f"degenerate (few or collinear anchors); check the anchors, raise range_sigma_m or use `tracker`")
     corrected = str(d.get("self_fit_range_correction", ""))
     gated = d.get("gated_share", np.nan)
@@ -215,6 +207,24 @@ def findings(d: dict, p: dict) -> list[str]:
         out.append(f"per-anchor range offsets against the track ({listed}){caveat}: antenna delays or NLOS biases; "
                    f"{remedy}")
     return out
+
+
+def _restarts(n: int, gaps: list[tuple[float, float]], p: dict) -> str:
+    """The sentence of n restarts (re-fixes apart): those the measurement gaps longer than
+    max_coast_s explain (named, MAX_GAPS_LISTED of them), and the others, which a gate lost."""
+    coast = f"max_coast_s ({p.get('max_coast_s', '?')} s)"
+    parts = []
+    if gaps:
+        listed = ", ".join(f"{a:.0f}-{b:.0f} s" for a, b in gaps[:MAX_GAPS_LISTED]) \
+            + (f" and {len(gaps) - MAX_GAPS_LISTED} more" if len(gaps) > MAX_GAPS_LISTED else "")
+        parts.append(f"the measurements stop for longer than {coast} {len(gaps)} time(s) ({listed} after the first "
+                     f"measurement): no estimate there is expected (raise max_coast_s to coast through shorter ones)")
+    lost = n - min(len(gaps), n)
+    if lost:
+        raise_ = _options(p, gate_loss_share="gate_loss_share", range_sigma_m="range_sigma_m")
+        parts.append(f"{'the other ' if gaps else ''}{lost} time(s) the gate lost the track (most recent "
+                     f"measurements rejected){f'; raise {raise_} if that recurs' if raise_ else ''}")
+    return f"the track was dropped and restarted {n} time(s): " + "; ".join(parts)
 
 
 def _options(p: dict, **phrases: str) -> str:
