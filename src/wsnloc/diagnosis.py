@@ -114,9 +114,7 @@ def measurement_gaps(data: RunData, p: dict) -> list[tuple[float, float]]:
     max_coast_s (module docstring, gaps); [] for an estimator without a coasting limit."""
     if "max_coast_s" not in p:
         return []
-    ranges = data.usable_ranges(p.get("preliminary_filter", True), p.get("max_range_m", np.inf))
-    t = np.sort(np.concatenate([ranges["t"].to_numpy(float), data.usable_rss()["t"].to_numpy(float),
-                                data.usable_tdoa()["t"].to_numpy(float)]))
+    t = data.measurement_times(p.get("preliminary_filter", True), p.get("max_range_m", np.inf))
     if len(t) < 2:
         return []
     long = np.flatnonzero(np.diff(t) > p["max_coast_s"])

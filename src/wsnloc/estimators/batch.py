@@ -15,8 +15,9 @@ or whose prior, the previous window's covariance, is numerically singular (on re
 poor geometry, e.g. range differences far from a small anchor cluster), or whose solution is
 not finite or further than max_range_m from every anchor (no range could reach it: range
 differences from four anchors within 3 m, the target outside them, ran off along the
-hyperbolae' asymptotes to 1e7 m): such a window is counted in attrs `skipped`; covariances that are not positive
-definite where a factor is needed are regularised (filters.numerics, attrs `regularised`).
+hyperbolae' asymptotes to 1e7 m): such a window is counted in attrs `skipped`; covariances
+that are not positive definite where a factor is needed are regularised (filters.numerics,
+attrs `regularised`).
 Range differences (`measurements: tdoa`, estimators.tdoa.TdoaSource): each group of records
 sharing a time stamp is one factor block with its TdoaModel's correlated noise (whitened by
 its Cholesky factor), and the initiator's fix is the hyperbolic solver's.

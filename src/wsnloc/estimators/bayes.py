@@ -256,7 +256,7 @@ def _plain_smoother(data: RunData, p: dict) -> pd.DataFrame:
         xs = np.array([x for x, _ in smoothed])
         Ps = np.array([P for _, P in smoothed])
         rows[:, 1:3], rows[:, 3:6] = xs[:, :2], Ps[:, [0, 0, 1], [0, 1, 1]]
-        if rows.shape[1] == len(COLUMNS_3D):
+        if track.columns == COLUMNS_3D:
             rows[:, -2], rows[:, -1] = xs[:, 2], Ps[:, 2, 2]
     rows, withheld = withhold_uncertain(rows, p["max_position_sigma_m"])
     return Track(rows, dict(track.attrs, withheld=withheld)).frame()

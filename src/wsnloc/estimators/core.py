@@ -44,8 +44,8 @@ COLUMNS_3D = COLUMNS + ["z", "p_zz"]        # a 3-D state's estimates: height (m
 # the steady state of every filter measured: at most 2.6 m on the shared real runs (BLE RSS alone; the
 # outdoor UWB 1.7 m) and 1.9 m on the simulated campaigns, so it acts on tracks coasting through a
 # gap, whose sigma grows as q dt^3 / 3 per axis (10 s at 0.5 m/s^2: 7 m) while a walker turns away
-# from the prediction (2026-12-07: on simulated walks with two gaps RMSE 1.05 -> 0.21 m, median
-# unchanged, availability 0.69 -> 0.65, docs/realdata.md).
+# from the prediction (2026-12-07: on 16 simulated walks with two gaps RMSE 0.97-1.35 -> 0.21-0.29 m,
+# median unchanged, availability 0.69-0.70 -> 0.65-0.66, docs/realdata.md).
 MAX_POSITION_SIGMA_M = 4.0
 
 

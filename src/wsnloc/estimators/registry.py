@@ -31,9 +31,6 @@ from wsnloc.estimators.measurements import KINDS
 # ---- parameter groups ------------------------------------------------------------------
 STATIC_START = Param("static_start_s", 4.0, "s", "the mobile rests during the first S s: gravity reference and "
                      "IMU bias measured then (0: none)", minimum=0.0)
-MAX_POSITION_SIGMA = Param("max_position_sigma_m", core.MAX_POSITION_SIGMA_M, "m", "do not output an estimate "
-                           "whose position sigma sqrt(p_xx + p_yy) exceeds this: a track coasting through a gap "
-                           "(counted in attrs `withheld`; 0: output every estimate)", minimum=0.0)
 COMMON = (
     Param("anchors", "all", "", "anchor subset: 'all', or campaign subset names joined by '+' "
           "(e.g. 'UWB=9+ZigBee=17')", str),
@@ -107,7 +104,9 @@ FILTER = (
           "(0: one period)", minimum=0.0),
     Param("max_coast_s", 10.0, "s", "drop the track after this long without an update; restart by the initiator",
           minimum=0.0),
-    MAX_POSITION_SIGMA,
+    Param("max_position_sigma_m", core.MAX_POSITION_SIGMA_M, "m", "do not output an estimate whose position sigma "
+          "sqrt(p_xx + p_yy) exceeds this: a track coasting through a gap (counted in attrs `withheld`; 0: output "
+          "every estimate)", minimum=0.0),
     Param("motion_detection", False, "", "paper A: skip the predict step in epochs the accelerometer finds static",
           bool),
     Param("motion_threshold_mps2", 0.05, "m/s^2", "motion detection: mean | |f| - g | below this is static",

@@ -135,12 +135,14 @@ class RunData:
         The phase of the grid against periodic ranging rounds matters to estimators that do
         not predict to the output time (Min-Max, multilateration): their fix is as old as
         the round, up to one period at the epoch end."""
-        def build():
-            stamps = np.concatenate([self.usable_ranges(apply_filter, max_range_m)["t"].to_numpy(float),
-                                     self.usable_rss()["t"].to_numpy(float),
-                                     self.usable_tdoa()["t"].to_numpy(float)])
-            return grid_over(stamps, period)
-        return self.cached(("grid", period, apply_filter, max_range_m), build)
+        return self.cached(("grid", period, apply_filter, max_range_m),
+                           lambda: grid_over(self.measurement_times(apply_filter, max_range_m), period))
+
+    def measurement_times(self, apply_filter: bool, max_range_m: float) -> np.ndarray:
+        """The times (s) of every usable measurement (ranges, RSS, TDOA), sorted."""
+        return self.cached(("measurement_times", apply_filter, max_range_m), lambda: np.sort(np.concatenate([
+            self.usable_ranges(apply_filter, max_range_m)["t"].to_numpy(float), self.usable_rss()["t"].to_numpy(float),
+            self.usable_tdoa()["t"].to_numpy(float)])))
 
     def cached(self, key: tuple, build: Callable):
         """`build()` once per run and key: estimators of one run share epochs, fixes, dead reckoning."""

@@ -375,8 +375,7 @@ def segment(data, p: dict, share: float):
 
 
 def _segment(data, p: dict, share: float):
-    stamps = np.sort(np.concatenate([data.usable_ranges(p["preliminary_filter"], p["max_range_m"])["t"].to_numpy(float),
-                                     data.usable_rss()["t"].to_numpy(float), data.usable_tdoa()["t"].to_numpy(float)]))
+    stamps = data.measurement_times(p["preliminary_filter"], p["max_range_m"])
     if share >= 1.0 or len(stamps) < 2:
         return data
     lo, hi = stamps[int((0.5 - share / 2) * (len(stamps) - 1))], stamps[int((0.5 + share / 2) * (len(stamps) - 1))]
