@@ -178,3 +178,17 @@ def test_filterpy_ekf_estimator_equals_ours(params):
     assert len(ours) > 50 and ours.attrs == reference.attrs
     np.testing.assert_allclose(reference[["x", "y", "p_xx", "p_xy", "p_yy", "nis"]],
                                ours[["x", "y", "p_xx", "p_xy", "p_yy", "nis"]], rtol=1e-9, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", ["tracker", "ekf"])
+def test_estimates_do_not_depend_on_the_clock_origin(name):
+    """The same run from t = 0 and at Unix times (t + 1.7e9 s, where float64 resolves about 0.24 us):
+    the same estimates, relative to the first measurement. The epoch grid used to start 1 ns before
+    the first measurement, below that resolution, so the first measurement fell outside the first epoch."""
+    t, ids = bursts(30.0)
+    tables = tables_for(t, ids, walk, noise_m=0.05, rng=np.random.default_rng(1))
+    shifted = {k: (v.assign(t=v["t"] + 1.7e9) if "t" in v else v) for k, v in tables.items()}
+    a, b = registry.run(name, run_data(tables)), registry.run(name, run_data(shifted))
+    assert len(a) == len(b) > 50
+    np.testing.assert_allclose(b["t"] - 1.7e9, a["t"], atol=1e-6)
+    np.testing.assert_allclose(b[["x", "y"]], a[["x", "y"]], atol=1e-6)

@@ -102,10 +102,13 @@ def sorted_codes(anchor_ids: pd.Series) -> tuple[np.ndarray, np.ndarray]:
 
 def grid_over(stamps: np.ndarray, period: float) -> np.ndarray:
     """Epoch end times covering the measurement times `stamps` (s): the first epoch ends
-    one period after the first measurement (minus 1 ns, so it holds that measurement)."""
+    one period after the first measurement (minus 1 ns, so it holds that measurement; at least
+    one float64 step below it: at Unix times, t ~ 1.7e9 s, 1 ns is below the resolution and the
+    first measurement fell outside the first epoch)."""
     if len(stamps) == 0:
         return np.array([])
-    start = float(np.min(stamps)) - 1e-9
+    first = float(np.min(stamps))
+    start = min(first - 1e-9, float(np.nextafter(first, -np.inf)))
     return epoch_times(start, float(np.max(stamps)) + period, period)
 
 
