@@ -56,7 +56,7 @@ from wsnloc.campaign import generic_site
 from wsnloc.estimators.run_data import RunData
 from wsnloc.estimators.self_fit import FITTED_NOISE_KEYS, PROCESS_NOISE
 from wsnloc.metrics.consistency import chi2_band
-from wsnloc.metrics.ranging import fit_range_bias, range_errors
+from wsnloc.metrics.ranging import fit_range_bias, positions_and_distances
 
 GATED_SHARE_LIMIT = 0.05        # more rejected than this: the model is wrong more often than an outlier rate
 POOR_TRACK_GATED_SHARE = 0.2    # more rejected than this: the scale / offsets read against the track are unreliable
@@ -85,16 +85,27 @@ def _nis(estimates: pd.DataFrame, p: dict) -> dict:
 
 
 def track_distances(data: RunData, estimates: pd.DataFrame, p: dict) -> pd.DataFrame | None:
-    """The run's usable ranges (range_m, anchor_id) with the distance from the estimated track
-    interpolated at their times (true_distance_m, 3-D where the anchor has z); None when too few."""
+    """The run's usable ranges (t, anchor_id, range_m; status 0) with the estimated track's position
+    interpolated at their times (true_x, true_y, m) and its distance to the anchor (true_distance_m,
+    3-D where the anchor has z; metrics.ranging.positions_and_distances); None when too few.
+    Arrays, not frame operations: the self-fit reads it twice a run (about 0.5 ms, not 2.5 ms)."""
     ranges = data.usable_ranges(p.get("preliminary_filter", True), p.get("max_range_m", np.inf))
-    track = estimates.loc[np.isfinite(estimates["x"]) & np.isfinite(estimates["y"]), ["t", "x", "y"]]
-    if len(ranges) < MIN_RANGES or len(track) < 2:
+    ranges = ranges[ranges["status"].to_numpy() == 0]
+    x, y = estimates["x"].to_numpy(float), estimates["y"].to_numpy(float)
+    finite = np.isfinite(x) & np.isfinite(y)
+    if len(ranges) < MIN_RANGES or finite.sum() < 2:
         return None
+    track = pd.DataFrame({"t": estimates["t"].to_numpy(float)[finite], "x": x[finite], "y": y[finite]})
     site = data.campaign or generic_site()
     anchors = data.table("anchors") if len(data.table("anchors")) else site.anchors
-    samples = range_errors(ranges, track.reset_index(drop=True), site, anchors)
-    return samples if len(samples) >= MIN_RANGES else None
+    inside, position, _, distance = positions_and_distances(ranges["t"].to_numpy(float), ranges["anchor_id"], track,
+                                                            site, anchors)
+    if len(inside) < MIN_RANGES:
+        return None
+    return pd.DataFrame({"t": ranges["t"].to_numpy(float)[inside],
+                         "anchor_id": ranges["anchor_id"].to_numpy(dtype=object)[inside],
+                         "range_m": ranges["range_m"].to_numpy(float)[inside], "true_x": position[:, 0],
+                         "true_y": position[:, 1], "true_distance_m": distance})
 
 
 def range_fit(data: RunData, estimates: pd.DataFrame, p: dict) -> dict:

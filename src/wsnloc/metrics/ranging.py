@@ -23,34 +23,47 @@ def truth_at(truth: pd.DataFrame, t: np.ndarray) -> np.ndarray:
     return np.column_stack([x, y])
 
 
-def _with_geometry(frame: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign,
-                   anchors: pd.DataFrame | None = None) -> pd.DataFrame:
-    """The rows of frame inside the truth span with the true position (true_x, true_y, m), the
-    true distance (m) and the walls crossed between the true position and the anchor (los: none).
+def positions_and_distances(t: np.ndarray, anchor_of_rows: pd.Series, truth: pd.DataFrame, campaign: Campaign,
+                            anchors: pd.DataFrame | None = None) -> tuple[np.ndarray, ...]:
+    """(inside, position, slot, distance) of measurements at times t (s) to the anchors
+    `anchor_of_rows`: the indices of the rows inside the truth span, the true position there
+    ((n, 2), m), each row's slot in the anchor table and the true distance (m).
 
     The distance is 3-D, sqrt(dx^2 + dy^2 + (z_anchor - h_tag)^2), when the anchor has a
     height and the tag's is known: the truth's z at t (a 3-D truth), else the campaign's fixed
     tag height; otherwise 2-D.
     """
-    position = truth_at(truth, frame["t"].to_numpy())
+    position = truth_at(truth, t)
     inside = np.flatnonzero(np.isfinite(position[:, 0]))
-    frame, position = frame.take(inside), position[inside]
+    t, position = t[inside], position[inside]
     anchors = campaign.anchors if anchors is None else anchors
-    slot = anchor_slots(frame["anchor_id"], anchors["anchor_id"])
+    slot = anchor_slots(anchor_of_rows.iloc[inside], anchors["anchor_id"])
     if (slot < 0).any():
-        raise KeyError(f"anchors not in the anchor table: {sorted(set(frame['anchor_id'][slot < 0]))}")
+        raise KeyError(f"anchors not in the anchor table: {sorted(set(anchor_of_rows.iloc[inside][slot < 0]))}")
     anchor_xy = anchors[["x", "y"]].to_numpy(dtype=float)
     if "z" in truth and np.isfinite(truth["z"].to_numpy(float)).any():      # the tag's height at each time
         z = anchors["z"].to_numpy(dtype=float)[slot] if "z" in anchors else np.full(len(slot), np.nan)
         given = np.isfinite(truth["z"].to_numpy(float))
-        tag_z = np.interp(frame["t"].to_numpy(float), truth["t"][given], truth["z"][given])
+        tag_z = np.interp(t, truth["t"][given], truth["z"][given])
         dz = np.where(np.isfinite(z), z - tag_z, 0.0)
     else:
         dz = _height_difference(anchors, campaign.tag_height_m)[slot]
     distance = np.sqrt((position[:, 0] - anchor_xy[slot, 0]) ** 2 + (position[:, 1] - anchor_xy[slot, 1]) ** 2
                        + dz ** 2)
+    return inside, position, slot, distance
+
+
+def _with_geometry(frame: pd.DataFrame, truth: pd.DataFrame, campaign: Campaign,
+                   anchors: pd.DataFrame | None = None) -> pd.DataFrame:
+    """The rows of frame inside the truth span with the true position (true_x, true_y, m), the
+    true distance (m, positions_and_distances) and the walls crossed between the true position
+    and the anchor (los: none)."""
+    inside, position, slot, distance = positions_and_distances(frame["t"].to_numpy(), frame["anchor_id"], truth,
+                                                               campaign, anchors)
+    frame = frame.take(inside)
+    anchors = campaign.anchors if anchors is None else anchors
     new = {"true_x": position[:, 0], "true_y": position[:, 1], "true_distance_m": distance,
-           "walls": _walls_per_anchor(position, slot, anchor_xy, campaign)}
+           "walls": _walls_per_anchor(position, slot, anchors[["x", "y"]].to_numpy(dtype=float), campaign)}
     new["los"] = new["walls"] == 0
     return pd.concat([frame, pd.DataFrame(new, index=frame.index)], axis=1)
 
