@@ -146,13 +146,17 @@ def test_default_tracker_follows_ranges_that_arrive_one_anchor_at_a_time():
 
 def test_window_initiator_starts_on_ranges_that_arrive_one_anchor_at_a_time():
     """At 1 Hz one anchor at a time an epoch of 0.5 s rarely holds 3 anchors; the tracker's
-    initiator (multilateration over the last 4 s) starts within seconds."""
+    initiator (multilateration over the last 4 s) starts within seconds, and so does a filter's
+    default (init_window_s 0: one period, widened while it holds no fix), where a fixed window of
+    one period starts later or never."""
     rng = np.random.default_rng(5)
     times, ids = one_at_a_time(300.0, 1.0, rng, SQUARE)
     data = run_data(tables_for(times, ids, walk, SQUARE, noise_m=0.1, rng=rng))
-    assert registry.run("tracker", data)["t"].iloc[0] < times[0] + 15.0
-    single_epoch = registry.run("ekf", data, {"update": "sequential", "init_window_s": 0.0})
-    assert len(single_epoch) == 0 or single_epoch["t"].iloc[0] > registry.run("tracker", data)["t"].iloc[0]
+    started = registry.run("tracker", data)["t"].iloc[0]
+    assert started < times[0] + 15.0
+    assert registry.run("ekf", data, {"update": "sequential"})["t"].iloc[0] <= started
+    single_epoch = registry.run("ekf", data, {"update": "sequential", "init_window_s": 0.5})
+    assert len(single_epoch) == 0 or single_epoch["t"].iloc[0] > started
 
 
 def test_no_measurements_for_longer_than_the_coasting_limit_drops_the_track():
@@ -163,6 +167,53 @@ def test_no_measurements_for_longer_than_the_coasting_limit_drops_the_track():
     inside = estimates[(estimates["t"] > 35.5) & (estimates["t"] < 60.0)]
     assert len(inside) == 0 and estimates.attrs["resets"] == 1
     assert estimates["t"].max() > 99.0                       # restarted after the gap
+
+
+def _one_anchor_stretch_run(alone=(60.0, 90.0), anchor="A3", seconds=150.0):
+    """A walk ranged round-robin at 4 Hz (0.05 m noise), by `anchor` alone inside `alone`."""
+    times = np.arange(0.25, seconds, 0.25)
+    ids = np.tile(np.array(list(SQUARE), dtype=object), len(times))[:len(times)]
+    inside = (times >= alone[0]) & (times < alone[1])
+    ids[inside] = anchor
+    return tables_for(times, ids, walk, SQUARE, noise_m=0.05, rng=np.random.default_rng(3))
+
+
+@pytest.mark.parametrize("name", ["tracker", "ekf_rts", "pf"])
+def test_one_anchor_alone_for_longer_than_the_coasting_limit_drops_the_track(name):
+    """Ranged by one anchor alone for 30 s: a distance, not a position. A filter linearised at its
+    moving estimate reads a bearing into those ranges and stayed confident while it drifted (this
+    run: errors up to 8-18 m, 9-71 outputs beyond 3 position sigmas, before core.Support). Now the track
+    is dropped max_coast_s into the stretch, restarted when the anchors are back (one reset), every
+    output's error is within 3 position sigmas, and the diagnosis names the stretch."""
+    from wsnloc.diagnosis import diagnose_run, findings
+    tables = _one_anchor_stretch_run()
+    data = run_data(tables)
+    estimates = registry.run(name, data)
+    coast = registry.get(name).resolve({})["max_coast_s"]
+    assert estimates.attrs["resets"] == 1
+    assert not estimates["t"].between(60.0 + coast + 0.5, 90.0).any()
+    assert estimates["t"].max() > 149.0
+    scored = score(estimates, tables["truth"]).dropna(subset=["error_m"])
+    assert len(scored) > 200 and (scored["error_m"] <= 3.0 * np.sqrt(scored["p_xx"] + scored["p_yy"])).all()
+    d = diagnose_run(data, estimates, dict(registry.get(name).resolve({}), update="sequential"))
+    (start, end, alone), = d["gaps"]                 # s after the first range (0.25 s)
+    assert (start, end, alone) == (pytest.approx(59.25, abs=0.3), pytest.approx(89.75, abs=0.3), "A3")
+    assert "59-90 s (A3 alone)" in " ".join(findings(d, registry.get(name).resolve({})))
+
+
+def test_support_is_the_last_use_of_an_anchor_other_than_the_latest_within_the_sigma_limit():
+    from wsnloc.estimators.core import Support
+    support, tight, loose = Support(0.0, 4.0), np.eye(2), 9.0 * np.eye(2)     # sigma sqrt(2), sqrt(18) m
+    for t, anchor in [(1.0, "A"), (2.0, "A"), (3.0, "B"), (4.0, "B"), (5.0, "B")]:
+        support.use([anchor], t, tight)
+    assert support.since == 2.0                     # B alone since A's last range at 2 s
+    support.use(["C", "A"], 6.0, tight)
+    assert support.since == 6.0                     # two anchors in one update
+    support.use(["B"], 7.0, loose)
+    support.use(["C"], 8.0, loose)
+    assert support.since == 6.0                     # two anchors, but the covariance is not brought back
+    support.use(["A"], 9.0, tight)
+    assert support.since == 8.0
 
 
 def test_anchor_subsets_restrict_the_measurements():

@@ -5,9 +5,11 @@ measurements, so that it works on any user run.
 Values (`diagnose_run`, all optional, NaN where the estimator or run has none):
   gated_share       measurements rejected by the innovation gate / offered (attrs)
   restarts          track dropped and restarted (attrs `resets`)
-  gaps              the measurement gaps longer than max_coast_s (the usable ranges, RSS and range
-                    differences together), as (start, end) in s after the first measurement: where
-                    a track had to be dropped whatever the model (restarts)
+  gaps              the stretches longer than max_coast_s without measurements of two anchors (the
+                    usable ranges, RSS and range differences together): none at all, or one anchor
+                    (TDOA: one pair) alone, which gives a distance, not a position; as (start, end,
+                    the anchor heard alone or None) in s after the first measurement: where a
+                    sequential track is dropped whatever the model (restarts; core.Support)
   withheld          estimates not output because their position sigma passed max_position_sigma_m
                     (attrs `withheld`: a track coasting through a gap, core.withhold_uncertain)
   widenings         the gate rejected most recent measurements and the covariance was widened
@@ -120,25 +122,52 @@ def range_fit(data: RunData, estimates: pd.DataFrame, p: dict) -> dict:
     return {"range_scale": float(fit["scale"]), "range_offsets_m": {k: float(v) for k, v in fit["offsets_m"].items()}}
 
 
-def measurement_gaps(data: RunData, p: dict) -> list[tuple[float, float]]:
-    """(start, end) (s after the first usable measurement) of every stretch without one longer than
-    max_coast_s (module docstring, gaps); [] for an estimator without a coasting limit."""
+def measurement_gaps(data: RunData, p: dict) -> list[tuple[float, float, str | None]]:
+    """(start, end, anchor) (s after the first usable measurement) of every stretch longer than
+    max_coast_s without measurements of two anchors (module docstring, gaps), in time order:
+    anchor None where none came at all (start, end: the measurements around it), else the one
+    anchor (or TDOA pair) heard alone (start, end: the last and next measurement of another);
+    [] for an estimator without a coasting limit. The sequential filters' deleter counts both as
+    coasting (core.Support)."""
     if "max_coast_s" not in p:
         return []
-    t = data.measurement_times(p.get("preliminary_filter", True), p.get("max_range_m", np.inf))
+    t, ids = _timeline(data, p)
     if len(t) < 2:
         return []
-    long = np.flatnonzero(np.diff(t) > p["max_coast_s"])
-    return [(float(t[i] - t[0]), float(t[i + 1] - t[0])) for i in long]
+    limit = p["max_coast_s"]
+    step = np.diff(t)
+    out = [(t[i], t[i + 1], None) for i in np.flatnonzero(step > limit)]
+    starts = np.flatnonzero(ids[1:] != ids[:-1]) + 1                 # runs of one anchor, but the first
+    ends = np.r_[starts[1:] + 1, len(t)]                             # the next other anchor's index + 1
+    long = t[ends - 1] - t[starts - 1] > limit
+    for s, e in zip(starts[long], ends[long]):
+        if step[s - 1:e - 1].max() <= limit:                         # not a gap's
+            out.append((t[s - 1], t[e - 1], str(ids[s])))
+    return sorted((float(a - t[0]), float(b - t[0]), anchor) for a, b, anchor in out)
+
+
+def _timeline(data: RunData, p: dict) -> tuple[np.ndarray, np.ndarray]:
+    """(t, id) of the run's usable measurements in time order: ranges and RSS by anchor, range
+    differences by pair."""
+    ranges = data.usable_ranges(p.get("preliminary_filter", True), p.get("max_range_m", np.inf))
+    rss, tdoa = data.usable_rss(), data.usable_tdoa()
+    t = np.concatenate([frame["t"].to_numpy(float) for frame in (ranges, rss, tdoa)])
+    ids = np.concatenate([ranges["anchor_id"].astype(str).to_numpy(object), rss["anchor_id"].astype(str).to_numpy(object),
+                          (tdoa["anchor_id"].astype(str) + "/" + tdoa["ref_anchor_id"].astype(str)).to_numpy(object)])
+    order = np.argsort(t, kind="stable")
+    return t[order], ids[order]
 
 
 def diagnose_run(data: RunData, estimates: pd.DataFrame, p: dict) -> dict:
     """The diagnosis values of one run (module docstring)."""
     a = estimates.attrs
+    gaps = measurement_gaps(data, p)
+    if a.get("update", p.get("update")) != "sequential":        # epoch updates coast on any update
+        gaps = [gap for gap in gaps if gap[2] is None]
     out = {"gated_share": float(a["gated_share"]) if "gated_share" in a else np.nan,
            "restarts": int(a.get("resets", 0)), "widenings": int(a.get("gate_widenings", 0)),
            "refixes": int(a.get("gate_refixes", 0)), "withheld": int(a.get("withheld", 0)),
-           "gaps": measurement_gaps(data, p), **_nis(estimates, p), **range_fit(data, estimates, p)}
+           "gaps": gaps, **_nis(estimates, p), **range_fit(data, estimates, p)}
     if "range_scale" in a:
         out["self_scale"] = float(a["range_scale"])
     if "range_offset_m" in a:
@@ -218,15 +247,20 @@ def findings(d: dict, p: dict) -> list[str]:
     return out
 
 
-def _restarts(n: int, gaps: list[tuple[float, float]], p: dict) -> str:
-    """The sentence of n restarts (re-fixes apart): those the measurement gaps longer than
-    max_coast_s explain (named, MAX_GAPS_LISTED of them), and the others, which a gate lost."""
+def _restarts(n: int, gaps: list[tuple[float, float, str | None]], p: dict) -> str:
+    """The sentence of n restarts (re-fixes apart): those the stretches longer than max_coast_s
+    without two anchors explain (measurement_gaps; named, MAX_GAPS_LISTED of them), and the
+    others, which a gate lost."""
     coast = f"max_coast_s ({p.get('max_coast_s', '?')} s)"
     parts = []
     if gaps:
-        listed = ", ".join(f"{a:.0f}-{b:.0f} s" for a, b in gaps[:MAX_GAPS_LISTED]) \
+        alone = any(anchor is not None for _, _, anchor in gaps)
+        listed = ", ".join(f"{a:.0f}-{b:.0f} s" + ("" if anchor is None else f" ({anchor} alone)")
+                           for a, b, anchor in gaps[:MAX_GAPS_LISTED]) \
             + (f" and {len(gaps) - MAX_GAPS_LISTED} more" if len(gaps) > MAX_GAPS_LISTED else "")
-        parts.append(f"the measurements stop for longer than {coast} {len(gaps)} time(s) ({listed} after the first "
+        what = ("the measurements stop, or come from one anchor alone (a distance, not a position),"
+                if alone else "the measurements stop")
+        parts.append(f"{what} for longer than {coast} {len(gaps)} time(s) ({listed} after the first "
                      f"measurement): no estimate there is expected (raise max_coast_s to coast through shorter ones)")
     lost = n - min(len(gaps), n)
     if lost:

@@ -17,7 +17,8 @@ Numerical guards (filters.numerics): per run, the covariances regularised, updat
   and particle-filter restarts, in attrs `regularised`, `skipped`, `reinitialised`.
 Initiator (core.WindowInitiator, `init_window_s`): the first time the measurements of the
   last `init_window_s` seconds (per-anchor means) give a multilateration fix, the state
-  starts there (speed and bias 0, P0).
+  starts there (speed and bias 0, P0). 0 (the default but for `tracker`): one period, doubled
+  up to TRACKER_INIT_WINDOW_S where that holds too few anchors (ranges one anchor at a time).
 Deleter (core.CoastingDeleter, `max_coast_s`): after `max_coast_s` seconds without an update
   (or when the innovation gate finds the track lost, estimators.filter_options) the track is
   dropped (counted as a reset) and restarted by the initiator; no estimate is output
@@ -262,14 +263,21 @@ def _plain_smoother(data: RunData, p: dict) -> pd.DataFrame:
     return Track(rows, dict(track.attrs, withheld=withheld)).frame()
 
 
+# s: the tracker's initiator window, and the widest the other filters' (one period) is widened to:
+# ranges one anchor at a time at 2-4 Hz from 4-5 anchors hold three anchors within it
+TRACKER_INIT_WINDOW_S = 4.0
+
 # groups of fewer bare-EKF cells run as filter objects: the array EKF's packing and array
 # overhead cost more than it saves below about 3 cells (benchmarks/run.py, "filter bank" rows)
 ARRAY_MIN_CELLS = 3
 
 
 def components(p: dict) -> tuple[WindowInitiator, CoastingDeleter]:
-    """The initiator and the deleter of parameters p."""
-    return WindowInitiator(p["init_window_s"] or p["epoch_s"]), CoastingDeleter(p["max_coast_s"])
+    """The initiator and the deleter of parameters p: init_window_s 0 starts from one period,
+    widened up to the tracker's window where that holds no fix (WindowInitiator)."""
+    window = WindowInitiator(p["init_window_s"], 0.0) if p["init_window_s"] \
+        else WindowInitiator(p["epoch_s"], TRACKER_INIT_WINDOW_S)
+    return window, CoastingDeleter(p["max_coast_s"], p["max_position_sigma_m"])
 
 
 def resolve_update(data: RunData, p: dict) -> dict:

@@ -60,12 +60,20 @@ class WindowInitiator:
     """Starts a track the first time the measurements of the last `window_s` seconds
     (per-anchor means, MeasurementSource.window_fix) give a multilateration fix: x0 = [fix, 0...]
     (speed and bias 0; the fix in the motion model's 2 or 3 axes), P0 = the motion model's
-    initial covariance."""
+    initial covariance. With `longest_s` above window_s, where the window holds too few anchors
+    for a fix it is doubled, up to longest_s: ranges that come one anchor at a time at a few Hz
+    rarely hold three anchors in one period (a 0.5 s epoch at 2-4 Hz never did, and such a run
+    had no estimate at all), while a run whose periods hold a fix starts as before."""
 
     window_s: float
+    longest_s: float = 0.0
 
     def initiate(self, source, t: float, motion) -> tuple[np.ndarray, np.ndarray] | None:
-        fix = source.window_fix(t, self.window_s, motion.dimensions)
+        window = self.window_s
+        fix = source.window_fix(t, window, motion.dimensions)
+        while fix is None and window < self.longest_s:
+            window = min(2.0 * window, self.longest_s)
+            fix = source.window_fix(t, window, motion.dimensions)
         if fix is None:
             return None
         x0 = np.zeros(motion.dim)
@@ -76,14 +84,58 @@ class WindowInitiator:
 @dataclass(frozen=True)
 class CoastingDeleter:
     """Coasting limit: a track is deleted after more than `max_coast_s` seconds without an
-    update (t - last_update > max_coast_s), or when its updater found it lost (the gate
-    rejecting most measurements, filter_options.ConfiguredFilter.lost), so a long gap shows as
-    lower availability instead of unbounded drift. Works on scalars and on arrays of runs."""
+    update (t - last_update > max_coast_s; in sequential mode without a supported update,
+    Support), or when its updater found it lost (the gate rejecting most measurements,
+    filter_options.ConfiguredFilter.lost), so a long gap shows as lower availability instead of
+    unbounded drift. Works on scalars and on arrays of runs. `max_position_sigma_m` (0: none):
+    the position sigma above which a sequential update does not count as support."""
 
     max_coast_s: float
+    max_position_sigma_m: float = 0.0
 
     def delete(self, t, last_update, lost):
         return lost | (t - last_update > self.max_coast_s)
+
+
+class Support:
+    """When a sequential track was last supported: `since`, the last update (the track's start
+    counts: its fix determined the position) that both
+    - came after a used measurement of an anchor other than its own, or with it: ranges (or
+      RSS) of one anchor alone constrain the distance to it, not the bearing, yet a filter
+      linearised at a moving estimate reads bearing information into them and reports a
+      covariance far too small (a walk ranged by one anchor for 30 s: errors up to 8-18 m,
+      9-71 outputs beyond 3 position sigmas, tests/test_estimators.py); a TDOA record's id is its
+      pair (one pair: a hyperbola);
+    - left the position sigma sqrt(p_xx + p_yy) within `limit` (m; 0: no limit): a track whose
+      updates no longer bring its covariance back (a UKF on ranges one anchor at a time at 2 Hz
+      grew to 130 m sigma while every range was taken) is withheld (withhold_uncertain) and then
+      restarted instead of being carried on unseen.
+    The deleter counts the time since as coasting."""
+
+    def __init__(self, t: float, limit: float = 0.0):
+        self.last_id, self.last_t, self.other_t, self.since = None, t, t, t
+        self.limit = limit
+
+    def use(self, ids, t: float, P: np.ndarray) -> None:
+        """Measurements of the anchors `ids` were used at t (s), leaving the covariance P."""
+        for anchor in ids:
+            if anchor != self.last_id:
+                self.other_t, self.last_id = self.last_t, anchor
+            self.last_t = t
+        if not self.limit or P[0, 0] + P[1, 1] <= self.limit**2:
+            self.since = self.other_t
+
+
+def _used_ids(anchors: list, records, a: int, b: int, filt) -> list:
+    """The anchor ids of records a..b-1 that the update used: all but those the filter's gate left
+    out (ConfiguredFilter.kept, in the model's order: the ranges, then the RSS, Records.split);
+    all where the model's rows are not the records' (a TDOA update leaves redundant pairs out)."""
+    if b - a == 1:
+        return anchors[a:b]
+    r_ids, _, s_ids, _ = records.split(a, b)
+    ids = list(r_ids) + list(s_ids)
+    kept = getattr(filt, "kept", None)
+    return [i for i, k in zip(ids, kept) if k] if kept is not None and len(kept) == len(ids) else ids
 
 
 def predict_step(filt, F: np.ndarray, Q: np.ndarray, B: np.ndarray | None, u: np.ndarray | None) -> tuple:
@@ -282,20 +334,21 @@ def sequential_loop(make, run: RunInputs, motion, initiator, deleter, forward=No
     epoch_of = np.minimum(np.searchsorted(times, records.t, side="left"), len(times) - 1)   # (t_k - T, t_k]
     # the loop reads scalars: Python numbers index and compare faster than numpy scalars (same values)
     record_t, moving, epoch_of = records.t.tolist(), (~np.asarray(static, dtype=bool)).tolist(), epoch_of.tolist()
-    rows, resets, filt, t_filter, last_update = [], 0, None, -np.inf, -np.inf
+    anchors = records.anchor.tolist()
+    rows, resets, filt, t_filter, support = [], 0, None, -np.inf, None
     g = 0
     for k, t_k in enumerate(times.tolist()):
         n_meas, nis = 0, np.nan
         while g < len(bounds) - 1 and record_t[bounds[g]] <= t_k:
-            a, model = bounds[g], models[g]
+            a, b, model = bounds[g], bounds[g + 1], models[g]
             t = record_t[a]
             g += 1
-            if filt is not None and deleter.delete(t, last_update, False):
+            if filt is not None and deleter.delete(t, support.since, False):
                 filt, resets = None, resets + 1
             if filt is None:
                 prior = initiator.initiate(source, t, motion)
                 if prior is not None:
-                    filt, t_filter, last_update = make(*prior, motion), t, t
+                    filt, t_filter, support = make(*prior, motion), t, Support(t, deleter.max_position_sigma_m)
                     if forward is not None:
                         forward.start(filt)
                 continue
@@ -307,15 +360,16 @@ def sequential_loop(make, run: RunInputs, motion, initiator, deleter, forward=No
             t_filter = max(t, t_filter)
             used, group_nis, lost = update_step(filt, model)
             if used:
-                n_meas, nis, last_update = n_meas + used, group_nis, t
-            if deleter.delete(t, last_update, lost):
+                n_meas, nis = n_meas + used, group_nis
+                support.use(_used_ids(anchors, records, a, b, filt), t, filt.P)
+            if deleter.delete(t, support.since, lost):
                 filt, resets = None, resets + 1
                 continue
             if forward is not None:
                 forward.node(filt, step)
         if filt is None:
             continue
-        if deleter.delete(t_k, last_update, False):
+        if deleter.delete(t_k, support.since, False):
             filt, resets = None, resets + 1
             continue
         u = None if inputs is None else inputs[k]

@@ -138,7 +138,7 @@ class ConfiguredFilter:
         self.calibration_keys = [CALIBRATION_KEYS[name] for name in self_calibration.extra_states(self.mode)]
         self.updater = updater or default_updater(p)
         self.per_wall = p["range_sigma_per_wall_m"]
-        self.used = 0
+        self.used, self.kept = 0, None
         self._augmented: dict = {}      # id of (F, Q, B) -> ((F, Q, B), their augmentation)
 
     # -- the interface the filter loops use --
@@ -194,6 +194,7 @@ class ConfiguredFilter:
         if self.bounds is not None:         # estimate projection onto the site box
             self.filt.x[:2] = np.clip(self.filt.x[:2], self.bounds[0], self.bounds[1])
         offered = len(keep)
+        self.kept = keep                # which of the model's rows were used (core.Support)
         self.used = used = int(np.count_nonzero(keep))
         if self.gated_filter:            # offered / gated count what a gate saw (the bare array EKF has none)
             self.counts.offered += offered

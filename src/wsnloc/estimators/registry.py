@@ -101,7 +101,8 @@ FILTER = (
           "first multilateration fixes 1 m apart, path = the campaign path's start heading (a known start pose)",
           str, ("fixes", "path")),
     Param("init_window_s", 0.0, "s", "initiator: multilateration on the last W seconds of measurements "
-          "(0: one period)", minimum=0.0),
+          f"(0: one period, widened up to {bayes.TRACKER_INIT_WINDOW_S:g} s where it holds too few anchors for a "
+          "fix)", minimum=0.0),
     Param("max_coast_s", 10.0, "s", "drop the track after this long without an update; restart by the initiator",
           minimum=0.0),
     Param("max_position_sigma_m", core.MAX_POSITION_SIGMA_M, "m", "do not output an estimate whose position sigma "
@@ -230,7 +231,7 @@ SOLVER_MEASUREMENTS = K_SMALLEST + (Param("measurements", "toa", "", "toa: range
                                           ("toa", "rss")),)
 FIX_SOURCE = COMMON + RSS + SOLVER + (Param("fixes", "toa", "", "fixes tracked: toa, rss, pmix or fmix", str,
                                             fixes.TECHNIQUES),)
-TRACKER_DEFAULTS = dict(update="sequential", init_window_s=4.0, initial_sigma_m=2.0,
+TRACKER_DEFAULTS = dict(update="sequential", init_window_s=bayes.TRACKER_INIT_WINDOW_S, initial_sigma_m=2.0,
                         gate_probability=filter_options.STANDARD_GATE, self_fit="two_pass")
 # The general filters and smoothers self-fit as the tracker does (the same noise and range errors
 # of the run; without it they fall 1.6-2.4x behind it on real ranges, benchmarks/ASYNC_RESULTS.md);
