@@ -99,6 +99,21 @@ def test_missing_required_file_or_column(run_dir, generic):
         ingest_run(run_dir, generic)
 
 
+@pytest.mark.parametrize("per_second, unit", [(1e3, "milliseconds"), (1e6, "microseconds"), (1e9, "nanoseconds")])
+def test_time_stamps_in_a_finer_unit_than_seconds_are_refused_with_the_factor(run_dir, generic, per_second, unit):
+    """A logger's Unix milliseconds (or finer) read as seconds put the run thousands of years
+    ahead; a short run of them passes the one-day span check, so the unit is checked apart."""
+    (run_dir / "ranges.csv").write_text("t,anchor_id,range_m\n" + "".join(
+        f"{(1.7e9 + 0.1 * k) * per_second:.0f},A{1 + k % 3},{5.0 + 0.01 * k}\n" for k in range(50)))
+    with pytest.raises(IngestError, match=rf"ranges.csv: column t must be in seconds; its median .* looks like "
+                                          rf"Unix {unit} .*divide t by {per_second:.0f}"):
+        ingest_run(run_dir, generic)
+    (run_dir / "ranges.csv").write_text("t,anchor_id,range_m\n" + "".join(
+        f"{1.7e9 + 0.1 * k:.1f},A{1 + k % 3},{5.0 + 0.01 * k}\n" for k in range(50)))
+    (run_dir / "truth.csv").write_text("t,x,y\n1700000000,3,4\n1700000010,6,8\n")
+    assert len(ingest_run(run_dir, generic)[0]["ranges"]) == 50          # Unix seconds pass
+
+
 def test_cli_ingests_generic_and_keeps_anchor_heights(run_dir, tmp_path, capsys):
     assert main(["ingest", "--format", "generic", "--campaign", str(CAMPAIGN), "--max-quarantine-share-per-file", "1",
                  "--max-quarantine-share", "1", str(run_dir), str(tmp_path / "out")]) == 0

@@ -142,8 +142,11 @@ def test_diagnosis_names_a_range_scale_error_and_its_remedy():
     fitted = dict(d, self_fit_range_correction="applied", calibrated_scale=1.07)      # the self-fit's output pass
     assert any("ranges look 7% long" in f and "the self-fit corrected it (scale 1.070 applied)" in f
                for f in findings(fitted, {}))
-    biased = dict(fitted, range_offsets_m={"A": 0.3, "B": 0.0})
+    biased = dict(fitted, range_offsets_m={"A": 0.3, "B": 0.0}, calibrated_offsets_m={"A": 0.29, "B": 0.01})
     assert any("A +0.30 m" in f and "the self-fit corrected them" in f for f in findings(biased, {}))
+    other = dict(biased, calibrated_offsets_m={"A": 0.02, "B": -0.01})     # left by the outliers and the track
+    assert any("A +0.30 m" in f and "applied its own correction" in f and "(calibrated_offsets_m: A +0.02 m, B -0.01 m)"
+               in f and "the self-fit corrected them" not in f for f in findings(other, {}))
     scale_only = dict(biased, self_fit_range_correction="applied, scale only (offsets not constant)")
     assert any("A +0.30 m" in f and "left them out" in f and "--calibration DONOR_RUN" in f
                for f in findings(scale_only, {}))

@@ -11,7 +11,8 @@ Values (`diagnose_run`, all optional, NaN where the estimator or run has none):
                     the anchor heard alone or None) in s after the first measurement: where a
                     sequential track is dropped whatever the model (restarts; core.Support)
   withheld          estimates not output because their position sigma passed max_position_sigma_m
-                    (attrs `withheld`: a track coasting through a gap, core.withhold_uncertain)
+                    (attrs `withheld`: a track coasting through a gap, core.withhold_uncertain), or,
+                    by the sliding window, because its window held no measurement
   widenings         the gate rejected most recent measurements and the covariance was widened
                     (attrs `gate_widenings`, filter_options.ConfiguredFilter.widen)
   refixes           restarts at once because a fix on the recent ranges explained them better
@@ -28,7 +29,8 @@ Values (`diagnose_run`, all optional, NaN where the estimator or run has none):
                     structure the filter did not absorb. A common scale error leaves s != 1,
                     per-anchor biases leave offsets b_a.
   self_scale, self_offset_m   the filter's own self-calibration states, where it has them
-  calibrated_scale  the donor calibration applied, where one was
+  calibrated_scale  the range calibration applied (donor or self-fitted), where one was, and
+  calibrated_offsets_m  its per-anchor offsets
   self_fit_run_sigma_m, self_fit_range_sigma_m, self_fit_accel_sigma_mps2 (P model:
   self_fit_p_sigma_m), self_fit_range_correction
                     the tracker's self-fit (estimators.self_fit): the range sigma the output pass ran
@@ -177,6 +179,7 @@ def diagnose_run(data: RunData, estimates: pd.DataFrame, p: dict) -> dict:
         out["update"] = str(a["update"])
     if a.get("range_calibration", "none") != "none" and "calibrated_scale" in a:
         out["calibrated_scale"] = float(a["calibrated_scale"])
+        out["calibrated_offsets_m"] = dict(a.get("calibrated_offsets_m") or {})
     out.update({k: a[k] for k in SELF_FIT if k in a})
     return out
 
@@ -235,7 +238,13 @@ def findings(d: dict, p: dict) -> list[str]:
     if biased:
         listed = ", ".join(f"{k} {v:+.2f} m" for k, v in sorted(biased.items(), key=lambda kv: -abs(kv[1])))
         if corrected == "applied":
-            remedy = "the self-fit corrected them (calibrated_offsets_m in the run's metrics)"
+            applied = d.get("calibrated_offsets_m") or {}
+            listed_fit = ", ".join(f"{k} {v:+.2f} m" for k, v in sorted(applied.items(), key=lambda kv: -abs(kv[1]))[:4])
+            remedy = ("the self-fit applied its own correction, fitted with the track's error and the outliers "
+                      f"left out (calibrated_offsets_m: {listed_fit}); offsets beyond it here are what the track "
+                      "and those outliers still carry (NLOS-long ranges, robust_loss=cauchy)"
+                      if applied and any(abs(applied.get(k, 0.0) - v) > OFFSET_TOLERANCE_M for k, v in biased.items())
+                      else "the self-fit corrected them (calibrated_offsets_m in the run's metrics)")
         else:
             left = ("the self-fit left them out: offsets fitted on part of the run beat constant ones "
                     "(self_fit_range_local_gain), so they change along the path; "
@@ -318,7 +327,7 @@ def _nis_findings(d: dict, p: dict) -> list[str]:
 def metrics_of(d: dict) -> dict:
     """Flat scalar columns of a diagnosis for metrics files (offsets as 'A=b;...', findings counted)."""
     out = {f"diag_{k}": v for k, v in d.items()
-           if k not in ("range_offsets_m", "update", "self_fit_range_correction", "gaps")}
+           if k not in ("range_offsets_m", "calibrated_offsets_m", "update", "self_fit_range_correction", "gaps")}
     out["diag_gaps"] = len(d.get("gaps") or [])
     if "self_fit_range_correction" in d:
         out["diag_self_fit_range_corrected"] = float(d["self_fit_range_correction"].startswith("applied"))
@@ -334,8 +343,9 @@ def report(d: dict, p: dict) -> str:
               f"gated {d['gated_share']:.1%}" if np.isfinite(d.get("gated_share", np.nan)) else None,
               f"restarts {d.get('restarts', 0)}" + (f" ({d['refixes']} re-fixed)" if d.get("refixes") else ""),
               f"widened {d.get('widenings', 0)}",
-              f"withheld {d['withheld']} estimates (position sigma above max_position_sigma_m "
-              f"{p.get('max_position_sigma_m', '?')} m)" if d.get("withheld") else None,
+              f"withheld {d['withheld']} estimates ("
+              + (f"position sigma above max_position_sigma_m {p['max_position_sigma_m']} m)" if "max_position_sigma_m" in p
+                 else "windows without a measurement)") if d.get("withheld") else None,
               f"NIS {d['nis_mean']:.2f} per dof (95% band {d['nis_low']:.2f}-{d['nis_high']:.2f})"
               if "nis_mean" in d else None,
               f"range scale vs track {d['range_scale']:.3f}" if "range_scale" in d else None,

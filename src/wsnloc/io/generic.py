@@ -55,6 +55,10 @@ TEXT_COLUMNS = {"anchor_id", "ref_anchor_id", "tech"}
 NON_NEGATIVE_COLUMNS = {"range_m"}
 NEVER_EMPTY = ("anchors", "ranges", "rss", "tdoa")     # a run without their rows has nothing to localise with
 MAX_RUN_S = 86400.0    # s: a run's stamps lie within a day of its median time (a longer campaign: split it into runs)
+# s: the largest plausible median time stamp, Unix seconds in the year 5138; above it the stamps are in a
+# finer unit (Unix milliseconds are ~1.7e12, microseconds ~1.7e15, nanoseconds ~1.7e18)
+MAX_SECONDS = 1e11
+FINER_UNITS = ((1e17, "nanoseconds", 1e9), (1e14, "microseconds", 1e6), (MAX_SECONDS, "milliseconds", 1e3))
 
 
 def run_campaign(run_dir: str | Path) -> Campaign | None:
@@ -128,7 +132,20 @@ class _Table:
                 self._reject(number < 0, text, f"{column} {{value!r}} is negative")
             self.values[column] = number
         if "t" in self.values:
+            self._time_unit()
             self._far_times(self.frame["t"].str.strip())
+
+    def _time_unit(self) -> None:
+        """Stop on time stamps that are not seconds: a median above MAX_SECONDS (a logger's Unix
+        milliseconds, micro- or nanoseconds read as seconds would put the run thousands of years
+        ahead, and its rates a thousand times too low)."""
+        t = self.values["t"][self.ok & np.isfinite(self.values["t"])]
+        centre = float(np.median(t)) if len(t) else 0.0
+        for above, unit, per_second in FINER_UNITS:
+            if centre > above:
+                raise IngestError(f"{self.path}: column t must be in seconds; its median {centre:.6g} looks like "
+                                  f"Unix {unit} (as seconds, year {1970 + centre / 3.15576e7:.0f}): divide t by "
+                                  f"{per_second:.0f} (and the other tables' t alike)")
 
     def _far_times(self, text: pd.Series) -> None:
         """Refuse rows whose time stamp lies more than MAX_RUN_S from the median time of the table's
