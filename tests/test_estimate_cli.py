@@ -203,3 +203,19 @@ def test_estimate_says_when_a_fusing_estimator_has_no_rss_to_fuse(tmp_path, caps
     assert "the run has no RSS: pmix reads the ranges alone" in capsys.readouterr().out
     assert main(["estimate", "--format", "generic", str(run), "--out", str(tmp_path / "o2"), "--estimator", "minmax"]) == 0
     assert "no RSS" not in capsys.readouterr().out
+
+
+def test_estimate_says_which_ranges_the_preliminary_filter_left_out(tmp_path, capsys):
+    """Ranges longer than max_range_m are left out by the preliminary filter: counted and said,
+    with the setting that keeps them; none is left out when they are within it."""
+    rng = np.random.default_rng(4)
+    times, ids = one_at_a_time(120.0, 4.0, rng, SQUARE)
+    tables = tables_for(times, ids, walk, SQUARE, 0.05, rng)
+    tables["ranges"].loc[tables["ranges"].index[:7], "range_m"] = 150.0
+    run = write_generic(tmp_path / "run", tables)
+    assert main(["estimate", "--format", "generic", str(run), "--out", str(tmp_path / "out")]) == 0
+    said = capsys.readouterr().out
+    assert f"the preliminary filter left out 7 of {len(times)} ranges: 7 longer than max_range_m (100 m" in said
+    assert main(["estimate", "--format", "generic", str(run), "--out", str(tmp_path / "out2"),
+                 "--set", "max_range_m=200"]) == 0
+    assert "preliminary filter" not in capsys.readouterr().out

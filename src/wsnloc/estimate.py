@@ -117,6 +117,26 @@ def unused_tdoa_notes(data: RunData, p: dict, explicit: set[str], choices: dict)
             for k in CHOICE_KEYS if p.get(k) == "toa" and k not in explicit and "tdoa" in (choices.get(k) or ())]
 
 
+def filtered_ranges_note(data: RunData, p: dict) -> str | None:
+    """How many of the run's ranges to known anchors the preliminary filter leaves out
+    (run_data.preliminary_filter: a device status other than 0, not positive, longer than
+    max_range_m), by reason; None when none is or the estimator reads no ranges."""
+    if not p.get("preliminary_filter") or p.get("measurements", "toa") in ("rss", "tdoa") \
+            or p.get("fixes") in ("rss",):
+        return None
+    ranges = data.usable_ranges(False, np.inf)          # finite, to a known anchor
+    r, status = ranges["range_m"].to_numpy(float), ranges["status"].to_numpy()
+    reasons = {"with a device status other than 0": status != 0,
+               "not positive": (status == 0) & (r <= 0),
+               f"longer than max_range_m ({p['max_range_m']:g} m; raise it to keep them)":
+                   (status == 0) & (r > p["max_range_m"])}
+    counts = {reason: int(mask.sum()) for reason, mask in reasons.items() if mask.any()}
+    if not counts:
+        return None
+    return (f"the preliminary filter left out {sum(counts.values())} of {len(r)} ranges: "
+            + ", ".join(f"{n} {reason}" for reason, n in counts.items()))
+
+
 def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, name: str, overrides: dict,
                  calibration_dir: Path | None = None, limits: QuarantineLimits = QuarantineLimits()) -> dict:
     """Run `name` on the raw run; writes estimates.parquet (and metrics.json with truth); returns the
@@ -162,6 +182,7 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
     if data.three_d and (campaign is None or campaign.tag_height_m is None) and p.get("dimensions", 2) == 2:
         notes.append("anchors have heights (z) but the run gives no tag height: the tag is taken at z = 0 m "
                      "(give tag_height_m in the run's meta.yaml, or --set dimensions=3)")
+    notes += [note for note in [filtered_ranges_note(data, p)] if note]
     estimates = registry.run(name, data, p)
     if not np.isfinite(estimates["x"]).any():
         raise WsnlocError(f"{name} on {run_dir}: no estimates; {diagnose(data, p)}")
