@@ -129,8 +129,9 @@ def test_diagnosis_names_a_range_scale_error_and_its_remedy():
     data, truth = _range_run(1.07)
     estimates = truth.assign(nis=1.0, n_meas=1)
     estimates.attrs = {"gated_share": 0.0, "resets": 0}
-    d = diagnose_run(data, estimates, {"update": "sequential", "range_sigma_m": 0.3})
+    d = diagnose_run(data, estimates, {"update": "sequential", "range_sigma_m": 0.3, "range_calibration": "none"})
     assert d["range_scale"] == pytest.approx(1.07, abs=1e-6)
+    assert "range_scale" not in diagnose_run(data, estimates, registry.get("minmax").resolve({}))   # no calibration to take
     tracker = registry.get("tracker").resolve({})
     assert any("ranges look 7% long" in f and "range_self_calibration=scale" in f for f in findings(d, tracker))
     # advice names only settings the estimator has: multilateration has no range_self_calibration
@@ -151,7 +152,10 @@ def test_diagnosis_names_a_range_scale_error_and_its_remedy():
     assert any("A +0.30 m" in f and "left them out" in f and "--calibration DONOR_RUN" in f
                for f in findings(scale_only, {}))
     clean, _ = _range_run(1.0)
-    assert findings(diagnose_run(clean, estimates, {"update": "sequential"}), {}) == []
+    assert findings(diagnose_run(clean, estimates, {"update": "sequential", "range_calibration": "none"}), {}) == []
+    donor = RunData(data.tables, None, None, "donor-calibrated", {"scale": 1.07, "offsets_m": {}})   # as the filter read them
+    assert "range_scale" in diagnose_run(donor, estimates, {"update": "sequential", "range_calibration": "other_run"})
+    assert findings(diagnose_run(donor, estimates, {"update": "sequential", "range_calibration": "other_run"}), {}) == []
 
 
 def test_diagnosis_flags_gate_restarts_and_a_nis_above_its_band():
@@ -163,6 +167,10 @@ def test_diagnosis_flags_gate_restarts_and_a_nis_above_its_band():
     assert "rejected 40%" in text and "restarted 3 time(s)" in text and "range_sigma_m about 0.2" in text
     particles = " ".join(findings(d, registry.get("pf").resolve({})))      # no gate: outliers raise its NIS
     assert "particle filter updates with every measurement" in particles and "range_sigma_m about" not in particles
+    assert "gate lost" not in particles and "came from one anchor for longer than max_coast_s" in particles
+    window = " ".join(findings(d, registry.get("sliding_window").resolve({})))
+    assert "gate lost" not in window and "a window's solution was dropped" in window
+    assert "the gate lost the track" in " ".join(findings(d, registry.get("tracker").resolve({})))
 
 
 def test_diagnosis_names_the_gaps_behind_the_restarts():

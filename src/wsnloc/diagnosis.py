@@ -11,6 +11,7 @@ Values (`diagnose_run`, all optional, NaN where the estimator or run has none):
                     the anchor heard alone or None) in s after the first measurement: where a
                     sequential track is dropped whatever the model (restarts; core.Support)
   withheld          estimates not output because their position sigma passed max_position_sigma_m
+  (withheld_share   of the output times: beyond WITHHELD_SHARE_LIMIT a finding says the scores cover the rest)
                     (attrs `withheld`: a track coasting through a gap, core.withhold_uncertain), or,
                     by the sliding window, because its window held no measurement
   widenings         the gate rejected most recent measurements and the covariance was widened
@@ -57,6 +58,7 @@ import numpy as np
 import pandas as pd
 
 from wsnloc.campaign import generic_site
+from wsnloc.estimators import range_calibration
 from wsnloc.estimators.run_data import RunData
 from wsnloc.estimators.self_fit import FITTED_NOISE_KEYS, PROCESS_NOISE
 from wsnloc.metrics.consistency import chi2_band
@@ -67,6 +69,7 @@ POOR_TRACK_GATED_SHARE = 0.2    # more rejected than this: the scale / offsets r
 SCALE_TOLERANCE = 0.03          # |s - 1| above this: a common range scale error (UWB clock/antenna delay ~1%)
 OFFSET_TOLERANCE_M = 0.15       # |b_a| above this: a per-anchor bias (antenna delay, cable; UWB sigma ~0.1 m)
 MIN_RANGES = 50                 # fewer ranges along the track: no scale / offset fit
+WITHHELD_SHARE_LIMIT = 0.2     # withheld outputs beyond this share of the output times: said, with what it means
 MAX_GAPS_LISTED = 3             # measurement gaps named in the restart sentence
 GUARDS = {"regularised": "covariances made positive definite", "skipped": "updates or windows skipped",
           "reinitialised": "particle filter restarted from a fix"}
@@ -95,6 +98,8 @@ def track_distances(data: RunData, estimates: pd.DataFrame, p: dict) -> pd.DataF
     Arrays, not frame operations: the self-fit reads it twice a run (about 0.5 ms, not 2.5 ms)."""
     ranges = data.usable_ranges(p.get("preliminary_filter", True), p.get("max_range_m", np.inf))
     ranges = ranges[ranges["status"].to_numpy() == 0]
+    if "range_calibration" in p:                        # as the filter read them: a donor's or the campaign's
+        ranges = range_calibration.correction(data, p).apply(ranges)
     x, y = estimates["x"].to_numpy(float), estimates["y"].to_numpy(float)
     finite = np.isfinite(x) & np.isfinite(y)
     if len(ranges) < MIN_RANGES or finite.sum() < 2:
@@ -113,7 +118,12 @@ def track_distances(data: RunData, estimates: pd.DataFrame, p: dict) -> pd.DataF
 
 
 def range_fit(data: RunData, estimates: pd.DataFrame, p: dict) -> dict:
-    """{range_scale, range_offsets_m} of the run's ranges against the estimated track ({} when too few)."""
+    """{range_scale, range_offsets_m} of the run's ranges, as the filter read them, against the
+    estimated track ({} when too few, and for an estimator that cannot take a range calibration:
+    the tracks of Min-Max, multilateration and the trackers over their fixes lag or scatter more
+    than the errors sought, and told a reviewer "ranges look 4-13% long" on exact ranges)."""
+    if "range_calibration" not in p:
+        return {}
     samples = track_distances(data, estimates, p)
     if samples is None:
         return {}
@@ -169,6 +179,7 @@ def diagnose_run(data: RunData, estimates: pd.DataFrame, p: dict) -> dict:
     out = {"gated_share": float(a["gated_share"]) if "gated_share" in a else np.nan,
            "restarts": int(a.get("resets", 0)), "widenings": int(a.get("gate_widenings", 0)),
            "refixes": int(a.get("gate_refixes", 0)), "withheld": int(a.get("withheld", 0)),
+           "withheld_share": int(a.get("withheld", 0)) / max(int(a.get("withheld", 0)) + len(estimates), 1),
            "gaps": gaps, **_nis(estimates, p), **range_fit(data, estimates, p)}
     if "range_scale" in a:
         out["self_scale"] = float(a["range_scale"])
@@ -187,6 +198,13 @@ def diagnose_run(data: RunData, estimates: pd.DataFrame, p: dict) -> dict:
 def findings(d: dict, p: dict) -> list[str]:
     """Likely cause and remedy, one sentence per symptom (module docstring); [] when all fit."""
     out = []
+    if d.get("withheld_share", 0.0) > WITHHELD_SHARE_LIMIT:
+        why, compare = (("position sigma above max_position_sigma_m: where the measurements do not fix the position "
+                         "(anchors clustered far from the track, range differences along their hyperbolae, one anchor) "
+                         "or a gap", " (max_position_sigma_m=0 outputs every one)")
+                        if "max_position_sigma_m" in p else ("windows without a measurement", ""))
+        out.append(f"{d['withheld_share']:.0%} of the output times have no estimate ({d['withheld']} withheld: {why}); "
+                   f"the scores cover the rest only: compare estimators at the same availability{compare}")
     if np.isfinite(d.get("gated_share", np.nan)) and d["gated_share"] > GATED_SHARE_LIMIT:
         if p.get("measurements") == "rss":
             remedy = (f"the RSS model (P0, path-loss exponent, sigma_db) does not fit the site; fit it on a donor "
@@ -226,9 +244,13 @@ def findings(d: dict, p: dict) -> list[str]:
               f"scale and offsets against its own error, so these may be off, even in sign)"
               if np.isfinite(gated) and gated > POOR_TRACK_GATED_SHARE else "")
     scale = d.get("range_scale", np.nan)
+    calibrated = p.get("range_calibration", "none") != "none"       # a donor's or the campaign's: read after it
+    after = (" (the ranges after the range calibration applied: what it leaves; a donor of another set-up, or "
+             "errors that change along the path)" if calibrated else "")
     if np.isfinite(scale) and abs(scale - 1.0) > SCALE_TOLERANCE:
         remedy = (f"the self-fit corrected it (scale {d['calibrated_scale']:.3f} applied)"
                   if corrected.startswith("applied") and "calibrated_scale" in d
+                  else "try range_self_calibration=scale" + after if calibrated
                   else "try " + ", or ".join(t for t in (_options(p, range_self_calibration="range_self_calibration=scale"),
                                                           "--calibration DONOR_RUN") if t))
         out.append(f"ranges look {abs(scale - 1.0):.0%} {'long' if scale > 1 else 'short'} against the track"
@@ -245,6 +267,8 @@ def findings(d: dict, p: dict) -> list[str]:
                       "and those outliers still carry (NLOS-long ranges, robust_loss=cauchy)"
                       if applied and any(abs(applied.get(k, 0.0) - v) > OFFSET_TOLERANCE_M for k, v in biased.items())
                       else "the self-fit corrected them (calibrated_offsets_m in the run's metrics)")
+        elif calibrated:
+            remedy = f"robust_loss=cauchy takes NLOS-long ranges as outliers{after}"
         else:
             left = ("the self-fit left them out: offsets fitted on part of the run beat constant ones "
                     "(self_fit_range_local_gain), so they change along the path; "
@@ -273,9 +297,17 @@ def _restarts(n: int, gaps: list[tuple[float, float, str | None]], p: dict) -> s
                      f"measurement): no estimate there is expected (raise max_coast_s to coast through shorter ones)")
     lost = n - min(len(gaps), n)
     if lost:
-        raise_ = _options(p, gate_loss_share="gate_loss_share", range_sigma_m="range_sigma_m")
-        parts.append(f"{'the other ' if gaps else ''}{lost} time(s) the gate lost the track (most recent "
-                     f"measurements rejected){f'; raise {raise_} if that recurs' if raise_ else ''}")
+        why = []
+        if p.get("gate_probability", 0.0) > 0:
+            raise_ = _options(p, gate_loss_share="gate_loss_share", range_sigma_m="range_sigma_m")
+            why.append(f"the gate lost the track (most recent measurements rejected)"
+                       f"{f'; raise {raise_} if that recurs' if raise_ else ''}")
+        if "window_s" in p:             # the sliding window: a window it could not solve
+            why.append("a window's solution was dropped (it did not converge or left the anchors' reach: skipped)")
+        elif not why:
+            why.append("its anchor subset's measurements stopped or came from one anchor for longer than "
+                       "max_coast_s")
+        parts.append(f"{'the other ' if gaps else ''}{lost} time(s) " + ", or ".join(why))
     return f"the track was dropped and restarted {n} time(s): " + "; ".join(parts)
 
 

@@ -86,8 +86,10 @@ def donor_models(fmt: str, donor_dir: Path, campaign: Campaign | None, out_dir: 
     range differences when it has none: offsets relative to its main reference anchor)."""
     wants_ranges = p.get("range_calibration") == "other_run"
     if not (reads_rss or wants_ranges):
-        raise WsnlocError(f"--calibration {donor_dir}: this estimator calibrates nothing on a donor (it reads no "
-                          f"RSS, and range_calibration is {p.get('range_calibration')!r})")
+        raise WsnlocError(f"--calibration {donor_dir}: {name} calibrates nothing on a donor (it reads no RSS, and "
+                          + ("has no range calibration: the Bayesian filters and smoothers have one, see "
+                             "`wsnloc estimators`)" if "range_calibration" not in p
+                             else f"range_calibration is {p['range_calibration']!r}; other_run reads the donor)"))
     donor, _ = load_run(fmt, donor_dir, campaign, out_dir, limits)
     if len(donor["truth"]) == 0:
         raise WsnlocError(f"{donor_dir}: a calibration donor needs truth")

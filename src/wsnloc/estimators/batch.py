@@ -88,7 +88,7 @@ def sliding_window(data: RunData, p: dict) -> pd.DataFrame:
         b = int(np.searchsorted(records.t, t_k, side="right"))
         if solver is not None:
             for j in range(seen, b):
-                support.use(records.anchor[j:j + 1], records.t[j], None)
+                support.use(records.anchor[j:j + 1], records.t[j])
             if deleter.delete(t_k, support.since, False):
                 solver, resets = None, resets + 1
         seen = b

@@ -87,43 +87,36 @@ class CoastingDeleter:
     update (t - last_update > max_coast_s; in sequential mode without a supported update,
     Support), or when its updater found it lost (the gate rejecting most measurements,
     filter_options.ConfiguredFilter.lost), so a long gap shows as lower availability instead of
-    unbounded drift. Works on scalars and on arrays of runs. `max_position_sigma_m` (0: none):
-    the position sigma above which a sequential update does not count as support."""
+    unbounded drift. Works on scalars and on arrays of runs."""
 
     max_coast_s: float
-    max_position_sigma_m: float = 0.0
 
     def delete(self, t, last_update, lost):
         return lost | (t - last_update > self.max_coast_s)
 
 
 class Support:
-    """When a sequential track was last supported: `since`, the last update (the track's start
-    counts: its fix determined the position) that both
-    - came after a used measurement of an anchor other than its own, or with it: ranges (or
-      RSS) of one anchor alone constrain the distance to it, not the bearing, yet a filter
-      linearised at a moving estimate reads bearing information into them and reports a
-      covariance far too small (a walk ranged by one anchor for 30 s: errors up to 8-18 m,
-      9-71 outputs beyond 3 position sigmas, tests/test_estimators.py); a TDOA record's id is its
-      pair (one pair: a hyperbola);
-    - left the position sigma sqrt(p_xx + p_yy) within `limit` (m; 0: no limit): a track whose
-      updates no longer bring its covariance back (a UKF on ranges one anchor at a time at 2 Hz
-      grew to 130 m sigma while every range was taken) is withheld (withhold_uncertain) and then
-      restarted instead of being carried on unseen.
-    The deleter counts the time since as coasting."""
+    """When a sequential track's position was last supported: `since`, the last used measurement
+    of an anchor other than the most recently used one (the track's start counts: its fix
+    determined the position). Ranges (or RSS) of one anchor alone constrain the distance to it,
+    not the bearing, yet a filter linearised at a moving estimate reads bearing information into
+    them and reports a covariance far too small (a walk ranged by one anchor for 30 s: errors up to
+    8-18 m, 9-71 outputs beyond 3 position sigmas, tests/test_estimators.py); the deleter counts
+    such a stretch as coasting. A TDOA record's id is its pair (one pair: a hyperbola).
+    (Not the covariance: restarting a track whose sigma stays large while it takes measurements
+    helped a UKF that diverged on a 2 Hz walk, but on range differences far from a small anchor
+    cluster each restart started from a hyperbolic fix tens of metres off with the initial 2 m
+    sigma: cucudasluv nlos/a-case-1 as TDOA, tracker RMSE 29.5 m against 1.3 m without it.)"""
 
-    def __init__(self, t: float, limit: float = 0.0):
-        self.last_id, self.last_t, self.other_t, self.since = None, t, t, t
-        self.limit = limit
+    def __init__(self, t: float):
+        self.last_id, self.last_t, self.since = None, t, t
 
-    def use(self, ids, t: float, P: np.ndarray) -> None:
-        """Measurements of the anchors `ids` were used at t (s), leaving the covariance P."""
+    def use(self, ids, t: float) -> None:
+        """Measurements of the anchors `ids` were used at t (s)."""
         for anchor in ids:
             if anchor != self.last_id:
-                self.other_t, self.last_id = self.last_t, anchor
+                self.since, self.last_id = self.last_t, anchor
             self.last_t = t
-        if not self.limit or P[0, 0] + P[1, 1] <= self.limit**2:
-            self.since = self.other_t
 
 
 def _used_ids(anchors: list, records, a: int, b: int, filt) -> list:
@@ -348,7 +341,7 @@ def sequential_loop(make, run: RunInputs, motion, initiator, deleter, forward=No
             if filt is None:
                 prior = initiator.initiate(source, t, motion)
                 if prior is not None:
-                    filt, t_filter, support = make(*prior, motion), t, Support(t, deleter.max_position_sigma_m)
+                    filt, t_filter, support = make(*prior, motion), t, Support(t)
                     if forward is not None:
                         forward.start(filt)
                 continue
@@ -361,7 +354,7 @@ def sequential_loop(make, run: RunInputs, motion, initiator, deleter, forward=No
             used, group_nis, lost = update_step(filt, model)
             if used:
                 n_meas, nis = n_meas + used, group_nis
-                support.use(_used_ids(anchors, records, a, b, filt), t, filt.P)
+                support.use(_used_ids(anchors, records, a, b, filt), t)
             if deleter.delete(t, support.since, lost):
                 filt, resets = None, resets + 1
                 continue
