@@ -192,3 +192,14 @@ def test_estimates_do_not_depend_on_the_clock_origin(name):
     assert len(a) == len(b) > 50
     np.testing.assert_allclose(b["t"] - 1.7e9, a["t"], atol=1e-6)
     np.testing.assert_allclose(b[["x", "y"]], a[["x", "y"]], atol=1e-6)
+
+
+def test_withheld_are_the_uncertain_estimates_and_those_no_anchor_reaches():
+    from wsnloc.estimators.core import withhold_uncertain
+    rows = np.array([[0.0, 10.0, 0.0, 1.0, 0.0, 1.0, 1, 1.0],        # sigma sqrt(2) m, 10 m from A
+                     [1.0, 10.0, 0.0, 9.0, 0.0, 9.0, 1, 1.0],        # sigma sqrt(18) m: uncertain
+                     [2.0, 150.0, 0.0, 1.0, 0.0, 1.0, 1, 1.0]])      # 150 m from A, 130 m from B: unreachable
+    anchors = np.array([[0.0, 0.0], [20.0, 0.0]])
+    kept, withheld = withhold_uncertain(rows, 4.0, anchors, 100.0)
+    assert kept[:, 0].tolist() == [0.0] and withheld == 2
+    assert withhold_uncertain(rows, 4.0)[1] == 1 and withhold_uncertain(rows, 0.0, anchors, 200.0)[1] == 0

@@ -11,6 +11,7 @@ Values (`diagnose_run`, all optional, NaN where the estimator or run has none):
                     the anchor heard alone or None) in s after the first measurement: where a
                     sequential track is dropped whatever the model (restarts; core.Support)
   withheld          estimates not output because their position sigma passed max_position_sigma_m
+                    or they lie beyond max_range_m of every anchor (core.withhold_uncertain)
   (withheld_share   of the output times: beyond WITHHELD_SHARE_LIMIT a finding says the scores cover the rest)
                     (attrs `withheld`: a track coasting through a gap, core.withhold_uncertain), or,
                     by the sliding window, because its window held no measurement
@@ -376,7 +377,8 @@ def report(d: dict, p: dict) -> str:
               f"restarts {d.get('restarts', 0)}" + (f" ({d['refixes']} re-fixed)" if d.get("refixes") else ""),
               f"widened {d.get('widenings', 0)}",
               f"withheld {d['withheld']} estimates ("
-              + (f"position sigma above max_position_sigma_m {p['max_position_sigma_m']} m)" if "max_position_sigma_m" in p
+              + (f"position sigma above max_position_sigma_m {p['max_position_sigma_m']} m, or beyond max_range_m of "
+                 f"every anchor)" if "max_position_sigma_m" in p
                  else "windows without a measurement)") if d.get("withheld") else None,
               f"NIS {d['nis_mean']:.2f} per dof (95% band {d['nis_low']:.2f}-{d['nis_high']:.2f})"
               if "nis_mean" in d else None,
