@@ -182,8 +182,9 @@ def test_particle_filter_is_reproducible_for_a_seed_and_run_and_varies_otherwise
     pd.testing.assert_frame_equal(a, b)
     other_seed = registry.run("pf", data, {"seed": 2, "n_particles": 300})
     renamed = noisy_walk(seconds=20.0)
-    renamed.name = "another run"
-    other_run = registry.run("pf", renamed, {"seed": 1, "n_particles": 300})
+    renamed.name = "another run"                      # the stream follows the measurements, not the name
+    pd.testing.assert_frame_equal(a, registry.run("pf", renamed, {"seed": 1, "n_particles": 300}))
+    other_run = registry.run("pf", noisy_walk(seed=9, seconds=20.0), {"seed": 1, "n_particles": 300})
     assert not np.allclose(a["x"], other_seed["x"]) and not np.allclose(a["x"], other_run["x"])
 
 

@@ -143,6 +143,9 @@ def test_diagnosis_names_a_range_scale_error_and_its_remedy():
     fitted = dict(d, self_fit_range_correction="applied", calibrated_scale=1.07)      # the self-fit's output pass
     assert any("ranges look 7% long" in f and "the self-fit corrected it (scale 1.070 applied)" in f
                for f in findings(fitted, {}))
+    apart = dict(fitted, calibrated_scale=1.005)        # the self-fit read another scale: the track's own error
+    assert any("ranges look 7% long" in f and "more likely the track's own error" in f and "found and applied 1.005"
+               in f and "corrected it" not in f for f in findings(apart, {}))
     biased = dict(fitted, range_offsets_m={"A": 0.3, "B": 0.0}, calibrated_offsets_m={"A": 0.29, "B": 0.01})
     assert any("A +0.30 m" in f and "the self-fit corrected them" in f for f in findings(biased, {}))
     other = dict(biased, calibrated_offsets_m={"A": 0.02, "B": -0.01})     # left by the outliers and the track

@@ -141,6 +141,18 @@ def test_filters_track_range_differences(name):
     assert errors.notna().mean() > 0.95 and np.nanmedian(errors) < 0.25, (name, np.nanmedian(errors))
 
 
+def test_sliding_window_skips_windows_without_range_differences():
+    """A 5 s break (longer than the 2 s window, shorter than max_coast_s): the empty windows are
+    neither solved nor output (counted in withheld), the track goes on after the break; solving
+    an empty TDOA window stopped the estimator ("not enough values to unpack")."""
+    data = tdoa_run()
+    tdoa = data.table("tdoa")
+    broken = RunData(dict(data.tables, tdoa=tdoa[(tdoa["t"] < 20.0) | (tdoa["t"] > 25.0)]), None, None, "tdoa-break")
+    estimates = registry.run("sliding_window", broken, {"measurements": "tdoa", "range_sigma_m": 0.1})
+    assert estimates.attrs["withheld"] >= 5 and not estimates["t"].between(22.5, 25.0).any()
+    assert estimates["t"].max() > 59.0 and estimates.attrs["resets"] == 0
+
+
 def test_tdoa_gate_rejects_outlier_groups():
     data = tdoa_run(seed=3)
     tdoa = data.tables["tdoa"]
@@ -208,6 +220,28 @@ def test_estimate_picks_tdoa_on_a_tdoa_run(tmp_path, capsys):
     assert "measurements=tdoa" in capsys.readouterr().out
     assert main(["estimate", "--format", "generic", str(run), "--out", str(out), "--estimator", "minmax"]) != 0
     assert "range differences (TDOA), read by the estimators `wsnloc estimators` marks [TDOA]" in capsys.readouterr().err
+
+
+def test_calibration_alone_calibrates_a_tdoa_run_on_a_tdoa_donor(tmp_path):
+    """--calibration DONOR with no --set on a run of range differences: the donor's offsets are
+    fitted on its differences and applied (the diagnosis advises it; it was refused, "calibrates
+    nothing", for a run without two-way ranges)."""
+    dirs = []
+    for seed, bias in ((5, 0.4), (6, 0.4)):
+        data = tdoa_run(seconds=30.0, seed=seed)
+        run = tmp_path / f"run-{seed}"
+        run.mkdir()
+        data.tables["anchors"].drop(columns="z").to_csv(run / "anchors.csv", index=False)
+        tdoa = data.tables["tdoa"].drop(columns="line")
+        tdoa.loc[tdoa["anchor_id"] == "A3", "tdoa_m"] += bias             # A3's arrival 0.4 m late
+        tdoa.to_csv(run / "tdoa.csv", index=False)
+        data.tables["truth"][["t", "x", "y"]].to_csv(run / "truth.csv", index=False)
+        dirs.append(run)
+    out = tmp_path / "out"
+    assert main(["estimate", "--format", "generic", str(dirs[0]), "--out", str(out), "--calibration", str(dirs[1])]) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    offsets = dict(item.split("=") for item in metrics["calibrated_offsets_m"].split(";"))
+    assert metrics["range_calibration"].startswith("fitted on") and float(offsets["A3"]) == pytest.approx(0.4, abs=0.05)
 
 
 def test_registry_lists_tdoa_among_the_filters_measurements(capsys):

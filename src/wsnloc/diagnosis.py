@@ -249,13 +249,20 @@ def findings(d: dict, p: dict) -> list[str]:
     after = (" (the ranges after the range calibration applied: what it leaves; a donor of another set-up, or "
              "errors that change along the path)" if calibrated else "")
     if np.isfinite(scale) and abs(scale - 1.0) > SCALE_TOLERANCE:
-        remedy = (f"the self-fit corrected it (scale {d['calibrated_scale']:.3f} applied)"
-                  if corrected.startswith("applied") and "calibrated_scale" in d
-                  else "try range_self_calibration=scale" + after if calibrated
-                  else "try " + ", or ".join(t for t in (_options(p, range_self_calibration="range_self_calibration=scale"),
-                                                          "--calibration DONOR_RUN") if t))
+        fitted_scale = d.get("calibrated_scale", np.nan) if corrected.startswith("applied") else np.nan
+        cause = "a common range scale error"
+        if abs(fitted_scale - scale) <= SCALE_TOLERANCE:
+            remedy = f"the self-fit corrected it (scale {fitted_scale:.3f} applied)"
+        elif np.isfinite(fitted_scale):     # the self-fit read the scale apart from the track's own error
+            cause = "more likely the track's own error (a wrong branch, a low ranging rate) than the ranges'"
+            remedy = f"the self-fit, which fits the scale with the track's error, found and applied {fitted_scale:.3f}"
+        elif calibrated:
+            remedy = "try range_self_calibration=scale" + after
+        else:
+            remedy = "try " + ", or ".join(t for t in (_options(p, range_self_calibration="range_self_calibration=scale"),
+                                                        "--calibration DONOR_RUN") if t)
         out.append(f"ranges look {abs(scale - 1.0):.0%} {'long' if scale > 1 else 'short'} against the track"
-                   f"{caveat}: a common range scale error; {remedy}")
+                   f"{caveat}: {cause}; {remedy}")
         caveat = " (the same caveat)" if caveat else ""
     biased = {k: v for k, v in (d.get("range_offsets_m") or {}).items() if abs(v) > OFFSET_TOLERANCE_M}
     if biased:

@@ -173,8 +173,8 @@ def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, 
         notes.append(f"the run has no RSS: {name} reads the ranges alone"
                      + (" (no RSS fix to mix in: the range fixes)" if mixes else ""))
     if calibration_dir is not None and "range_calibration" in p and "range_calibration" not in overrides \
-            and len(run_tables["ranges"]) and p.get("measurements", "toa") != "rss":
-        p = dict(p, range_calibration="other_run")       # the donor calibrates the ranges too
+            and (len(run_tables["ranges"]) or len(run_tables["tdoa"])) and p.get("measurements", "toa") != "rss":
+        p = dict(p, range_calibration="other_run")       # the donor calibrates the ranges (or differences) too
     rss_model, range_model = donor_models(fmt, calibration_dir, campaign, out / "calibration", name, p,
                                           reads_rss(name, p) and p.get("rss_calibration") != "configured", limits) \
         if calibration_dir else (None, None)

@@ -219,8 +219,16 @@ def diagnose(data: RunData, p: dict) -> str:
     tdoa = data.usable_tdoa()
     reads = "" if not len(tdoa) or p.get("measurements") == "tdoa" else \
         f"; the run has {len(tdoa)} range differences (TDOA), read by the estimators `wsnloc estimators` marks [TDOA]"
+    window = ""
+    if "window_s" in p and len(ranges) and p.get("measurements") != "tdoa":   # the sliding window starts on 4 ranges
+        t = np.sort(ranges["t"].to_numpy(float))
+        ends = data.grid(p["epoch_s"], p.get("preliminary_filter", True), p.get("max_range_m", np.inf))
+        most = int((np.searchsorted(t, ends, side="right") - np.searchsorted(t, ends - p["window_s"])).max())
+        if most < 4:
+            window = (f"; no window of window_s ({p['window_s']:g} s) holds the 4 ranges a start needs (at most {most}: "
+                      f"about {len(t) / max(t[-1] - t[0], 1e-9):.2g} ranges/s); raise window_s")
     return (f"{len(ranges)} usable ranges from {ranges['anchor_id'].nunique()} anchors and {len(rss)} RSS samples "
-            f"from {rss['anchor_id'].nunique()} anchors of subset {p.get('anchors', ALL_ANCHORS)!r}{reads}")
+            f"from {rss['anchor_id'].nunique()} anchors of subset {p.get('anchors', ALL_ANCHORS)!r}{reads}{window}")
 
 
 def run_cells(label: str, cells: list[dict], subsets: list[str], runs: dict[str, dict], campaign: Campaign | None,

@@ -11,7 +11,8 @@ the normal equations singular) whose per-anchor means give a multilateration fix
 there at rest. Coasting limit (core.CoastingDeleter): after `max_coast_s` seconds
 without a range, or with ranges of one anchor alone (core.Support: a distance, not a position),
 the solution is dropped (counted as a reset) and restarted by the initiator; a window that holds
-no measurement is solved (the prior carries the track) but not output, counted in attrs `withheld`
+no measurement is neither solved nor output (the next window starts from the last solution),
+counted in attrs `withheld`
 (an extrapolation: a reviewer's run with 20-100 s gaps had 57 such outputs, up to 97 m off);
 so is a window whose least squares do not converge (filters.least_squares.ConvergenceError)
 or whose prior, the previous window's covariance, is numerically singular (on real data with
@@ -101,6 +102,9 @@ def sliding_window(data: RunData, p: dict) -> pd.DataFrame:
             solver = SlidingWindowEstimator(window, p["knot_s"], p["accel_sigma_mps2"], p["loss"], p["f_scale"],
                                             p["prior_inflation"], guards)
             initial, support = np.array([fix[0], fix[1], 0.0, 0.0]), Support(t_k)
+        if b == a:                      # no measurement in the window: an extrapolation, not solved nor output
+            withheld += 1
+            continue
         try:
             if tdoa:
                 t, xy, h, value, differences = _differences(source, a, b)
@@ -114,9 +118,6 @@ def sliding_window(data: RunData, p: dict) -> pd.DataFrame:
                 or np.hypot(*(members - estimate.x[:2]).T).min() > p["max_range_m"]:   # drop the solution (a reset)
             guards.skipped += 1
             solver, resets = None, resets + 1
-            continue
-        if b == a:                      # no measurement in the window: an extrapolation, not output
-            withheld += 1
             continue
         P = estimate.P
         rows.append((t_k, estimate.x[0], estimate.x[1], P[0, 0], P[0, 1], P[1, 1], estimate.n_ranges, np.nan))

@@ -118,12 +118,14 @@ def run_generator(seed: int, data: RunData) -> np.random.Generator:
 
 
 def _measurement_crc(data: RunData) -> int:
-    """CRC-32 of the run's measurement tables (ranges, RSS, range differences: every column, in
-    order), through pandas' row hashes."""
+    """CRC-32 of the run's measurement tables (ranges, RSS, range differences: every column but
+    the raw file's line numbers, in the tables' time order), through pandas' row hashes: the
+    same rows shuffled in the file give the same stream."""
     crc = 0
     for name in ("ranges", "rss", "tdoa"):
         frame = data.table(name)
         if len(frame):
+            frame = frame.drop(columns=["line"], errors="ignore")
             crc = zlib.crc32(pd.util.hash_pandas_object(frame, index=False).to_numpy().tobytes(), crc)
     return crc
 
