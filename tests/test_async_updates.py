@@ -315,17 +315,23 @@ def test_particle_filter_restarts_from_a_fix_when_its_likelihood_collapses():
     """The first 1.5 s of ranges are 8 m too long (a bad first fix far from the target, with
     P0's 1 m spread around it). The collapse of the cloud's likelihood restarts it from a fresh
     fix (counted) within seconds; without the restart the cloud was still metres off 5-10 s in
-    (4.7, 7.1 and 4.8 m mean error on seeds 3-5, against 0.1 m)."""
+    (4.7, 7.1 and 4.8 m mean error on seeds 3-5, against 0.1 m). Over 8 streams (`seed` 0-7): in
+    one (measured 2026-12-07) the restarted cloud took the mirror image of the target across the
+    line of two anchors, which explains half of the ranges that come one anchor at a time, so a
+    majority of misses never came until the walk left it (10 s): at least 7 of 8 recover."""
     rng = np.random.default_rng(3)
     times, ids = one_at_a_time(60.0, 8.0, rng, SQUARE)
     tables = tables_for(times, ids, lambda t: walk(t, 1.0), SQUARE, noise_m=0.1, rng=rng)
     bad = tables["ranges"]["t"] < 1.5
     tables["ranges"].loc[bad, "range_m"] += 8.0
-    estimates = registry.run("pf", run_data(tables), {"init_window_s": 1.5})
-    scored = score(estimates, tables["truth"])
-    assert estimates.attrs["reinitialised"] >= 1 and estimates.attrs["resets"] >= 1
-    soon = scored[(scored["t"] > 5.0) & (scored["t"] <= 10.0)]
-    assert np.nanmean(soon["error_m"]) < 0.5
+    recovered = 0
+    for seed in range(8):
+        estimates = registry.run("pf", run_data(tables), {"init_window_s": 1.5, "seed": seed})
+        scored = score(estimates, tables["truth"])
+        assert estimates.attrs["reinitialised"] >= 1 and estimates.attrs["resets"] >= 1
+        soon = scored[(scored["t"] > 5.0) & (scored["t"] <= 10.0)]
+        recovered += np.nanmean(soon["error_m"]) < 0.5
+    assert recovered >= 7
 
 
 def test_particle_filter_collapse_needs_most_of_the_recent_updates_to_miss():
