@@ -363,7 +363,8 @@ def test_fix_window_stays_one_epoch_on_synchronous_rounds():
 
 def test_particle_filter_stream_follows_the_measurements_not_the_run_name(one_by_one):
     """The same measurements under two names (two folders), or in another row order in the file
-    (line numbers), give the same estimates; a run with one range changed draws another stream."""
+    (line numbers; rows of one time stamp swapped), give the same stream and estimates; a run with
+    one range changed draws another stream."""
     from synthetic import run_data as named
     a = registry.run("pf", named(one_by_one, name="alpha/run-01"), {"self_fit": "none"})
     b = registry.run("pf", named(one_by_one, name="beta/run-01"), {"self_fit": "none"})
@@ -376,6 +377,12 @@ def test_particle_filter_stream_follows_the_measurements_not_the_run_name(one_by
         range_m=one_by_one["ranges"]["range_m"] + np.r_[1e-3, np.zeros(len(one_by_one["ranges"]) - 1)]))
     draw = [bayes.run_generator(0, named(tables, name="alpha/run-01")).random(4) for tables in (one_by_one, changed)]
     assert not np.array_equal(*draw)
+    t_burst, id_burst = bursts(20.0, 0.5, SQUARE)                    # four ranges per time stamp
+    burst = tables_for(t_burst, id_burst, walk, SQUARE, noise_m=0.1, rng=np.random.default_rng(1))
+    swapped = dict(burst, ranges=burst["ranges"].sort_values(["t", "anchor_id"], ascending=[True, False]))
+    assert not burst["ranges"]["anchor_id"].equals(swapped["ranges"]["anchor_id"].reset_index(drop=True))
+    draw = [bayes.run_generator(0, named(tables)).random(4) for tables in (burst, swapped)]
+    np.testing.assert_array_equal(*draw)                         # rows of one time stamp in another order
 
 
 def test_no_estimate_from_the_sliding_window_names_the_window_too_short_for_a_start():

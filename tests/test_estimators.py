@@ -201,6 +201,21 @@ def test_one_anchor_alone_for_longer_than_the_coasting_limit_drops_the_track(nam
     assert "59-90 s (A3 alone)" in " ".join(findings(d, registry.get(name).resolve({})))
 
 
+def test_one_anchor_stretches_are_named_for_the_sliding_window_and_within_the_estimators_subset():
+    """The sliding window drops its solution on one anchor alone too, and the diagnosis says so;
+    RSS of another receiver during the stretch does not hide it from a tracker that reads ranges."""
+    from wsnloc.diagnosis import diagnose_run
+    tables = _one_anchor_stretch_run()
+    data = run_data(tables)
+    window = registry.get("sliding_window").resolve({})
+    assert [gap[2] for gap in diagnose_run(data, registry.run("sliding_window", data, window), window)["gaps"]] == ["A3"]
+    rss = pd.DataFrame({"t": np.arange(60.0, 90.0, 0.5), "seq": -1, "anchor_id": "A1", "rss_dbm": -60.0, "line": 1})
+    with_rss = run_data(dict(tables, rss=rss))
+    tracker = registry.get("tracker").resolve({})
+    estimates = registry.run("tracker", with_rss, tracker)
+    assert [gap[2] for gap in diagnose_run(with_rss, estimates, tracker)["gaps"]] == ["A3"]
+
+
 def test_support_is_the_last_use_of_an_anchor_other_than_the_latest():
     from wsnloc.estimators.core import Support
     support = Support(0.0)

@@ -6,15 +6,16 @@ Values (`diagnose_run`, all optional, NaN where the estimator or run has none):
   gated_share       measurements rejected by the innovation gate / offered (attrs)
   restarts          track dropped and restarted (attrs `resets`)
   gaps              the stretches longer than max_coast_s without measurements of two anchors (the
-                    usable ranges, RSS and range differences together): none at all, or one anchor
+                    usable measurements the estimator reads, of its subset): none at all, or one anchor
                     (TDOA: one pair) alone, which gives a distance, not a position; as (start, end,
                     the anchor heard alone or None) in s after the first measurement: where a
                     sequential track is dropped whatever the model (restarts; core.Support)
-  withheld          estimates not output because their position sigma passed max_position_sigma_m
-                    or they lie beyond max_range_m of every anchor (core.withhold_uncertain)
-  (withheld_share   of the output times: beyond WITHHELD_SHARE_LIMIT a finding says the scores cover the rest)
-                    (attrs `withheld`: a track coasting through a gap, core.withhold_uncertain), or,
-                    by the sliding window, because its window held no measurement
+  withheld          estimates not output because their position sigma passed max_position_sigma_m (a
+                    track coasting through a gap) or they lie beyond max_range_m of every anchor
+                    (attrs `withheld`, core.withhold_uncertain), or, by the sliding window, because
+                    its window held no measurement
+  withheld_share    withheld / the run's output times (its epoch grid); beyond WITHHELD_SHARE_LIMIT a
+                    finding says the scores cover the rest only
   widenings         the gate rejected most recent measurements and the covariance was widened
                     (attrs `gate_widenings`, filter_options.ConfiguredFilter.widen)
   refixes           restarts at once because a fix on the recent ranges explained them better
@@ -60,6 +61,7 @@ import pandas as pd
 
 from wsnloc.campaign import generic_site
 from wsnloc.estimators import range_calibration
+from wsnloc.estimators.measurements import KINDS
 from wsnloc.estimators.run_data import RunData
 from wsnloc.estimators.self_fit import FITTED_NOISE_KEYS, PROCESS_NOISE
 from wsnloc.metrics.consistency import chi2_band
@@ -139,9 +141,10 @@ def measurement_gaps(data: RunData, p: dict) -> list[tuple[float, float, str | N
     """(start, end, anchor) (s after the first usable measurement) of every stretch longer than
     max_coast_s without measurements of two anchors (module docstring, gaps), in time order:
     anchor None where none came at all (start, end: the measurements around it), else the one
-    anchor (or TDOA pair) heard alone (start, end: the last and next measurement of another);
-    [] for an estimator without a coasting limit. The sequential filters' deleter counts both as
-    coasting (core.Support)."""
+    anchor (or TDOA pair) heard alone (start, end: the last and next measurement of another, or
+    the run's last measurement); [] for an estimator without a coasting limit. The sequential
+    filters' and the sliding window's deleter counts both as coasting (core.Support). A stretch of
+    one anchor that holds a gap is listed as that gap only."""
     if "max_coast_s" not in p:
         return []
     t, ids = _timeline(data, p)
@@ -160,27 +163,45 @@ def measurement_gaps(data: RunData, p: dict) -> list[tuple[float, float, str | N
 
 
 def _timeline(data: RunData, p: dict) -> tuple[np.ndarray, np.ndarray]:
-    """(t, id) of the run's usable measurements in time order: ranges and RSS by anchor, range
-    differences by pair."""
-    ranges = data.usable_ranges(p.get("preliminary_filter", True), p.get("max_range_m", np.inf))
-    rss, tdoa = data.usable_rss(), data.usable_tdoa()
-    t = np.concatenate([frame["t"].to_numpy(float) for frame in (ranges, rss, tdoa)])
-    ids = np.concatenate([ranges["anchor_id"].astype(str).to_numpy(object), rss["anchor_id"].astype(str).to_numpy(object),
-                          (tdoa["anchor_id"].astype(str) + "/" + tdoa["ref_anchor_id"].astype(str)).to_numpy(object)])
+    """(t, id) in time order of the usable measurements the estimator reads (its `measurements`:
+    ranges, RSS or both by anchor, range differences by pair; all where it names none) of its
+    anchor subset: what its deleter's support (core.Support) sees."""
+    kinds = KINDS.get(p.get("measurements"), ("ranges", "rss", "tdoa"))
+    members = data.members(p.get("anchors", "all"))
+    frames = {"ranges": data.usable_ranges(p.get("preliminary_filter", True), p.get("max_range_m", np.inf)),
+              "rss": data.usable_rss(), "tdoa": data.usable_tdoa()}
+    t, ids = [], []
+    for kind in kinds:
+        frame = frames[kind]
+        inside = frame["anchor_id"].isin(members) & (frame["ref_anchor_id"].isin(members) if kind == "tdoa" else True)
+        frame = frame[inside]
+        t.append(frame["t"].to_numpy(float))
+        pair = "/" + frame["ref_anchor_id"].astype(str) if kind == "tdoa" else ""
+        ids.append((frame["anchor_id"].astype(str) + pair).to_numpy(object))
+    t, ids = np.concatenate(t), np.concatenate(ids)
     order = np.argsort(t, kind="stable")
     return t[order], ids[order]
+
+
+def _withheld_share(data: RunData, withheld: int, output: int, p: dict) -> float:
+    """withheld / the run's output times (the epoch grid), or / (withheld + output) for an
+    estimator without one."""
+    if "epoch_s" in p:
+        times = len(data.grid(p["epoch_s"], p.get("preliminary_filter", True), p.get("max_range_m", np.inf)))
+        return withheld / max(times, 1)
+    return withheld / max(withheld + output, 1)
 
 
 def diagnose_run(data: RunData, estimates: pd.DataFrame, p: dict) -> dict:
     """The diagnosis values of one run (module docstring)."""
     a = estimates.attrs
     gaps = measurement_gaps(data, p)
-    if a.get("update", p.get("update")) != "sequential":        # epoch updates coast on any update
-        gaps = [gap for gap in gaps if gap[2] is None]
+    if a.get("update", p.get("update")) != "sequential" and "window_s" not in p:    # epoch updates coast on
+        gaps = [gap for gap in gaps if gap[2] is None]                              # any update
     out = {"gated_share": float(a["gated_share"]) if "gated_share" in a else np.nan,
            "restarts": int(a.get("resets", 0)), "widenings": int(a.get("gate_widenings", 0)),
            "refixes": int(a.get("gate_refixes", 0)), "withheld": int(a.get("withheld", 0)),
-           "withheld_share": int(a.get("withheld", 0)) / max(int(a.get("withheld", 0)) + len(estimates), 1),
+           "withheld_share": _withheld_share(data, int(a.get("withheld", 0)), len(estimates), p),
            "gaps": gaps, **_nis(estimates, p), **range_fit(data, estimates, p)}
     if "range_scale" in a:
         out["self_scale"] = float(a["range_scale"])
@@ -259,8 +280,8 @@ def findings(d: dict, p: dict) -> list[str]:
         elif calibrated:
             remedy = "try range_self_calibration=scale" + after
         else:
-            remedy = "try " + ", or ".join(t for t in (_options(p, range_self_calibration="range_self_calibration=scale"),
-                                                        "--calibration DONOR_RUN") if t)
+            options = (_options(p, range_self_calibration="range_self_calibration=scale"), "--calibration DONOR_RUN")
+            remedy = "try " + ", or ".join(t for t in options if t)
         out.append(f"ranges look {abs(scale - 1.0):.0%} {'long' if scale > 1 else 'short'} against the track"
                    f"{caveat}: {cause}; {remedy}")
         caveat = " (the same caveat)" if caveat else ""
@@ -269,7 +290,8 @@ def findings(d: dict, p: dict) -> list[str]:
         listed = ", ".join(f"{k} {v:+.2f} m" for k, v in sorted(biased.items(), key=lambda kv: -abs(kv[1])))
         if corrected == "applied":
             applied = d.get("calibrated_offsets_m") or {}
-            listed_fit = ", ".join(f"{k} {v:+.2f} m" for k, v in sorted(applied.items(), key=lambda kv: -abs(kv[1]))[:4])
+            largest = sorted(applied.items(), key=lambda kv: -abs(kv[1]))[:4]
+            listed_fit = ", ".join(f"{k} {v:+.2f} m" for k, v in largest)
             remedy = ("the self-fit applied its own correction, fitted with the track's error and the outliers "
                       f"left out (calibrated_offsets_m: {listed_fit}); offsets beyond it here are what the track "
                       "and those outliers still carry (NLOS-long ranges, robust_loss=cauchy)"

@@ -38,6 +38,7 @@ from wsnloc.estimators import registry
 from wsnloc.estimators.range_calibration import model_key
 from wsnloc.estimators.run_data import ALL_ANCHORS, RunData
 from wsnloc.experiments import calibration
+from wsnloc.filters.sliding_window import STATE as SLIDING_WINDOW_STATE
 from wsnloc.metrics.tracking import RUN_METRICS, run_metrics, score
 
 EXPERIMENT_PREFIX = "study:"
@@ -220,13 +221,13 @@ def diagnose(data: RunData, p: dict) -> str:
     reads = "" if not len(tdoa) or p.get("measurements") == "tdoa" else \
         f"; the run has {len(tdoa)} range differences (TDOA), read by the estimators `wsnloc estimators` marks [TDOA]"
     window = ""
-    if "window_s" in p and len(ranges) and p.get("measurements") != "tdoa":   # the sliding window starts on 4 ranges
+    if "window_s" in p and len(ranges) > 1 and p.get("measurements") != "tdoa":   # the sliding window's start
         t = np.sort(ranges["t"].to_numpy(float))
         ends = data.grid(p["epoch_s"], p.get("preliminary_filter", True), p.get("max_range_m", np.inf))
         most = int((np.searchsorted(t, ends, side="right") - np.searchsorted(t, ends - p["window_s"])).max())
-        if most < 4:
-            window = (f"; no window of window_s ({p['window_s']:g} s) holds the 4 ranges a start needs (at most {most}: "
-                      f"about {len(t) / max(t[-1] - t[0], 1e-9):.2g} ranges/s); raise window_s")
+        if most < SLIDING_WINDOW_STATE:
+            window = (f"; no window of window_s ({p['window_s']:g} s) holds the {SLIDING_WINDOW_STATE} ranges a start "
+                      f"needs (at most {most}: about {len(t) / max(t[-1] - t[0], 1e-9):.2g} ranges/s); raise window_s")
     return (f"{len(ranges)} usable ranges from {ranges['anchor_id'].nunique()} anchors and {len(rss)} RSS samples "
             f"from {rss['anchor_id'].nunique()} anchors of subset {p.get('anchors', ALL_ANCHORS)!r}{reads}{window}")
 

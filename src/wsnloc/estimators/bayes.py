@@ -20,10 +20,12 @@ Initiator (core.WindowInitiator, `init_window_s`): the first time the measuremen
   starts there (speed and bias 0, P0). 0 (the default but for `tracker`): one period, doubled
   up to TRACKER_INIT_WINDOW_S where that holds too few anchors (ranges one anchor at a time).
 Deleter (core.CoastingDeleter, `max_coast_s`): after `max_coast_s` seconds without an update
-  (or when the innovation gate finds the track lost, estimators.filter_options) the track is
+  (sequential mode: from a second anchor, core.Support; one anchor alone gives a distance, not a
+  position), or when the innovation gate finds the track lost (estimators.filter_options), the track is
   dropped (counted as a reset) and restarted by the initiator; no estimate is output
   meanwhile, so a long gap shows as lower availability instead of unbounded drift. Before that,
-  an estimate whose position sigma passes `max_position_sigma_m` is not output
+  an estimate whose position sigma passes `max_position_sigma_m`, or that lies beyond `max_range_m`
+  of every anchor, is not output
   (core.withhold_uncertain; the smoothers' on their smoothed covariance), counted in attrs `withheld`.
 Motion detection (paper A): in epochs declared static by the accelerometer the predict
   step is skipped (state and covariance frozen).
@@ -119,14 +121,14 @@ def run_generator(seed: int, data: RunData) -> np.random.Generator:
 
 def _measurement_crc(data: RunData) -> int:
     """CRC-32 of the run's measurement tables (ranges, RSS, range differences: every column but
-    the raw file's line numbers, in the tables' time order), through pandas' row hashes: the
-    same rows shuffled in the file give the same stream."""
+    the raw file's line numbers), through pandas' row hashes, sorted: the same rows in any order
+    in the file give the same stream."""
     crc = 0
     for name in ("ranges", "rss", "tdoa"):
         frame = data.table(name)
         if len(frame):
-            frame = frame.drop(columns=["line"], errors="ignore")
-            crc = zlib.crc32(pd.util.hash_pandas_object(frame, index=False).to_numpy().tobytes(), crc)
+            rows = pd.util.hash_pandas_object(frame.drop(columns=["line"], errors="ignore"), index=False)
+            crc = zlib.crc32(np.sort(rows.to_numpy()).tobytes(), crc)      # sorted: rows of one time stamp in any order
     return crc
 
 
@@ -296,7 +298,7 @@ ARRAY_MIN_CELLS = 3
 def components(p: dict) -> tuple[WindowInitiator, CoastingDeleter]:
     """The initiator and the deleter of parameters p: init_window_s 0 starts from one period,
     widened up to the tracker's window where that holds no fix (WindowInitiator)."""
-    window = WindowInitiator(p["init_window_s"], 0.0) if p["init_window_s"] \
+    window = WindowInitiator(p["init_window_s"]) if p["init_window_s"] \
         else WindowInitiator(p["epoch_s"], TRACKER_INIT_WINDOW_S)
     return window, CoastingDeleter(p["max_coast_s"])
 

@@ -102,7 +102,8 @@ class Support:
     not the bearing, yet a filter linearised at a moving estimate reads bearing information into
     them and reports a covariance far too small (a walk ranged by one anchor for 30 s: errors up to
     8-18 m, 9-71 outputs beyond 3 position sigmas, tests/test_estimators.py); the deleter counts
-    such a stretch as coasting. A TDOA record's id is its pair (one pair: a hyperbola).
+    such a stretch as coasting. A TDOA record's id is its pair (one pair: a hyperbola). Sequential
+    mode only: epoch updates serve synchronous rounds, where every epoch holds every anchor heard.
     (Not the covariance: restarting a track whose sigma stays large while it takes measurements
     helped a UKF that diverged on a 2 Hz walk, but on range differences far from a small anchor
     cluster each restart started from a hyperbolic fix tens of metres off with the initial 2 m
@@ -236,18 +237,18 @@ class FilterBank:
 def withhold_uncertain(rows: np.ndarray, limit: float, anchor_xy: np.ndarray | None = None,
                        reach: float = np.inf) -> tuple[np.ndarray, int]:
     """(rows (COLUMNS first) without those whose position sigma sqrt(p_xx + p_yy) (m) exceeds
-    `limit` (0: no limit) or whose position lies further than `reach` (m, max_range_m) from every
-    anchor of `anchor_xy` (m, (n, 2)), how many were left out). A coasting track's prediction is an
+    `limit` or whose position lies further than `reach` (m, max_range_m) from every anchor of
+    `anchor_xy` (m, (n, 2); anchors without a position ignored), how many were left out); limit 0:
+    every row. A coasting track's prediction is an
     estimate in name only once its sigma passes the filter's steady state (MAX_POSITION_SIGMA_M);
     a position no anchor's range reaches contradicts the measurements themselves (a particle cloud
     on range differences far from a small anchor cluster settled 158-492 m out, the truth within
     49 m, at a sigma of 1.3-3.9 m). Their rows stay out of the output and of the metrics, and the
     availability shows the gap."""
-    if not len(rows):
+    if limit <= 0 or not len(rows):
         return rows, 0
-    keep = np.ones(len(rows), dtype=bool)
-    if limit > 0:
-        keep &= ~(np.sqrt(rows[:, COLUMNS.index("p_xx")] + rows[:, COLUMNS.index("p_yy")]) > limit)
+    keep = ~(np.sqrt(rows[:, COLUMNS.index("p_xx")] + rows[:, COLUMNS.index("p_yy")]) > limit)
+    anchor_xy = None if anchor_xy is None else anchor_xy[np.all(np.isfinite(anchor_xy), axis=1)]
     if anchor_xy is not None and len(anchor_xy) and np.isfinite(reach):
         nearest = np.min(np.hypot(rows[:, 1, None] - anchor_xy[None, :, 0], rows[:, 2, None] - anchor_xy[None, :, 1]),
                          axis=1)

@@ -103,11 +103,12 @@ FILTER = (
     Param("init_window_s", 0.0, "s", "initiator: multilateration on the last W seconds of measurements "
           f"(0: one period, widened up to {bayes.TRACKER_INIT_WINDOW_S:g} s where it holds too few anchors for a "
           "fix)", minimum=0.0),
-    Param("max_coast_s", 10.0, "s", "drop the track after this long without an update; restart by the initiator",
+    Param("max_coast_s", 10.0, "s", "drop the track after this long without an update (sequential: from a second "
+          "anchor; one anchor alone gives a distance, not a position); restart by the initiator",
           minimum=0.0),
     Param("max_position_sigma_m", core.MAX_POSITION_SIGMA_M, "m", "do not output an estimate whose position sigma "
-          "sqrt(p_xx + p_yy) exceeds this: a track coasting through a gap (counted in attrs `withheld`; 0: output "
-          "every estimate)", minimum=0.0),
+          "sqrt(p_xx + p_yy) exceeds this (a track coasting through a gap), nor one beyond max_range_m of every "
+          "anchor (counted in attrs `withheld`; 0: output every estimate)", minimum=0.0),
     Param("motion_detection", False, "", "paper A: skip the predict step in epochs the accelerometer finds static",
           bool),
     Param("motion_threshold_mps2", 0.05, "m/s^2", "motion detection: mean | |f| - g | below this is static",

@@ -59,6 +59,7 @@ MAX_RUN_S = 86400.0    # s: a run's stamps lie within a day of its median time (
 # finer unit (Unix milliseconds are ~1.7e12, microseconds ~1.7e15, nanoseconds ~1.7e18)
 MAX_SECONDS = 1e11
 FINER_UNITS = ((1e17, "nanoseconds", 1e9), (1e14, "microseconds", 1e6), (MAX_SECONDS, "milliseconds", 1e3))
+SECONDS_PER_YEAR = 3.15576e7   # s: a Julian year
 
 
 def run_campaign(run_dir: str | Path) -> Campaign | None:
@@ -142,10 +143,11 @@ class _Table:
         t = self.values["t"][self.ok & np.isfinite(self.values["t"])]
         centre = float(np.median(t)) if len(t) else 0.0
         for above, unit, per_second in FINER_UNITS:
-            if centre > above:
+            if abs(centre) > above:
                 raise IngestError(f"{self.path}: column t must be in seconds; its median {centre:.6g} looks like "
-                                  f"Unix {unit} (as seconds, year {1970 + centre / 3.15576e7:.0f}): divide t by "
-                                  f"{per_second:.0f} (and the other tables' t alike)")
+                                  f"Unix {unit} or a finer unit than seconds (as seconds, year "
+                                  f"{1970 + centre / SECONDS_PER_YEAR:.0f}): divide t by {per_second:.0f} (and the "
+                                  f"other tables' t alike)")
 
     def _far_times(self, text: pd.Series) -> None:
         """Refuse rows whose time stamp lies more than MAX_RUN_S from the median time of the table's
