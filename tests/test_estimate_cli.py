@@ -219,3 +219,14 @@ def test_estimate_says_which_ranges_the_preliminary_filter_left_out(tmp_path, ca
     assert main(["estimate", "--format", "generic", str(run), "--out", str(tmp_path / "out2"),
                  "--set", "max_range_m=200"]) == 0
     assert "preliminary filter" not in capsys.readouterr().out
+
+
+def test_preliminary_filter_reasons_partition_what_it_drops():
+    """Each dropped range under one reason (its first); the filter keeps exactly the others."""
+    from wsnloc.estimators.run_data import preliminary_filter, preliminary_filter_reasons
+    ranges = pd.DataFrame({"range_m": [5.0, -1.0, 0.0, 150.0, np.nan, 3.0, 200.0], "status": [0, 0, 0, 0, 0, 2, 1]})
+    reasons = preliminary_filter_reasons(ranges, 100.0)
+    assert {k: np.flatnonzero(v).tolist() for k, v in reasons.items()} == {
+        "with a device status other than 0": [5, 6], "not finite": [4], "not positive": [1, 2],
+        "longer than max_range_m": [3]}
+    assert preliminary_filter(ranges, 100.0)["range_m"].tolist() == [5.0]

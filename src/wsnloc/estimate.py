@@ -22,7 +22,7 @@ from wsnloc.errors import WsnlocError
 from wsnloc.diagnosis import diagnose_run, metrics_of as diagnosis_metrics, report as diagnosis_report
 from wsnloc.estimators import registry
 from wsnloc.estimators.auto import CHOICE_KEYS, dimensions_for, measurements_for, motion_for
-from wsnloc.estimators.run_data import RunData
+from wsnloc.estimators.run_data import RunData, preliminary_filter_reasons
 from wsnloc.experiments.calibration import calibrate_ranges, calibrate_tdoa, donor_model_for
 from wsnloc.io import tables
 from wsnloc.io.convert import QUARANTINE_FILE
@@ -123,20 +123,16 @@ def filtered_ranges_note(data: RunData, p: dict) -> str | None:
     """How many of the run's ranges to known anchors the preliminary filter leaves out
     (run_data.preliminary_filter: a device status other than 0, not positive, longer than
     max_range_m), by reason; None when none is or the estimator reads no ranges."""
-    if not p.get("preliminary_filter") or p.get("measurements", "toa") in ("rss", "tdoa") \
-            or p.get("fixes") in ("rss",):
+    if not p.get("preliminary_filter") or p.get("measurements", "toa") in ("rss", "tdoa") or p.get("fixes") == "rss":
         return None
     ranges = data.usable_ranges(False, np.inf)          # finite, to a known anchor
-    r, status = ranges["range_m"].to_numpy(float), ranges["status"].to_numpy()
-    reasons = {"with a device status other than 0": status != 0,
-               "not positive": (status == 0) & (r <= 0),
-               f"longer than max_range_m ({p['max_range_m']:g} m; raise it to keep them)":
-                   (status == 0) & (r > p["max_range_m"])}
-    counts = {reason: int(mask.sum()) for reason, mask in reasons.items() if mask.any()}
+    counts = {reason: int(rows.sum()) for reason, rows in preliminary_filter_reasons(ranges, p["max_range_m"]).items()
+              if rows.any()}
     if not counts:
         return None
-    return (f"the preliminary filter left out {sum(counts.values())} of {len(r)} ranges: "
-            + ", ".join(f"{n} {reason}" for reason, n in counts.items()))
+    detail = {"longer than max_range_m": f" ({p['max_range_m']:g} m; raise it to keep them)"}
+    return (f"the preliminary filter left out {sum(counts.values())} of {len(ranges)} ranges: "
+            + ", ".join(f"{n} {reason}{detail.get(reason, '')}" for reason, n in counts.items()))
 
 
 def estimate_run(fmt: str, run_dir: Path, campaign: Campaign | None, out: Path, name: str, overrides: dict,

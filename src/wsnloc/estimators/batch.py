@@ -10,10 +10,7 @@ Initiator: the first window with at least 4 ranges spread over at least one knot
 the normal equations singular) whose per-anchor means give a multilateration fix starts
 there at rest. Coasting limit (core.CoastingDeleter): after `max_coast_s` seconds
 without a range, or with ranges of one anchor alone (core.Support: a distance, not a position),
-the solution is dropped (counted as a reset) and restarted by the initiator; a window that holds
-no measurement is neither solved nor output (the next window starts from the last solution),
-counted in attrs `withheld`
-(an extrapolation: a reviewer's run with 20-100 s gaps had 57 such outputs, up to 97 m off);
+the solution is dropped (counted as a reset) and restarted by the initiator;
 so is a window whose least squares do not converge (filters.least_squares.ConvergenceError)
 or whose prior, the previous window's covariance, is numerically singular (on real data with
 poor geometry, e.g. range differences far from a small anchor cluster), or whose solution is
@@ -21,7 +18,9 @@ not finite or further than max_range_m from every anchor (no range could reach i
 differences from four anchors within 3 m, the target outside them, ran off along the
 hyperbolae' asymptotes to 1e7 m): such a window is counted in attrs `skipped`; covariances
 that are not positive definite where a factor is needed are regularised (filters.numerics,
-attrs `regularised`).
+attrs `regularised`). A window that holds no measurement is neither solved nor output (the next
+window starts from the last solution; an extrapolation: a reviewer's run with 20-100 s gaps had
+57 such outputs, up to 97 m off), counted in attrs `withheld`.
 Range differences (`measurements: tdoa`, estimators.tdoa.TdoaSource): each group of records
 sharing a time stamp is one factor block with its TdoaModel's correlated noise (whitened by
 its Cholesky factor), and the initiator's fix is the hyperbolic solver's.
@@ -32,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from wsnloc.estimators.core import COLUMNS, CoastingDeleter, Support, Track
+from wsnloc.estimators.core import COLUMNS, CoastingDeleter, Support, Track, beyond_reach
 from wsnloc.estimators.measurements import MeasurementSource
 from wsnloc.estimators.run_data import RunData
 from wsnloc.estimators.tdoa import TdoaSource
@@ -82,7 +81,7 @@ def sliding_window(data: RunData, p: dict) -> pd.DataFrame:
     times = data.grid(p["epoch_s"], p["preliminary_filter"], p["max_range_m"])
     window = p["window_s"]
     deleter = CoastingDeleter(p["max_coast_s"])
-    members = data.positions(sorted(data.members(p["anchors"])))
+    members = data.subset_positions(p["anchors"])
     rows, resets, solver, support, seen, withheld, guards = [], 0, None, None, 0, 0, Guards()
     for t_k in times:
         a = int(np.searchsorted(records.t, t_k - window, side="left"))
@@ -115,7 +114,7 @@ def sliding_window(data: RunData, p: dict) -> pd.DataFrame:
         except (ConvergenceError, np.linalg.LinAlgError):   # a window the solver cannot settle, or whose
             estimate = None         # previous solution's covariance is numerically singular
         if estimate is None or not usable(estimate.x, estimate.P) \
-                or np.hypot(*(members - estimate.x[:2]).T).min() > p["max_range_m"]:   # drop the solution (a reset)
+                or beyond_reach(estimate.x[None, :2], members, p["max_range_m"])[0]:   # drop the solution (a reset)
             guards.skipped += 1
             solver, resets = None, resets + 1
             continue

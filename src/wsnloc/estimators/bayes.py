@@ -277,13 +277,9 @@ def _plain_smoother(data: RunData, p: dict) -> pd.DataFrame:
         rows[:, 1:3], rows[:, 3:6] = xs[:, :2], Ps[:, [0, 0, 1], [0, 1, 1]]
         if track.columns == COLUMNS_3D:
             rows[:, -2], rows[:, -1] = xs[:, 2], Ps[:, 2, 2]
-    rows, withheld = withhold_uncertain(rows, p["max_position_sigma_m"], _subset_xy(data, p), p["max_range_m"])
+    rows, withheld = withhold_uncertain(rows, p["max_position_sigma_m"], data.subset_positions(p["anchors"]),
+                                        p["max_range_m"])
     return Track(rows, dict(track.attrs, withheld=withheld)).frame()
-
-
-def _subset_xy(data: RunData, p: dict) -> np.ndarray:
-    """(n, 2) positions (m) of the anchors of the estimator's subset."""
-    return data.positions(sorted(data.members(p["anchors"])))
 
 
 # s: the tracker's initiator window, and the widest the other filters' (one period) is widened to:
@@ -342,7 +338,7 @@ def run_filters(cells: list[tuple[RunData, dict]], forward: ForwardPass | None =
         runs = [run_inputs(data, q, motion) for data, q in (cells[i] for i in members)]
         counts = [UpdateCounts() for _ in members]
         guards = [Guards() for _ in members]
-        bounds = [site_bounds(_subset_xy(data, q), q) for data, q in (cells[i] for i in members)]
+        bounds = [site_bounds(data.subset_positions(q["anchors"]), q) for data, q in (cells[i] for i in members)]
         makes = [configured_factory(FILTERS[q["filter"]](q, data, g), q, c, data.campaign, bounds=b)
                  for (data, q), c, g, b in zip((cells[i] for i in members), counts, guards, bounds)]
         if key[0] == "sequential":
@@ -355,7 +351,8 @@ def run_filters(cells: list[tuple[RunData, dict]], forward: ForwardPass | None =
         for i, run, c, g, (rows, resets) in zip(members, runs, counts, guards, out):
             cell, q = cells[i]
             rows, withheld = (rows, 0) if forward is not None \
-                else withhold_uncertain(rows, q["max_position_sigma_m"], _subset_xy(cell, q), q["max_range_m"])
+                else withhold_uncertain(rows, q["max_position_sigma_m"], cell.subset_positions(q["anchors"]),
+                                        q["max_range_m"])
             # (the smoothers withhold on the smoothed covariance: _plain_smoother)
             tracks[i] = Track(rows, {"resets": resets, "withheld": withheld, "update": q["update"],
                                      **c.attrs(), **g.attrs(), **run.source.correction.describe()})

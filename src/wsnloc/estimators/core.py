@@ -239,21 +239,27 @@ def withhold_uncertain(rows: np.ndarray, limit: float, anchor_xy: np.ndarray | N
     """(rows (COLUMNS first) without those whose position sigma sqrt(p_xx + p_yy) (m) exceeds
     `limit` or whose position lies further than `reach` (m, max_range_m) from every anchor of
     `anchor_xy` (m, (n, 2); anchors without a position ignored), how many were left out); limit 0:
-    every row. A coasting track's prediction is an
-    estimate in name only once its sigma passes the filter's steady state (MAX_POSITION_SIGMA_M);
-    a position no anchor's range reaches contradicts the measurements themselves (a particle cloud
-    on range differences far from a small anchor cluster settled 158-492 m out, the truth within
-    49 m, at a sigma of 1.3-3.9 m). Their rows stay out of the output and of the metrics, and the
-    availability shows the gap."""
+    every row. A coasting track's prediction is an estimate in name only once its sigma passes the
+    filter's steady state (MAX_POSITION_SIGMA_M); a position no anchor's range reaches contradicts
+    the measurements themselves (beyond_reach: a particle cloud on range differences far from a
+    small anchor cluster settled 158-492 m out, the truth within 49 m, at a sigma of 1.3-3.9 m).
+    Their rows stay out of the output and of the metrics, and the availability shows the gap."""
     if limit <= 0 or not len(rows):
         return rows, 0
     keep = ~(np.sqrt(rows[:, COLUMNS.index("p_xx")] + rows[:, COLUMNS.index("p_yy")]) > limit)
-    anchor_xy = None if anchor_xy is None else anchor_xy[np.all(np.isfinite(anchor_xy), axis=1)]
-    if anchor_xy is not None and len(anchor_xy) and np.isfinite(reach):
-        nearest = np.min(np.hypot(rows[:, 1, None] - anchor_xy[None, :, 0], rows[:, 2, None] - anchor_xy[None, :, 1]),
-                         axis=1)
-        keep &= ~(nearest > reach)
+    if anchor_xy is not None:
+        keep &= ~beyond_reach(rows[:, 1:3], anchor_xy, reach)
     return (rows, 0) if keep.all() else (rows[keep], int((~keep).sum()))
+
+
+def beyond_reach(xy: np.ndarray, anchor_xy: np.ndarray, reach: float) -> np.ndarray:
+    """Per position of xy ((n, 2), m): whether it lies further than `reach` (m, max_range_m) from
+    every anchor of anchor_xy ((k, 2), m; anchors without a position ignored), where no range could
+    come from; all False without an anchor or with an infinite reach."""
+    anchor_xy = anchor_xy[np.all(np.isfinite(anchor_xy), axis=1)]
+    if not len(anchor_xy) or not np.isfinite(reach):
+        return np.zeros(len(xy), dtype=bool)
+    return np.hypot(xy[:, None, 0] - anchor_xy[None, :, 0], xy[:, None, 1] - anchor_xy[None, :, 1]).min(axis=1) > reach
 
 
 def _position(x: np.ndarray, P: np.ndarray, axes: int = 2) -> tuple:

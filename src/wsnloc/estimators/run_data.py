@@ -26,9 +26,15 @@ ALL_ANCHORS = "all"
 def preliminary_filter(ranges: pd.DataFrame, max_range_m: float) -> pd.DataFrame:
     """Paper D's preliminary filter: drop records with a non-zero device status and
     physically impossible values (not finite, <= 0, or longer than max_range_m)."""
-    r = ranges["range_m"]
-    keep = (ranges["status"] == 0) & np.isfinite(r) & (r > 0) & (r <= max_range_m)
-    return ranges[keep]
+    return ranges[~np.any(list(preliminary_filter_reasons(ranges, max_range_m).values()), axis=0)]
+
+
+def preliminary_filter_reasons(ranges: pd.DataFrame, max_range_m: float) -> dict[str, np.ndarray]:
+    """Per reason, the rows (bool) the preliminary filter drops; each row under its first reason."""
+    r, valid = ranges["range_m"].to_numpy(float), ranges["status"].to_numpy() == 0
+    finite = valid & np.isfinite(r)
+    return {"with a device status other than 0": ~valid, "not finite": valid & ~np.isfinite(r),
+            "not positive": finite & (r <= 0), "longer than max_range_m": finite & (r > max_range_m)}
 
 
 @dataclass
@@ -87,6 +93,10 @@ class RunData:
     def three_d(self) -> bool:
         """Whether some anchor is not at the tag height (3-D ranges; read per measurement group)."""
         return self._three_d
+
+    def subset_positions(self, expression: str) -> np.ndarray:
+        """(n, 2) positions (m) of the anchors of a subset expression (members), in id order."""
+        return self.positions(sorted(self.members(expression)))
 
     def members(self, expression: str) -> set[str]:
         """Anchor ids of a subset expression: 'all', or campaign subset names joined by '+'
